@@ -1,0 +1,83 @@
+"""Validation helpers shared by every config dataclass.
+
+Each config group's schema is a dataclass declared next to the code that uses it
+(``gmtiflow.scene.roadmap.RoadmapConfig`` ...) and composed into ``gmtiflow.config.AppConfig``.
+Hydra/OmegaConf already reject unknown keys, wrong types and missing values at compose time.
+Ranges and cross-field rules are declared by a method ``problems(self) -> list[Problem]`` on the
+dataclass; :func:`gmtiflow.config.validate` walks the tree and raises one
+:class:`~gmtiflow.errors.ConfigError` naming the full key path (``sensor.az_min_deg``), the value
+and the allowed range.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, List, Optional
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One invalid config value: ``key`` relative to the dataclass, and what was expected."""
+
+    key: str
+    message: str
+
+
+def positive(obj: Any, *names: str) -> List[Problem]:
+    """Problems for fields of ``obj`` that are not finite and > 0."""
+    out = []
+    for name in names:
+        value = getattr(obj, name)
+        if value is None:
+            continue
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            out.append(Problem(name, f"must be a finite number > 0, got {value!r}"))
+    return out
+
+
+def non_negative(obj: Any, *names: str) -> List[Problem]:
+    """Problems for fields of ``obj`` that are not finite and >= 0."""
+    out = []
+    for name in names:
+        value = getattr(obj, name)
+        if value is None:
+            continue
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            out.append(Problem(name, f"must be a finite number >= 0, got {value!r}"))
+    return out
+
+
+def in_range(obj: Any, name: str, lo: float, hi: float, *, lo_open: bool = False,
+             hi_open: bool = False) -> List[Problem]:
+    """Problems if field ``name`` of ``obj`` is outside [lo, hi] (ends open as asked)."""
+    value = getattr(obj, name)
+    if value is None:
+        return []
+    ok = isinstance(value, (int, float)) and math.isfinite(value)
+    ok = ok and (value > lo if lo_open else value >= lo) and (value < hi if hi_open else value <= hi)
+    if ok:
+        return []
+    left = "(" if lo_open else "["
+    right = ")" if hi_open else "]"
+    return [Problem(name, f"must be in {left}{lo}, {hi}{right}, got {value!r}")]
+
+
+def ordered(obj: Any, low: str, high: str, *, strict: bool = True) -> List[Problem]:
+    """Problems if ``obj.low`` is not below (or, not strict, not at most) ``obj.high``."""
+    a, b = getattr(obj, low), getattr(obj, high)
+    if a is None or b is None:
+        return []
+    if (a < b) if strict else (a <= b):
+        return []
+    rel = "<" if strict else "<="
+    return [Problem(low, f"must be {rel} {high} ({b!r}), got {a!r}")]
+
+
+def prefixed(prefix: str, problems: List[Problem]) -> List[Problem]:
+    """Problems of a nested object, re-keyed under ``prefix``."""
+    return [Problem(f"{prefix}.{p.key}", p.message) for p in problems]
+
+
+def optional_path(value: Optional[str]) -> Optional[str]:
+    """Normalise an optional path value ('' and None both mean unset)."""
+    return value or None
