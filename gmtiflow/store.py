@@ -1,0 +1,174 @@
+"""The run file: one HDF5 file per run (DESIGN §6, docs/tables.md).
+
+Layout: one group per table (``/truth``, ``/platform``, ``/roads/nodes`` ...), one 1-D dataset
+per column, chunked and gzip-compressed, with ``units`` (from the column-name suffix) and
+``description`` attributes; ``/config`` holds the resolved YAML.  Root attributes:
+``layout_version``, ``seed``, ``gmtiflow_version`` and ``complete``.
+
+A run file is written under a temporary name in the same directory and renamed into place only
+when :meth:`RunWriter.commit` is called, after ``complete`` is set, so a crash, a kill or an error
+never leaves a file that reads as a complete run.  HDF5 object timestamps are off so that the
+same config and seed give byte-identical datasets.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Dict, Mapping, Optional
+
+import h5py
+import numpy as np
+
+from gmtiflow import __version__
+from gmtiflow.errors import StoreError
+from gmtiflow.tables import Table, n_rows, unit_of
+
+LAYOUT_VERSION = 1
+"""Bumped whenever a table, column or attribute changes meaning."""
+
+_CHUNK_ROWS = 65536
+_STR = h5py.string_dtype("utf-8")
+
+
+def _as_storable(col: np.ndarray) -> np.ndarray:
+    col = np.asarray(col)
+    if col.dtype.kind in "UO":
+        return np.asarray([str(v) for v in col], dtype=object)
+    return col
+
+
+class RunWriter:
+    """Writes a run file atomically: ``with RunWriter(path) as w: ...; w.commit()``.
+
+    Leaving the ``with`` block without :meth:`commit` (an exception, an early return) deletes the
+    temporary file; nothing appears at ``path``.
+    """
+
+    def __init__(self, path: os.PathLike, *, seed: int, attrs: Optional[Mapping] = None):
+        self.path = Path(path)
+        self.tmp_path = self.path.with_name(f".{self.path.name}.{os.getpid()}.partial")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = h5py.File(self.tmp_path, "w", track_order=True)
+        root = self._file.attrs
+        root["layout_version"] = LAYOUT_VERSION
+        root["seed"] = int(seed)
+        root["gmtiflow_version"] = __version__
+        root["complete"] = False
+        for key, value in (attrs or {}).items():
+            root[key] = value
+        self._committed = False
+
+    def __enter__(self) -> "RunWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if not self._committed:
+            self.abort()
+
+    def write_text(self, name: str, text: str) -> None:
+        """A scalar UTF-8 string dataset (e.g. ``/config``)."""
+        self._file.create_dataset(name, data=text, dtype=_STR, track_times=False)
+
+    def write_table(self, name: str, table: Mapping[str, np.ndarray],
+                    descriptions: Optional[Dict[str, str]] = None) -> None:
+        """Create group ``name`` with one resizable dataset per column."""
+        n_rows(table)
+        group = self._file.require_group(name)
+        for column, values in table.items():
+            data = _as_storable(values)
+            kwargs = dict(maxshape=(None,), chunks=(_CHUNK_ROWS,) if len(data) else True,
+                          track_times=False)
+            if data.dtype.kind != "O":
+                kwargs.update(compression="gzip", compression_opts=1, shuffle=True)
+            if len(data) and len(data) < _CHUNK_ROWS:
+                kwargs["chunks"] = (len(data),)
+            ds = group.create_dataset(column, data=data,
+                                      dtype=_STR if data.dtype.kind == "O" else data.dtype,
+                                      **kwargs)
+            ds.attrs["units"] = unit_of(column)
+            if descriptions and column in descriptions:
+                ds.attrs["description"] = descriptions[column]
+
+    def append_table(self, name: str, table: Mapping[str, np.ndarray]) -> None:
+        """Append rows to an existing table (for time-chunked streaming), or create it."""
+        if name not in self._file:
+            self.write_table(name, table)
+            return
+        group = self._file[name]
+        if set(group.keys()) != set(table.keys()):
+            raise ValueError(f"append to /{name}: columns {sorted(table)} differ from "
+                             f"{sorted(group.keys())}")
+        rows = n_rows(table)
+        for column, values in table.items():
+            ds = group[column]
+            old = ds.shape[0]
+            ds.resize((old + rows,))
+            ds[old:] = _as_storable(values)
+
+    def commit(self) -> Path:
+        """Mark the file complete, close it and rename it into place."""
+        self._file.attrs["complete"] = True
+        self._file.close()
+        os.replace(self.tmp_path, self.path)
+        self._committed = True
+        return self.path
+
+    def abort(self) -> None:
+        """Close and delete the temporary file."""
+        try:
+            self._file.close()
+        finally:
+            self.tmp_path.unlink(missing_ok=True)
+
+
+def open_run(path: os.PathLike) -> h5py.File:
+    """Open a complete run file of this layout version for reading, or raise StoreError."""
+    path = Path(path)
+    if not path.is_file():
+        raise StoreError(f"{path}: no such run file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise StoreError(f"{path}: not a readable HDF5 file ({exc})") from None
+    version = f.attrs.get("layout_version")
+    if version != LAYOUT_VERSION:
+        f.close()
+        raise StoreError(f"{path}: layout_version {version}, this gmtiflow reads "
+                         f"{LAYOUT_VERSION}")
+    if not bool(f.attrs.get("complete", False)):
+        f.close()
+        raise StoreError(f"{path}: the run is incomplete (it was interrupted while writing)")
+    return f
+
+
+def read_table(source, name: str) -> Table:
+    """Read table ``name`` from an open run file or a path."""
+    if isinstance(source, h5py.File):
+        return _read_group(source, name)
+    with open_run(source) as f:
+        return _read_group(f, name)
+
+
+def _read_group(f: h5py.File, name: str) -> Table:
+    if name not in f or not isinstance(f[name], h5py.Group):
+        raise StoreError(f"{f.filename}: has no table /{name}")
+    out = {}
+    for column, ds in f[name].items():
+        if not isinstance(ds, h5py.Dataset):
+            continue
+        data = ds[()]
+        if h5py.check_string_dtype(ds.dtype) is not None:
+            data = np.asarray([v.decode("utf-8") if isinstance(v, bytes) else v for v in data],
+                              dtype=str)
+        out[column] = data
+    return out
+
+
+def read_text(source, name: str) -> str:
+    """Read a scalar string dataset such as ``/config``."""
+    if isinstance(source, h5py.File):
+        value = source[name][()]
+    else:
+        with open_run(source) as f:
+            value = f[name][()]
+    return value.decode("utf-8") if isinstance(value, bytes) else str(value)

@@ -1,0 +1,118 @@
+"""Platform orbit: coordinated turns against paper eq. 3-5 (DESIGN §4)."""
+import math
+
+import numpy as np
+import pytest
+
+from gmtiflow.errors import ConfigError
+from gmtiflow.frames import Origin
+from gmtiflow.scene.platform import G_MPS2, Platform, PlatformConfig, bank_angle_rad
+
+ORIGIN = Origin(50.63, 7.13, 150.0)
+
+
+def square(speed=150.0, lead=20.0, side=20000.0, alt=6000.0):
+    return PlatformConfig(waypoints_m=[[0, 0, alt], [side, 0, alt], [side, -side, alt],
+                                       [0, -side, alt]], speed_mps=speed, turn_lead_s=lead)
+
+
+def sample(platform, n=40001):
+    period = platform.orbit.total_m / platform.cfg.speed_mps
+    return platform.state_at(np.linspace(0.0, period, n)), period
+
+
+def test_bank_matches_corrected_eq5_and_eq3():
+    cfg = square(speed=150.0, lead=20.0)
+    p = Platform(cfg, ORIGIN)
+    # All corners of this square are 90° right turns.
+    expected = math.atan(150.0 * math.tan(math.pi / 4) / (20.0 * G_MPS2))
+    turns = p.orbit.turn_sign != 0
+    assert np.allclose(p.orbit.bank_rad[turns], expected, rtol=1e-12)
+    # eq. 3 with the radius of eq. 4: r = s / tan(α/2), s = v t.
+    r = 150.0 * 20.0 / math.tan(math.pi / 4)
+    assert np.allclose(p.orbit.radius_m[turns], r)
+    assert math.isclose(expected, math.atan(150.0 ** 2 / (r * G_MPS2)), rel_tol=1e-12)
+    assert math.isclose(float(bank_angle_rad(150.0, math.pi / 2, 20.0)), expected, rel_tol=1e-12)
+
+
+def test_right_turns_bank_right_and_left_turns_left():
+    right = Platform(square(), ORIGIN)   # clockwise square: right turns
+    assert np.all(right.orbit.bank_rad[right.orbit.turn_sign != 0] > 0)
+    left = Platform(PlatformConfig(waypoints_m=list(reversed(square().waypoints_m))), ORIGIN)
+    assert np.all(left.orbit.bank_rad[left.orbit.turn_sign != 0] < 0)
+
+
+def test_zero_bank_on_straight_legs_and_bank_in_turns():
+    p = Platform(square(), ORIGIN)
+    state, _ = sample(p)
+    # Heading is constant exactly where the bank is zero.
+    straight = state["bank_rad"] == 0.0
+    dh = np.abs(np.diff(np.unwrap(state["heading_rad"])))
+    assert np.all(dh[straight[:-1] & straight[1:]] < 1e-9)
+    assert np.any(~straight)
+    # Turn rate in the arcs is g tan(φ) / v (coordinated turn).
+    t = np.linspace(0, 1, 2)
+    k = np.flatnonzero(p.orbit.turn_sign != 0)[0]
+    t_mid = (p.orbit.start_s_m[k] + p.orbit.length_m[k] / 2) / p.cfg.speed_mps
+    s = p.state_at(t_mid + t)
+    rate = float(np.diff(np.unwrap(s["heading_rad"]))[0])
+    assert math.isclose(rate, G_MPS2 * math.tan(s["bank_rad"][0]) / p.cfg.speed_mps, rel_tol=1e-9)
+
+
+def test_constant_speed_and_the_loop_closes():
+    p = Platform(square(), ORIGIN)
+    state, period = sample(p)
+    dt = period / (len(state["time_s"]) - 1)
+    ground = np.hypot(np.diff(state["x_m"]), np.diff(state["y_m"])) / dt
+    assert np.allclose(ground, 150.0, rtol=1e-6)
+    for key in ("x_m", "y_m", "z_m", "heading_rad"):
+        assert abs(state[key][0] - state[key][-1]) < 1e-6
+    assert np.allclose(np.hypot(state["vx_mps"], state["vy_mps"]), 150.0)
+
+
+def test_altitude_follows_waypoints_and_vertical_speed_is_its_slope():
+    cfg = square()
+    cfg.waypoints_m[2][2] = 8000.0
+    p = Platform(cfg, ORIGIN)
+    state, period = sample(p)
+    assert state["z_m"].min() == pytest.approx(6000.0)
+    assert state["z_m"].max() == pytest.approx(8000.0, abs=0.5)
+    dz = np.gradient(state["z_m"], state["time_s"])
+    # Central differences disagree with the slope only at the few samples beside a knot.
+    agree = np.isclose(dz, state["vz_mps"], atol=1e-6)
+    assert np.count_nonzero(~agree) <= 8
+    assert np.ptp(state["vz_mps"]) > 0.1
+    assert np.allclose(state["pitch_rad"], np.arctan2(state["vz_mps"], 150.0))
+
+
+def test_geodetic_columns_round_trip_through_enu():
+    from gmtiflow.frames import geodetic_to_enu
+    p = Platform(square(), ORIGIN)
+    s = p.state_at(np.array([0.0, 100.0, 500.0]))
+    x, y, z = geodetic_to_enu(ORIGIN, s["lat_deg"], s["lon_deg"], s["height_m"])
+    assert np.allclose([x, y, z], [s["x_m"], s["y_m"], s["z_m"]], atol=1e-6)
+
+
+def test_sharp_corner_banks_towards_90_degrees_without_nan():
+    # A near-reversal corner: α -> 180°, r -> 0, φ -> 90°.
+    cfg = PlatformConfig(waypoints_m=[[0, 0, 5000], [20000, 0, 5000], [0, 100, 5000]],
+                         speed_mps=200.0, turn_lead_s=0.2)
+    p = Platform(cfg, ORIGIN)
+    assert np.all(np.isfinite(p.orbit.bank_rad))
+    assert np.max(np.abs(p.orbit.bank_rad)) > math.radians(89.9)
+    state, _ = sample(p, 2001)
+    assert all(np.all(np.isfinite(v)) for v in state.values())
+
+
+@pytest.mark.parametrize("change, key", [
+    (dict(speed_mps=-1.0), "speed_mps"),
+    (dict(waypoints_m=[[0, 0, 1000]]), "waypoints_m"),
+    (dict(waypoints_m=[[0, 0, 1000], [0, 0, 2000]]), "waypoints_m"),
+    (dict(turn_lead_s=1000.0), "turn_lead_s"),
+])
+def test_bad_platform_config_names_the_key(change, key):
+    cfg = square()
+    for k, v in change.items():
+        setattr(cfg, k, v)
+    with pytest.raises(ConfigError, match=f"platform.{key}"):
+        Platform(cfg, ORIGIN)
