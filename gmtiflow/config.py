@@ -1,0 +1,148 @@
+"""The application config: one dataclass tree registered with Hydra's ConfigStore.
+
+Each group's schema is declared next to the code that uses it and typed here, at the top level
+(``roadmap: RoadmapConfig``), so that group YAML files need no ``defaults:`` list and
+``group=glob(*)`` sweeps see only real options (``../shared/reference/hydra.md`` §3).
+Hydra/OmegaConf reject unknown keys, wrong types and unknown options at compose time;
+:func:`to_object` then converts to dataclasses and :func:`validate` runs every ``problems()``
+check, raising one :class:`~gmtiflow.errors.ConfigError` that names each full key path.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from datetime import datetime
+from enum import Enum
+from typing import List
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from gmtiflow.errors import ConfigError
+from gmtiflow.scene.platform import PlatformConfig
+from gmtiflow.scene.roadmap import RoadmapConfig
+from gmtiflow.scene.vehicles import VehiclesConfig
+from gmtiflow.schema import Problem, positive
+
+
+@dataclass
+class SceneConfig:
+    """What the whole scene shares: its length and the UTC instant of ``time_s = 0``."""
+
+    duration_s: float = 300.0
+    epoch_utc: str = "2026-06-01T08:00:00Z"
+
+    def problems(self) -> List[Problem]:
+        out = positive(self, "duration_s")
+        try:
+            parsed = datetime.fromisoformat(self.epoch_utc.replace("Z", "+00:00"))
+        except ValueError:
+            return out + [Problem("epoch_utc", f"must be an ISO-8601 UTC instant such as "
+                                               f"2026-06-01T08:00:00Z, got {self.epoch_utc!r}")]
+        if parsed.utcoffset() is None:
+            out.append(Problem("epoch_utc", f"must carry a time zone (Z for UTC), got "
+                                            f"{self.epoch_utc!r}"))
+        return out
+
+
+class DwellMode(str, Enum):
+    """How a scan is evaluated (DESIGN §5, §7)."""
+
+    dwell_resolved = "dwell_resolved"   # every dwell at its own time and beam centre
+    instant_scan = "instant_scan"       # whole scan at one instant, beam on each target
+
+
+@dataclass
+class FidelityConfig:
+    """What a scene models and how finely: the speed/accuracy trade (DESIGN §7)."""
+
+    name: str = "standard"
+    time_step_s: float = 0.5
+    """Step of the vehicle speed profiles (motion integration)."""
+    truth_output_dt_s: float = 1.0
+    """Sampling interval of the /truth table written to the run file."""
+    dwell_mode: DwellMode = DwellMode.dwell_resolved
+    terrain_step_m: float = 30.0
+    """Ray-marching step of terrain line-of-sight checks (unused on flat terrain)."""
+    merge_iterate: bool = False
+    """Merge until no pair is left (dense scenes) rather than one pass (paper §5.3)."""
+
+    def problems(self) -> List[Problem]:
+        out = positive(self, "time_step_s", "truth_output_dt_s", "terrain_step_m")
+        if not out and self.time_step_s > 10.0:
+            out.append(Problem("time_step_s", f"must be at most 10 s, got {self.time_step_s}"))
+        return out
+
+
+@dataclass
+class AppConfig:
+    """The whole run.  Groups are chosen in ``conf/config.yaml`` and on the command line."""
+
+    seed: int = 1
+    progress: bool = True
+    """Show tqdm progress bars on long stages (only on a terminal)."""
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    roadmap: RoadmapConfig = MISSING
+    vehicles: VehiclesConfig = MISSING
+    platform: PlatformConfig = MISSING
+    fidelity: FidelityConfig = MISSING
+
+    def problems(self) -> List[Problem]:
+        if not (0 <= self.seed < 2 ** 63):
+            return [Problem("seed", f"must be in [0, 2^63), got {self.seed}")]
+        return []
+
+
+def register() -> None:
+    """Register the schema as ``base_config`` (the first entry of config.yaml's defaults)."""
+    ConfigStore.instance().store(name="base_config", node=AppConfig)
+
+
+register()
+
+
+def to_object(cfg: DictConfig) -> AppConfig:
+    """Convert a composed config into validated dataclasses, or raise ConfigError."""
+    missing = sorted(OmegaConf.missing_keys(cfg))
+    if missing:
+        raise ConfigError("missing config value(s): " + ", ".join(missing)
+                          + " (set them on the command line, e.g. key=value)")
+    try:
+        obj = OmegaConf.to_object(cfg)
+    except OmegaConfBaseException as exc:
+        raise ConfigError(f"invalid config: {exc}") from None
+    validate(obj)
+    return obj
+
+
+def problems_of(obj, prefix: str = "") -> List[Problem]:
+    """All problems of a dataclass tree, with full key paths."""
+    out: List[Problem] = []
+    if dataclasses.is_dataclass(obj):
+        check = getattr(obj, "problems", None)
+        if callable(check):
+            out += [Problem(f"{prefix}{p.key}", p.message) for p in check()]
+        for f in dataclasses.fields(obj):
+            out += problems_of(getattr(obj, f.name), f"{prefix}{f.name}.")
+    elif isinstance(obj, (list, tuple)):
+        for i, item in enumerate(obj):
+            out += problems_of(item, f"{prefix[:-1]}[{i}].")
+    elif isinstance(obj, dict):
+        for key, item in obj.items():
+            out += problems_of(item, f"{prefix}{key}.")
+    return out
+
+
+def validate(obj: AppConfig) -> None:
+    """Raise one ConfigError listing every invalid value by its full key path."""
+    found = problems_of(obj)
+    if found:
+        lines = [f"{p.key}: {p.message}" for p in found]
+        raise ConfigError("invalid config: " + "; ".join(lines))
+
+
+def to_yaml(obj: AppConfig) -> str:
+    """The resolved config as YAML (stored as /config in the run file)."""
+    return OmegaConf.to_yaml(OmegaConf.structured(obj))
+
