@@ -119,6 +119,22 @@ def cutoff_cells(mode: str, threshold: float = 0.5, p_min: float = 1e-9) -> floa
     return float(np.sqrt(np.log2(1.0 / p)))
 
 
+def report_identity(truth_id) -> np.ndarray:
+    """uint64 identity of original reports for the draw-mode counters: a hash of the truth id.
+
+    A merged report's identity is the XOR of its ancestors' identities (order-free).
+    """
+    return rng.pair_hash(rng.counter_key(0, "merge-identity"), np.asarray(truth_id, dtype=np.int64))
+
+
+def draw_uniform(seed: int, dwell_id, identity_a, identity_b) -> np.ndarray:
+    """The draw-mode uniform of a pair (symmetric in a, b): merge when it is below ``P_u``."""
+    a = np.asarray(identity_a, dtype=np.uint64).view(np.int64)
+    b = np.asarray(identity_b, dtype=np.uint64).view(np.int64)
+    return rng.pair_uniform(rng.counter_key(seed, "sensor", "merge"), dwell_id,
+                            np.minimum(a, b), np.maximum(a, b))
+
+
 def _per_report(value, n: int, name: str) -> np.ndarray:
     arr = np.broadcast_to(np.asarray(value, dtype=float), (n,))
     if np.any(~np.isfinite(arr)) or np.any(arr <= 0):
@@ -219,8 +235,7 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
         raise ValueError("snr must be finite and > 0 for power-weighted centroids")
 
     radius = cutoff_cells(mode, threshold, p_min)
-    key = rng.counter_key(seed, "sensor", "merge") if mode == "draw" else None
-    ident0 = rng.pair_hash(rng.counter_key(0, "merge-identity"), truth_id) if mode == "draw" else None
+    ident0 = report_identity(truth_id) if mode == "draw" else None
 
     label = np.arange(n, dtype=np.int64)
     m = n
@@ -246,12 +261,10 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
         if mode == "threshold":
             accept = p >= threshold
         else:
-            ident = _group_reduce_xor(ident0, label, m).view(np.int64)
+            ident = _group_reduce_xor(ident0, label, m)
             g_dwell = np.zeros(m, dtype=np.int64)
             g_dwell[label] = dwell_id
-            lo = np.minimum(ident[i], ident[j])
-            hi = np.maximum(ident[i], ident[j])
-            accept = rng.pair_uniform(key, g_dwell[i], lo, hi) < p
+            accept = draw_uniform(seed, g_dwell[i], ident[i], ident[j]) < p
         if not np.any(accept):
             break
         graph = sparse.coo_matrix((np.ones(int(accept.sum())), (i[accept], j[accept])), shape=(m, m))
