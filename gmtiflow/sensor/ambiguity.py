@@ -46,8 +46,9 @@ def fold_range(range_m, prf_hz):
     """
     r = np.asarray(range_m, dtype=float)
     ru = unambiguous_range_m(prf_hz)
-    folds = np.floor(r / ru)
-    folded = r - folds * ru
+    inside = (r >= 0) & (r < ru)
+    folds = np.where(inside, 0.0, np.floor(r / ru))   # inside: untouched, bit for bit
+    folded = np.where(inside, r, r - folds * ru)
     # Rounding can leave folded at -tiny or at R_u; push it into [0, R_u).
     over = folded >= ru
     under = folded < 0
@@ -65,13 +66,16 @@ def wrap_range_rate(range_rate_mps, wavelength_m, prf_hz):
     """Range rate wrapped into [−v_w, +v_w) and the wrap count.
 
     Returns ``(wrapped_mps, wraps)`` with ``wrapped = range_rate − 2 · wraps · v_w``;
-    ``+v_w ↦ −v_w`` (wraps = 1) and ``−v_w ↦ −v_w`` (wraps = 0).
+    ``+v_w ↦ −v_w`` (wraps = 1) and ``−v_w ↦ −v_w`` (wraps = 0). Values already inside the
+    interval are returned unchanged bit for bit; wrapped values carry the rounding of one
+    subtraction and are then forced into the half-open interval.
     """
     rr = np.asarray(range_rate_mps, dtype=float)
     vw = wrap_velocity_mps(wavelength_m, prf_hz)
     period = 2.0 * vw
-    wraps = np.floor((rr + vw) / period)
-    wrapped = rr - wraps * period
+    inside = (rr >= -vw) & (rr < vw)
+    wraps = np.where(inside, 0.0, np.floor((rr + vw) / period))  # inside: untouched, bit for bit
+    wrapped = np.where(inside, rr, rr - wraps * period)
     over = wrapped >= vw
     under = wrapped < -vw
     wraps = wraps + over - under
