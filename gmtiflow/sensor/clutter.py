@@ -21,7 +21,9 @@ source, ``counter_key(seed, "clutter", <region name>)`` (the FoV-wide source use
 name ``"fov"``), and counters ``(dwell_id, point index, channel)``. Hence a region's false
 alarms depend only on the seed, its name, its own parameters and the dwell (and the footprint
 that thins them): adding, removing or reordering other regions leaves them bit-identical, and
-target detections (other keys) are untouched. Widening the footprint only adds points.
+target detections (other keys) are untouched. For regions, widening a footprint only adds
+points (region draws do not depend on the footprint); the FoV-wide draws are placed in the
+footprint's bounding box and so change with it.
 
 Range rate
 ----------

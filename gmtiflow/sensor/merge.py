@@ -18,8 +18,8 @@ Decision per pair (``mode``):
 * ``"draw"``: merge when ``u < P_u``, with *u* a counter-based uniform
   (:func:`gmtiflow.rng.pair_uniform`) keyed by ``counter_key(seed, "sensor", "merge")`` and the
   counters (dwell id, identity of the lower report, identity of the higher report), where a
-  report's identity is a hash of its truth id (a merged report: the XOR of its ancestors'
-  hashes). The draw of a pair therefore depends only on the seed, the dwell and the two targets
+  report's identity is a hash of its truth id, or of ``pair_id`` when given (a merged report:
+  the XOR of its ancestors' hashes). The draw of a pair therefore depends only on the seed, the dwell and the two targets
   (common random numbers: adding a far-away target changes nothing here).
 
 Passes (``iterate``):
@@ -163,7 +163,7 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
                   range_rate_mps=None, range_rate_cell_mps=None, *, mode: str = "threshold",
                   threshold: float = 0.5, seed: Optional[int] = None, iterate: bool = False,
                   centroid: str = "plain", circular_azimuth: bool = True,
-                  p_min: float = 1e-9) -> MergeResult:
+                  p_min: float = 1e-9, pair_id=None) -> MergeResult:
     """Merge unresolved reports of the same dwell (see the module doc for the model).
 
     Parameters
@@ -185,6 +185,9 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
     circular_azimuth : bool
     p_min : float
         Draw mode: pairs with ``P_u < p_min`` are not searched for (and never merge).
+    pair_id : (n,) int array, optional
+        Draw mode: the ids that key a pair's draw (default ``truth_id``). They should be unique
+        within a dwell; give them when several reports share a truth id (false alarms, −1).
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
@@ -235,7 +238,11 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
         raise ValueError("snr must be finite and > 0 for power-weighted centroids")
 
     radius = cutoff_cells(mode, threshold, p_min)
-    ident0 = report_identity(truth_id) if mode == "draw" else None
+    if pair_id is not None:
+        pair_id = np.asarray(pair_id, dtype=np.int64).ravel()
+        if len(pair_id) != n:
+            raise ValueError("pair_id must have one entry per report")
+    ident0 = report_identity(truth_id if pair_id is None else pair_id) if mode == "draw" else None
 
     label = np.arange(n, dtype=np.int64)
     m = n

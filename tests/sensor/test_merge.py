@@ -172,6 +172,20 @@ def test_draw_is_common_random_numbers_per_pair_of_targets():
     assert not np.array_equal(a.merged, c.merged)
 
 
+def test_pair_id_keys_the_draw_when_truth_ids_repeat():
+    n = 4000
+    dwell = np.repeat(np.arange(n), 2)
+    r = np.tile([30_000.0, 30_000.0 + DR], n)
+    az = np.full(2 * n, 0.7)
+    tid = np.full(2 * n, -1)                        # two false alarms per dwell
+    pid = np.tile([1_000_001, 1_000_002], n)
+    res = mg.merge_reports(dwell, r, az, np.ones(2 * n), tid, DR, DAZ, mode="draw", seed=8, pair_id=pid)
+    assert _binomial_ok(int(res.merged.sum()), n, 0.5)
+    again = mg.merge_reports(dwell, r, az, np.ones(2 * n), tid, DR, DAZ, mode="draw", seed=8,
+                             pair_id=pid + 10)
+    assert not np.array_equal(res.merged, again.merged)
+
+
 def test_draw_mode_needs_a_seed():
     with pytest.raises(ValueError, match="seed"):
         _merge([1.0, 2.0], [0.0, 0.0], mode="draw")
