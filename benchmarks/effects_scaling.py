@@ -1,0 +1,106 @@
+"""Scaling of the GMTI effects: merging vs number of targets, false alarms vs clutter density.
+
+Run from the repository root:
+
+    PYTHONPATH=. python benchmarks/effects_scaling.py
+
+Merging: n reports at a fixed density, in two layouts — ``dwells`` (n/200 dwells of 200 reports
+each, uniform over 10 km × 0.1 rad, i.e. one report per ~67 cells of 15 m × 5 mrad) and ``one
+dwell`` (all n reports in one dwell whose range extent grows with n). The log-log slope of runtime
+against n is printed; linear cost at fixed density means a slope near 1 (required ≤ 1.1).
+False alarms: 100 dwells with a 67.5 km² annular-sector footprint each (15-30 km, 0.2 rad), FoV-wide density swept,
+plus a lake region; runtime per dwell and per million false alarms.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from gmtiflow.sensor import clutter as cl
+from gmtiflow.sensor import merge as mg
+
+DR, DAZ = 15.0, 0.005
+
+
+def _best_time(fn, repeats):
+    best = np.inf
+    out = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def scene(n, layout, seed=0):
+    g = np.random.default_rng(seed)
+    if layout == "dwells":
+        per = 200
+        dwell = np.arange(n) // per
+        r = 20_000.0 + g.uniform(0, 10_000.0, n)
+        az = 1.0 + g.uniform(0, 0.1, n)
+    else:
+        dwell = np.zeros(n, dtype=np.int64)
+        r = 20_000.0 + g.uniform(0, 10_000.0 * n / 200.0, n)
+        az = 1.0 + g.uniform(0, 0.1, n)
+    return dwell, r, az, g.uniform(10, 1000, n), np.arange(n)
+
+
+def bench_merge(sizes, repeats):
+    rows = []
+    for layout in ("dwells", "one dwell"):
+        for label, kw in (("threshold, one pass", dict(mode="threshold", threshold=0.5)),
+                          ("draw, iterated", dict(mode="draw", seed=1, iterate=True))):
+            times = []
+            for n in sizes:
+                d, r, az, snr, tid = scene(n, layout)
+                t, res = _best_time(lambda: mg.merge_reports(d, r, az, snr, tid, DR, DAZ, **kw), repeats)
+                times.append(t)
+                rows.append((layout, label, n, t, int(res.merged.sum())))
+            slope = np.polyfit(np.log(sizes), np.log(times), 1)[0]
+            rows.append((layout, label, "slope", slope, None))
+    return rows
+
+
+def bench_clutter(densities, repeats, n_dwells=100):
+    footprints = np.stack([cl.annular_sector_polygon([x, -30_000.0], 15_000.0, 30_000.0, -0.1, 0.1)
+                           for x in np.linspace(0, 2000, n_dwells)])
+    lake = cl.ClutterRegionConfig(name="lake", shape="circle", centre_m=[0.0, -8000.0], radius_m=2000.0,
+                                  density_per_km2=1.0)
+    rows = []
+    for dens in densities:
+        cfg = cl.ClutterConfig(fov_density_per_km2=dens, regions=[lake])
+        t, out = _best_time(lambda: cl.false_alarms(cfg, 7, np.arange(n_dwells), footprints), repeats)
+        rows.append((dens, n_dwells, len(out["x_m"]), t))
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[1_000, 10_000, 100_000])
+    ap.add_argument("--densities", type=float, nargs="+", default=[0.1, 1.0, 10.0, 100.0])
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args(argv)
+
+    print("## Merging (cells 15 m x 5 mrad)\n")
+    print("| layout | mode | n | time (s) | merged reports |\n|---|---|---|---|---|")
+    worst = 0.0
+    for layout, label, n, t, merged in bench_merge(args.sizes, args.repeats):
+        if n == "slope":
+            print(f"| {layout} | {label} | **log-log slope** | **{t:.3f}** | |")
+            worst = max(worst, t)
+        else:
+            print(f"| {layout} | {label} | {n:,} | {t:.4f} | {merged:,} |")
+    print(f"\nworst slope: {worst:.3f} ({'OK' if worst <= 1.1 else 'ABOVE 1.1'})\n")
+
+    print("## False alarms (100 dwells, 67.5 km² footprint each, plus a 12.6 km² circular lake at 1/km²)\n")
+    print("| FoV density (/km²/dwell) | false alarms | time (s) | µs per false alarm |\n|---|---|---|---|")
+    for dens, nd, count, t in bench_clutter(args.densities, args.repeats):
+        print(f"| {dens:g} | {count:,} | {t:.4f} | {1e6 * t / max(count, 1):.2f} |")
+    return 0 if worst <= 1.1 else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

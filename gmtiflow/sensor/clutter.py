@@ -1,0 +1,438 @@
+r"""False alarms: a constant density over the field of view plus clutter regions (paper §5.4, DESIGN §5.7).
+
+Model
+-----
+Per dwell, every *source* of false alarms — the whole field of view (FoV) at
+``fov_density_per_km2``, and each configured region (circle, ring or polygon) at its own
+``density_per_km2`` — yields a Poisson number of false alarms, uniformly placed, with a
+range-rate and an SNR drawn from the source's distributions. Densities are **per dwell** (per
+CPI) and per km² of ground. Nothing is reported outside the FoV.
+
+How "nothing outside the FoV" stays exactly Poisson: for each source and dwell we draw a Poisson
+count with mean ``density × area(bounding shape)``, place the points uniformly in the bounding
+shape (the disc, the ring, the polygon's bounding box, or the footprint's bounding box for the
+FoV-wide density), and keep only the points inside the shape *and* inside the dwell's footprint
+(*thinning*). A thinned Poisson process is Poisson, so the count kept is Poisson with mean
+``density × area(shape ∩ FoV)`` and the kept points are uniform over ``shape ∩ FoV`` — without
+ever computing polygon intersections.
+
+Randomness (DESIGN §2): counter-based draws (:func:`gmtiflow.rng.pair_uniform`) with one key per
+source, ``counter_key(seed, "clutter", <region name>)`` (the FoV-wide source uses the reserved
+name ``"fov"``), and counters ``(dwell_id, point index, channel)``. Hence a region's false
+alarms depend only on the seed, its name, its own parameters and the dwell (and the footprint
+that thins them): adding, removing or reordering other regions leaves them bit-identical, and
+target detections (other keys) are untouched. For regions, widening a footprint only adds
+points (region draws do not depend on the footprint); the FoV-wide draws are placed in the
+footprint's bounding box and so change with it.
+
+Range rate
+----------
+``clutter_range_rate_mps`` is the false alarm's own radial speed relative to the stationary
+ground (+ = receding), drawn from the source's distribution:
+
+* ``gaussian``: ``mean_mps + sigma_mps · N(0, 1)`` (lake waves: 0 ± 1.5 m/s);
+* ``uniform``: uniform in ``[mean_mps − half_width_mps, mean_mps + half_width_mps)``;
+* ``windfarm``: rotor blades, ``mean_mps + half_width_mps · ρ · sin θ`` with ρ ~ U(0, 1) the
+  scatterer's position along the blade and θ ~ U(0, 2π) the blade angle: a spread up to the
+  tip speed ``half_width_mps``, peaked at zero and with shoulders out to the tips.
+
+The sensor stage turns it into a measured range rate by adding the main-lobe clutter's range
+rate at that point, ``ṙ_MLC = −v_p · LOS`` (so ground-fixed clutter sits in the clutter notch as
+a real processor sees it), then wraps it with :mod:`gmtiflow.sensor.ambiguity`.
+
+SNR
+---
+``snr`` is linear power over noise. ``exceedance`` (default): a square-law detector's noise
+sample that crossed the threshold η = ln(1/P_FA): η + Exp(1) (the exponential is memoryless).
+``uniform_db``: uniform in dB between ``low_db`` and ``high_db`` (e.g. strong turbine returns).
+A region without an ``snr`` entry uses the config-level ``snr``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, List, Optional
+
+import math
+
+import numpy as np
+from scipy import stats
+
+from gmtiflow import rng, schema
+from gmtiflow.errors import ConfigError
+from gmtiflow.schema import Problem
+from gmtiflow.sensor import regions as geo
+from gmtiflow.tables import Table
+
+RANGE_RATE_KINDS = ("gaussian", "uniform", "windfarm")
+SNR_KINDS = ("exceedance", "uniform_db")
+SHAPES = ("circle", "ring", "polygon")
+FOV_STREAM = "fov"  # reserved stream name of the FoV-wide false alarms
+
+# Channels of the counter-based draws: (dwell_id, point index, channel).
+_CH_COUNT, _CH_U1, _CH_U2, _CH_RR1, _CH_RR2, _CH_SNR = range(6)
+_KM2 = 1.0e6  # m² per km²
+
+# The config dataclasses are not frozen: OmegaConf 2.3 cannot merge YAML list items into a list of
+# frozen dataclasses (ReadonlyConfigError on ``regions[i].range_rate``). Treat them as read-only.
+
+
+@dataclass
+class RangeRateConfig:
+    """Distribution of a false alarm's own radial speed relative to the ground (m/s, + receding)."""
+
+    kind: str = "gaussian"        # gaussian | uniform | windfarm
+    mean_mps: float = 0.0
+    sigma_mps: float = 1.0        # gaussian only
+    half_width_mps: float = 0.0   # uniform: ± around the mean; windfarm: blade tip speed
+
+    def problems(self) -> List[Problem]:
+        out = []
+        if self.kind not in RANGE_RATE_KINDS:
+            out.append(Problem("kind", f"must be one of {list(RANGE_RATE_KINDS)}, got {self.kind!r}"))
+        if not (isinstance(self.mean_mps, (int, float)) and math.isfinite(self.mean_mps)):
+            out.append(Problem("mean_mps", f"must be a finite number, got {self.mean_mps!r}"))
+        out += schema.non_negative(self, "sigma_mps", "half_width_mps")
+        return out
+
+
+@dataclass
+class SnrConfig:
+    """Distribution of a false alarm's reported SNR (linear power over noise)."""
+
+    kind: str = "exceedance"      # exceedance | uniform_db
+    pfa: float = 1.0e-6           # exceedance: threshold η = ln(1/pfa), SNR = η + Exp(1)
+    low_db: float = 10.0          # uniform_db only
+    high_db: float = 20.0         # uniform_db only
+
+    def problems(self) -> List[Problem]:
+        out = []
+        if self.kind not in SNR_KINDS:
+            out.append(Problem("kind", f"must be one of {list(SNR_KINDS)}, got {self.kind!r}"))
+        out += schema.in_range(self, "pfa", 0.0, 1.0, lo_open=True, hi_open=True)
+        out += schema.ordered(self, "low_db", "high_db", strict=False)
+        return out
+
+
+@dataclass
+class ClutterRegionConfig:
+    """One clutter region: a circle, a ring or a polygon in scene ENU metres, with its density.
+
+    Only the fields of its ``shape`` are read: circle — ``centre_m``, ``radius_m``; ring —
+    ``centre_m``, ``inner_radius_m``, ``outer_radius_m``; polygon — ``vertices_m`` (≥ 3 points,
+    simple, either winding, not closed by repeating the first point).
+    """
+
+    name: str = ""
+    shape: str = "polygon"                           # circle | ring | polygon
+    density_per_km2: float = 0.0                     # false alarms per km² per dwell
+    centre_m: Optional[List[float]] = None           # [x, y]
+    radius_m: Optional[float] = None
+    inner_radius_m: Optional[float] = None
+    outer_radius_m: Optional[float] = None
+    vertices_m: Optional[List[Any]] = None           # [[x, y], ...] (Any: OmegaConf rejects ints in List[List[float]])
+    range_rate: RangeRateConfig = field(default_factory=RangeRateConfig)
+    snr: Optional[SnrConfig] = None                  # None: ClutterConfig.snr
+
+    def problems(self) -> List[Problem]:
+        out = []
+        if not self.name or not isinstance(self.name, str):
+            out.append(Problem("name", "must be a non-empty string (it names the region's random stream)"))
+        elif self.name == FOV_STREAM:
+            out.append(Problem("name", f"{FOV_STREAM!r} is reserved for the FoV-wide false alarms"))
+        out += schema.non_negative(self, "density_per_km2")
+        if self.shape not in SHAPES:
+            out.append(Problem("shape", f"must be one of {list(SHAPES)}, got {self.shape!r}"))
+        elif self.shape in ("circle", "ring"):
+            c = self.centre_m
+            if c is None or len(c) != 2 or not all(_finite(v) for v in c):
+                out.append(Problem("centre_m", f"must be [x, y] in metres for a {self.shape}, got {c!r}"))
+            if self.shape == "circle":
+                if self.radius_m is None:
+                    out.append(Problem("radius_m", "is required for a circle"))
+                else:
+                    out += schema.positive(self, "radius_m")
+            else:
+                if self.inner_radius_m is None or self.outer_radius_m is None:
+                    out.append(Problem("outer_radius_m" if self.inner_radius_m is not None else "inner_radius_m",
+                                       "inner_radius_m and outer_radius_m are required for a ring"))
+                else:
+                    bad = schema.non_negative(self, "inner_radius_m") + schema.positive(self, "outer_radius_m")
+                    out += bad
+                    if not bad:
+                        out += schema.ordered(self, "inner_radius_m", "outer_radius_m", strict=True)
+        else:
+            out += _polygon_problems(self.vertices_m)
+        out += schema.prefixed("range_rate", self.range_rate.problems())
+        if self.snr is not None:
+            out += schema.prefixed("snr", self.snr.problems())
+        return out
+
+    def area_m2(self) -> float:
+        """Area of the region, m² (shoelace for polygons)."""
+        if self.shape == "circle":
+            return geo.ring_area_m2(0.0, float(self.radius_m))
+        if self.shape == "ring":
+            return geo.ring_area_m2(float(self.inner_radius_m), float(self.outer_radius_m))
+        return geo.polygon_area_m2(self.vertices_m)
+
+    def contains(self, x_m, y_m) -> np.ndarray:
+        """Boolean mask of points inside the region."""
+        x = np.asarray(x_m, float)
+        y = np.asarray(y_m, float)
+        if self.shape == "polygon":
+            return geo.points_in_polygon(x, y, self.vertices_m)
+        r2 = (x - self.centre_m[0]) ** 2 + (y - self.centre_m[1]) ** 2
+        if self.shape == "circle":
+            return r2 < float(self.radius_m) ** 2
+        return (r2 >= float(self.inner_radius_m) ** 2) & (r2 < float(self.outer_radius_m) ** 2)
+
+    def bbox(self) -> tuple[float, float, float, float]:
+        """(x_min, y_min, x_max, y_max) of the region."""
+        if self.shape == "polygon":
+            return geo.bounding_box(self.vertices_m)
+        r = float(self.radius_m if self.shape == "circle" else self.outer_radius_m)
+        cx, cy = float(self.centre_m[0]), float(self.centre_m[1])
+        return cx - r, cy - r, cx + r, cy + r
+
+
+def _default_fov_range_rate() -> RangeRateConfig:
+    return RangeRateConfig(kind="uniform", mean_mps=0.0, sigma_mps=0.0, half_width_mps=30.0)
+
+
+@dataclass
+class ClutterConfig:
+    """False-alarm configuration (config group ``clutter``).
+
+    ``fov_density_per_km2``: thermal-noise/background false alarms per km² of the dwell's ground
+    footprint per dwell; ``fov_range_rate`` their radial-speed distribution (default uniform
+    ±30 m/s, i.e. spread over the Doppler band; the ambiguity stage wraps it); ``snr`` the default
+    SNR distribution; ``regions`` the clutter regions (unique names).
+    """
+
+    fov_density_per_km2: float = 0.0
+    fov_range_rate: RangeRateConfig = field(default_factory=_default_fov_range_rate)
+    snr: SnrConfig = field(default_factory=SnrConfig)
+    regions: List[ClutterRegionConfig] = field(default_factory=list)
+
+    def problems(self) -> List[Problem]:
+        out = schema.non_negative(self, "fov_density_per_km2")
+        out += schema.prefixed("fov_range_rate", self.fov_range_rate.problems())
+        out += schema.prefixed("snr", self.snr.problems())
+        seen = {}
+        for i, region in enumerate(self.regions):
+            out += schema.prefixed(f"regions[{i}]", region.problems())
+            if region.name and region.name in seen:
+                out.append(Problem(f"regions[{i}].name",
+                                   f"duplicates regions[{seen[region.name]}].name {region.name!r}; "
+                                   "names must be unique (each names a random stream)"))
+            seen.setdefault(region.name, i)
+        return out
+
+
+def check(cfg: ClutterConfig, key: str = "clutter") -> None:
+    """Raise one :class:`ConfigError` listing every problem of ``cfg`` under the key ``key``."""
+    problems = cfg.problems()
+    if problems:
+        lines = [f"{key}.{p.key}: {p.message}" for p in problems]
+        raise ConfigError("invalid clutter config:\n  " + "\n  ".join(lines))
+
+
+def is_active(cfg: Optional[ClutterConfig]) -> bool:
+    """True if the config can produce any false alarm. When False, call nothing else here."""
+    return cfg is not None and (cfg.fov_density_per_km2 > 0
+                                or any(r.density_per_km2 > 0 for r in cfg.regions))
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _polygon_problems(vertices) -> List[Problem]:
+    if vertices is None:
+        return [Problem("vertices_m", "is required for a polygon: [[x, y], ...] in metres")]
+    pts = list(vertices)
+    if any(not hasattr(p, "__len__") or len(p) != 2 or not all(_finite(v) for v in p) for p in pts):
+        return [Problem("vertices_m", "every vertex must be [x, y] with finite numbers in metres")]
+    v = geo.as_polygon(pts) if pts else np.zeros((0, 2))
+    if len(v) < 3:
+        return [Problem("vertices_m", f"a polygon needs at least 3 distinct vertices, got {len(v)}")]
+    if geo.polygon_self_intersects(v):
+        return [Problem("vertices_m", "the polygon intersects itself (edges cross or a vertex repeats); "
+                                      "list the vertices in order around the boundary")]
+    if geo.polygon_area_m2(v) <= 0:
+        return [Problem("vertices_m", "the polygon has zero area (collinear vertices)")]
+    return []
+
+
+# --------------------------------------------------------------------------------------------
+# Drawing
+
+
+def _poisson_counts(key, dwell_id: np.ndarray, mean: np.ndarray) -> np.ndarray:
+    """One Poisson count per dwell by inversion of a counter-based uniform (exactly Poisson)."""
+    u = rng.pair_uniform(key, dwell_id, 0, _CH_COUNT)
+    counts = np.zeros(len(dwell_id), dtype=np.int64)
+    pos = mean > 0
+    if np.any(pos):
+        counts[pos] = stats.poisson.ppf(u[pos], mean[pos]).astype(np.int64)
+    return counts
+
+
+def _expand(dwell_id: np.ndarray, counts: np.ndarray):
+    """Per point: its dwell's batch position and its index within the dwell."""
+    batch = np.repeat(np.arange(len(dwell_id)), counts)
+    starts = np.cumsum(counts) - counts
+    index = np.arange(int(counts.sum())) - np.repeat(starts, counts)
+    return batch, index
+
+
+def _draw_range_rate(key, d, i, cfg: RangeRateConfig) -> np.ndarray:
+    if cfg.kind == "gaussian":
+        return cfg.mean_mps + cfg.sigma_mps * rng.pair_normal(key, d, i, _CH_RR1)
+    u1 = rng.pair_uniform(key, d, i, _CH_RR1)
+    if cfg.kind == "uniform":
+        return cfg.mean_mps + cfg.half_width_mps * (2.0 * u1 - 1.0)
+    u2 = rng.pair_uniform(key, d, i, _CH_RR2)
+    return cfg.mean_mps + cfg.half_width_mps * u1 * np.sin(2.0 * np.pi * u2)
+
+
+def _draw_snr(key, d, i, cfg: SnrConfig) -> np.ndarray:
+    u = rng.pair_uniform(key, d, i, _CH_SNR)
+    if cfg.kind == "exceedance":
+        return np.log(1.0 / cfg.pfa) - np.log(u)
+    return 10.0 ** ((cfg.low_db + (cfg.high_db - cfg.low_db) * u) / 10.0)
+
+
+def _empty() -> Table:
+    return {"dwell_id": np.zeros(0, np.int64), "x_m": np.zeros(0), "y_m": np.zeros(0),
+            "clutter_range_rate_mps": np.zeros(0), "snr": np.zeros(0), "snr_db": np.zeros(0),
+            "region_index": np.zeros(0, np.int64)}
+
+
+def _draw_source(seed: int, name: str, region_index: int, dwell_id: np.ndarray, mean: np.ndarray,
+                 place: Callable, keep: Callable, rr: RangeRateConfig, snr: SnrConfig) -> Table:
+    """Poisson counts, placement in the bounding shape, thinning, marks — for one source."""
+    key = rng.counter_key(seed, "clutter", name)
+    counts = _poisson_counts(key, dwell_id, mean)
+    batch, index = _expand(dwell_id, counts)
+    d = dwell_id[batch]
+    x, y = place(rng.pair_uniform(key, d, index, _CH_U1), rng.pair_uniform(key, d, index, _CH_U2), batch)
+    ok = keep(x, y, batch)
+    batch, index, d, x, y = batch[ok], index[ok], d[ok], x[ok], y[ok]
+    s = _draw_snr(key, d, index, snr)
+    return {"dwell_id": d.astype(np.int64), "x_m": x, "y_m": y,
+            "clutter_range_rate_mps": _draw_range_rate(key, d, index, rr),
+            "snr": s, "snr_db": 10.0 * np.log10(s),
+            "region_index": np.full(len(d), region_index, dtype=np.int64)}
+
+
+def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
+                 in_fov: Optional[Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = None
+                 ) -> Table:
+    """False alarms of a batch of dwells.
+
+    Parameters
+    ----------
+    cfg : ClutterConfig
+    seed : int
+        The run's root seed.
+    dwell_id : (n,) int array
+        Ids of the dwells in the batch (unique).
+    fov_polygons : (n, k, 2) array or sequence of n (k_i, 2) arrays, optional
+        Each dwell's ground footprint in scene ENU metres (e.g. the annular sector between the
+        near and far ground ranges and the beam's azimuth edges, as a polygon). Required when
+        ``fov_density_per_km2 > 0`` (it bounds the FoV-wide draws).
+    in_fov : callable ``(dwell_id, x_m, y_m) -> bool array``, optional
+        An extra FoV predicate applied to every candidate point (e.g. the sensor's exact range,
+        azimuth and grazing limits, or terrain visibility). Called once per source with all the
+        batch's candidate points.
+
+    Returns
+    -------
+    Table
+        ``dwell_id``, ``x_m``, ``y_m`` (ground, ENU), ``clutter_range_rate_mps`` (own radial speed
+        relative to the ground, see the module doc), ``snr`` (linear), ``snr_db``,
+        ``region_index`` (−1 for the FoV-wide density, else the index in ``cfg.regions``).
+        Rows by source (FoV first, then regions in config order), then dwell, then draw index.
+    """
+    if not is_active(cfg):
+        return _empty()
+    dwell_id = np.asarray(dwell_id, dtype=np.int64).ravel()
+    if fov_polygons is None and in_fov is None:
+        raise ValueError("false_alarms needs the dwells' footprints (fov_polygons) or an in_fov "
+                         "predicate: nothing may be drawn outside the field of view")
+    polys = None
+    if fov_polygons is not None:
+        polys = geo.stack_polygons(fov_polygons)
+        if len(polys) != len(dwell_id):
+            raise ValueError(f"fov_polygons has {len(polys)} footprints for {len(dwell_id)} dwells")
+        fx0, fy0 = polys[:, :, 0].min(axis=1), polys[:, :, 1].min(axis=1)
+        fx1, fy1 = polys[:, :, 0].max(axis=1), polys[:, :, 1].max(axis=1)
+
+    def in_footprint(x, y, batch):
+        ok = np.ones(len(x), dtype=bool)
+        if polys is not None:
+            ok &= geo.points_in_polygons(x, y, polys, batch)
+        if in_fov is not None and len(x):
+            ok &= np.asarray(in_fov(dwell_id[batch], x, y), dtype=bool)
+        return ok
+
+    out = []
+    if cfg.fov_density_per_km2 > 0:
+        if polys is None:
+            raise ValueError("fov_density_per_km2 > 0 needs fov_polygons (the footprints bound the "
+                             "FoV-wide draws); an in_fov predicate alone cannot give an area")
+        box_area = (fx1 - fx0) * (fy1 - fy0)
+
+        def place_fov(u1, u2, batch):
+            return fx0[batch] + u1 * (fx1 - fx0)[batch], fy0[batch] + u2 * (fy1 - fy0)[batch]
+
+        out.append(_draw_source(seed, FOV_STREAM, -1, dwell_id, cfg.fov_density_per_km2 * box_area / _KM2,
+                                place_fov, in_footprint, cfg.fov_range_rate, cfg.snr))
+
+    for j, region in enumerate(cfg.regions):
+        if region.density_per_km2 <= 0:
+            continue
+        bx0, by0, bx1, by1 = region.bbox()
+        if region.shape == "polygon":
+            area = (bx1 - bx0) * (by1 - by0)
+
+            def place(u1, u2, batch, b=(bx0, by0, bx1, by1)):
+                return b[0] + u1 * (b[2] - b[0]), b[1] + u2 * (b[3] - b[1])
+
+            def keep(x, y, batch, r=region):
+                inside = r.contains(x, y)
+                out_ok = np.zeros(len(x), dtype=bool)
+                out_ok[inside] = in_footprint(x[inside], y[inside], batch[inside])
+                return out_ok
+        else:
+            inner = 0.0 if region.shape == "circle" else float(region.inner_radius_m)
+            outer = float(region.radius_m if region.shape == "circle" else region.outer_radius_m)
+            area = geo.ring_area_m2(inner, outer)
+
+            def place(u1, u2, batch, c=tuple(region.centre_m), a=inner, b=outer):
+                return geo.sample_disc(u1, u2, c, a, b)
+
+            keep = in_footprint
+        mean = np.full(len(dwell_id), region.density_per_km2 * area / _KM2)
+        if polys is not None:  # skip dwells whose footprint box misses the region (same result)
+            mean[(fx1 < bx0) | (fx0 > bx1) | (fy1 < by0) | (fy0 > by1)] = 0.0
+        out.append(_draw_source(seed, region.name, j, dwell_id, mean, place, keep,
+                                region.range_rate, region.snr or cfg.snr))
+    if not out:
+        return _empty()
+    return {name: np.concatenate([t[name] for t in out]) for name in out[0]}
+
+
+def annular_sector_polygon(centre_m, range_min_m: float, range_max_m: float, az_min_rad: float,
+                           az_max_rad: float, n_arc: int = 16) -> np.ndarray:
+    """Polygon of a ground footprint between two ground ranges and two world azimuths.
+
+    Azimuth clockwise from north; ``az_max_rad`` is taken after ``az_min_rad`` going clockwise.
+    ``n_arc`` vertices per arc: the chord error at range R over a beam of width w is R·w²/(8 n²).
+    """
+    span = np.mod(az_max_rad - az_min_rad, 2.0 * np.pi)
+    az = az_min_rad + span * np.linspace(0.0, 1.0, n_arc)
+    far = np.column_stack([range_max_m * np.sin(az), range_max_m * np.cos(az)])
+    near = np.column_stack([range_min_m * np.sin(az[::-1]), range_min_m * np.cos(az[::-1])])
+    return np.vstack([far, near]) + np.asarray(centre_m, float)[:2]

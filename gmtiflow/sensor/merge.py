@@ -1,0 +1,319 @@
+r"""Merging of unresolved reports within a dwell (paper §5.3, eq. 18; DESIGN §5.6).
+
+Two reports *i*, *j* of the same dwell are merged with probability
+
+.. math::
+
+    P_u(i, j) = \exp\!\left(-\tfrac12\, d^\top R_u^{-1} d\right), \qquad
+    R_u = A / (2 \ln 2), \qquad A = \mathrm{diag}(\Delta r^2, \Delta\phi^2[, \Delta\dot r^2]),
+
+with *d* the differences in range, azimuth (and optionally range rate) and Δ the resolution cell
+sizes. Writing :math:`s^2 = \sum_k (d_k/\Delta_k)^2` (the separation in cells) this is exactly
+:math:`P_u = 2^{-s^2}`: ½ at one cell apart, ¼ at √2 cells. We evaluate it as ``exp2(-s²)``
+so that ``P_u`` is exactly 0.5 at exactly one cell.
+
+Decision per pair (``mode``):
+
+* ``"threshold"``: merge when ``P_u >= threshold`` (a pair exactly at the threshold merges);
+* ``"draw"``: merge when ``u < P_u``, with *u* a counter-based uniform
+  (:func:`gmtiflow.rng.pair_uniform`) keyed by ``counter_key(seed, "sensor", "merge")`` and the
+  counters (dwell id, identity of the lower report, identity of the higher report), where a
+  report's identity is a hash of its truth id, or of ``pair_id`` when given (a merged report:
+  the XOR of its ancestors' hashes). The draw of a pair therefore depends only on the seed, the dwell and the two targets
+  (common random numbers: adding a far-away target changes nothing here).
+
+Passes (``iterate``):
+
+* ``False`` (sparse, the paper's one pass): every accepted pair is merged, and merging is
+  *transitive*: the reports form the connected groups of the accepted-pair graph (A~B and B~C give
+  one report ABC even if A and C alone would not merge). This is the paper's "all elements with a
+  merging probability exceeding the threshold are merged".
+* ``True`` (dense): after each pass the merged reports replace their ancestors (at their new
+  centroids) and pairs are evaluated again, until a pass accepts no pair. In draw mode a pair of
+  unchanged reports keeps its draw, so it is not re-rolled and the loop terminates (every pass
+  that accepts something removes at least one report).
+
+Merged report: at the centroid of its (original) ancestors in range, azimuth and range rate —
+``centroid="plain"`` (default; the paper's "geometrical average", DESIGN §5.6) or ``"power"``
+(weighted by linear SNR, closer to where a processor's peak interpolation lands); SNR = the sum of
+the ancestors' linear SNRs (incoherent power sum); truth id = the strongest ancestor's (ties: the
+first in input order); dwell = the ancestors' dwell.
+
+Azimuth: with ``circular_azimuth=True`` (default; world azimuths in [0, 2π)) differences are taken
+modulo 2π and merged azimuths are returned in [0, 2π); with ``False`` (antenna scan angles)
+values are used as they are. Within a dwell, azimuths are unwrapped around the dwell's first
+report, which is exact as long as a dwell spans less than π (a beam does).
+
+Neighbour search: one :class:`scipy.spatial.cKDTree` over the scaled coordinates
+``(r/Δr, φ/Δφ[, ṙ/Δṙ])`` plus a dwell coordinate (dense dwell rank × a separation larger than
+any within-dwell distance), queried with :meth:`~scipy.spatial.cKDTree.query_pairs` at the
+cut-off radius — so only nearby pairs of the same dwell are ever formed, and the cost is
+O(n log n) at fixed density. Cut-off: threshold mode ``s_max = sqrt(log2(1/threshold))`` (exact:
+every pair that could pass is found); draw mode ``s_max = sqrt(log2(1/p_min))`` with
+``p_min = 1e-9`` by default (≈ 5.5 cells): pairs further apart, whose merge probability is below
+1e-9, are never merged.
+
+Cell sizes may be scalars or per-report arrays, but must be constant within a dwell (azimuth
+cells vary from dwell to dwell with the scan angle); this is checked.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+
+from gmtiflow import rng
+
+MODES = ("threshold", "draw")
+CENTROIDS = ("plain", "power")
+TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class MergeResult:
+    """Outcome of :func:`merge_reports`: m output reports built from n input reports.
+
+    ``group[i]`` is the output row of input report *i* (output rows are ordered by their first
+    input report, so an input without merges keeps its relative order). The per-output arrays
+    have length m. ``ancestor_row``/``ancestor_truth_id`` list one row per (merged output report,
+    ancestor) — only for outputs with more than one ancestor — ready for
+    ``/detection_ancestors`` once rows are mapped to det ids.
+    """
+
+    group: np.ndarray            # (n,) int64
+    dwell_id: np.ndarray         # (m,) int64
+    range_m: np.ndarray          # (m,)
+    azimuth_rad: np.ndarray      # (m,)
+    range_rate_mps: Optional[np.ndarray]  # (m,) or None when not given
+    snr: np.ndarray              # (m,) linear, summed over ancestors
+    truth_id: np.ndarray         # (m,) int64, strongest ancestor's
+    strongest: np.ndarray        # (m,) int64 index of the strongest ancestor in the input
+    n_ancestors: np.ndarray      # (m,) int64
+    ancestor_row: np.ndarray     # (k,) int64 output row
+    ancestor_truth_id: np.ndarray  # (k,) int64
+    ancestor_index: np.ndarray   # (k,) int64 input index of the ancestor
+    passes: int                  # passes run (0 when there was nothing to compare)
+
+    @property
+    def merged(self) -> np.ndarray:
+        """(m,) bool: the output report has more than one ancestor."""
+        return self.n_ancestors > 1
+
+
+def merge_probability(d_range_m, d_azimuth_rad, range_cell_m, azimuth_cell_rad,
+                      d_range_rate_mps=None, range_rate_cell_mps=None) -> np.ndarray:
+    """Eq. (18): ``P_u = exp(-½ dᵀ R_u⁻¹ d) = 2^(-s²)``, s the separation in resolution cells."""
+    s2 = (np.asarray(d_range_m) / range_cell_m) ** 2 + (np.asarray(d_azimuth_rad) / azimuth_cell_rad) ** 2
+    if d_range_rate_mps is not None:
+        s2 = s2 + (np.asarray(d_range_rate_mps) / range_rate_cell_mps) ** 2
+    return np.exp2(-s2)
+
+
+def cutoff_cells(mode: str, threshold: float = 0.5, p_min: float = 1e-9) -> float:
+    """Neighbour-search radius in cells: beyond it no pair can be (threshold) or is (draw) merged."""
+    p = threshold if mode == "threshold" else p_min
+    return float(np.sqrt(np.log2(1.0 / p)))
+
+
+def report_identity(truth_id) -> np.ndarray:
+    """uint64 identity of original reports for the draw-mode counters: a hash of the truth id.
+
+    A merged report's identity is the XOR of its ancestors' identities (order-free).
+    """
+    return rng.pair_hash(rng.counter_key(0, "merge-identity"), np.asarray(truth_id, dtype=np.int64))
+
+
+def draw_uniform(seed: int, dwell_id, identity_a, identity_b) -> np.ndarray:
+    """The draw-mode uniform of a pair (symmetric in a, b): merge when it is below ``P_u``."""
+    a = np.asarray(identity_a, dtype=np.uint64).view(np.int64)
+    b = np.asarray(identity_b, dtype=np.uint64).view(np.int64)
+    return rng.pair_uniform(rng.counter_key(seed, "sensor", "merge"), dwell_id,
+                            np.minimum(a, b), np.maximum(a, b))
+
+
+def _per_report(value, n: int, name: str) -> np.ndarray:
+    arr = np.broadcast_to(np.asarray(value, dtype=float), (n,))
+    if np.any(~np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{name} must be finite and > 0")
+    return arr
+
+
+def _group_reduce_xor(values: np.ndarray, label: np.ndarray, m: int) -> np.ndarray:
+    order = np.argsort(label, kind="stable")
+    lab = label[order]
+    starts = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]])
+    out = np.zeros(m, dtype=np.uint64)
+    out[lab[starts]] = np.bitwise_xor.reduceat(values[order], starts)
+    return out
+
+
+def _canonical(label: np.ndarray) -> np.ndarray:
+    """Relabel groups 0..m-1 in order of their first member."""
+    _, first, inverse = np.unique(label, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    return rank[inverse.ravel()]
+
+
+def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, azimuth_cell_rad,
+                  range_rate_mps=None, range_rate_cell_mps=None, *, mode: str = "threshold",
+                  threshold: float = 0.5, seed: Optional[int] = None, iterate: bool = False,
+                  centroid: str = "plain", circular_azimuth: bool = True,
+                  p_min: float = 1e-9, pair_id=None) -> MergeResult:
+    """Merge unresolved reports of the same dwell (see the module doc for the model).
+
+    Parameters
+    ----------
+    dwell_id, range_m, azimuth_rad, snr, truth_id : (n,) arrays
+        Candidate reports (``snr`` linear power; ``truth_id`` −1 allowed for false alarms).
+    range_cell_m, azimuth_cell_rad : float or (n,) array
+        Resolution cell sizes Δr, Δφ (constant within a dwell).
+    range_rate_mps, range_rate_cell_mps : (n,) array and float, optional
+        Give both to include range rate in the separation.
+    mode : "threshold" | "draw"
+    threshold : float in (0, 1]
+        Threshold mode: merge when ``P_u >= threshold``.
+    seed : int
+        Root seed; required in draw mode.
+    iterate : bool
+        False: one pass, connected groups (sparse). True: repeat until no pair merges (dense).
+    centroid : "plain" | "power"
+    circular_azimuth : bool
+    p_min : float
+        Draw mode: pairs with ``P_u < p_min`` are not searched for (and never merge).
+    pair_id : (n,) int array, optional
+        Draw mode: the ids that key a pair's draw (default ``truth_id``). They should be unique
+        within a dwell; give them when several reports share a truth id (false alarms, −1).
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if centroid not in CENTROIDS:
+        raise ValueError(f"centroid must be one of {CENTROIDS}, got {centroid!r}")
+    if mode == "threshold" and not (0.0 < threshold <= 1.0):
+        raise ValueError(f"threshold must be in (0, 1], got {threshold!r}")
+    if mode == "draw":
+        if seed is None:
+            raise ValueError("draw mode needs the run's seed")
+        if not (0.0 < p_min < 1.0):
+            raise ValueError(f"p_min must be in (0, 1), got {p_min!r}")
+    if (range_rate_mps is None) != (range_rate_cell_mps is None):
+        raise ValueError("give both range_rate_mps and range_rate_cell_mps, or neither")
+
+    dwell_id = np.asarray(dwell_id, dtype=np.int64).ravel()
+    n = len(dwell_id)
+    range_m = np.asarray(range_m, dtype=float).ravel()
+    azimuth_rad = np.asarray(azimuth_rad, dtype=float).ravel()
+    snr = np.asarray(snr, dtype=float).ravel()
+    truth_id = np.asarray(truth_id, dtype=np.int64).ravel()
+    use_rr = range_rate_mps is not None
+    columns = [range_m, azimuth_rad, snr, truth_id]
+    if use_rr:
+        range_rate_mps = np.asarray(range_rate_mps, dtype=float).ravel()
+        columns.append(range_rate_mps)
+    if any(len(c) != n for c in columns):
+        raise ValueError("all report arrays must have the same length")
+
+    # Per-dwell reference (first report of the dwell) for unwrapping and the cell-size check.
+    _, first, dw_rank = np.unique(dwell_id, return_index=True, return_inverse=True)
+    dw_rank = dw_rank.ravel()
+    ref = first[dw_rank]
+    cells = [_per_report(range_cell_m, n, "range_cell_m"), _per_report(azimuth_cell_rad, n, "azimuth_cell_rad")]
+    if use_rr:
+        cells.append(_per_report(range_rate_cell_mps, n, "range_rate_cell_mps"))
+    for c, name in zip(cells, ("range_cell_m", "azimuth_cell_rad", "range_rate_cell_mps")):
+        if np.any(c != c[ref]):
+            raise ValueError(f"{name} must be constant within a dwell")
+    az = azimuth_rad
+    if circular_azimuth and n:
+        a0 = azimuth_rad[ref]
+        az = a0 + (np.mod(azimuth_rad - a0 + np.pi, TWO_PI) - np.pi)
+    values = [range_m, az] + ([range_rate_mps] if use_rr else [])
+    scaled0 = np.column_stack([v / c for v, c in zip(values, cells)]) if n else np.zeros((0, len(values)))
+    weight = snr if centroid == "power" else np.ones(n)
+    if np.any(weight <= 0) or np.any(~np.isfinite(weight)):
+        raise ValueError("snr must be finite and > 0 for power-weighted centroids")
+
+    radius = cutoff_cells(mode, threshold, p_min)
+    if pair_id is not None:
+        pair_id = np.asarray(pair_id, dtype=np.int64).ravel()
+        if len(pair_id) != n:
+            raise ValueError("pair_id must have one entry per report")
+    ident0 = report_identity(truth_id if pair_id is None else pair_id) if mode == "draw" else None
+
+    label = np.arange(n, dtype=np.int64)
+    m = n
+    passes = 0
+    while m > 1:
+        passes += 1
+        wsum = np.bincount(label, weights=weight, minlength=m)
+        pts = np.column_stack([np.bincount(label, weights=weight * scaled0[:, k], minlength=m) / wsum
+                               for k in range(scaled0.shape[1])])
+        g_rank = np.zeros(m, dtype=np.int64)
+        g_rank[label] = dw_rank
+        span = np.ptp(pts, axis=0).max() if m else 0.0
+        sep = span + 2.0 * radius + 1.0  # larger than any within-dwell distance + the radius
+        tree = cKDTree(np.column_stack([pts, g_rank * sep]))
+        pairs = tree.query_pairs(radius * (1.0 + 1e-9) + 1e-12, output_type="ndarray")
+        if len(pairs) == 0:
+            break
+        i, j = pairs[:, 0], pairs[:, 1]
+        same = g_rank[i] == g_rank[j]  # always true by construction; kept as a guard
+        i, j = i[same], j[same]
+        s2 = np.sum((pts[i] - pts[j]) ** 2, axis=1)
+        p = np.exp2(-s2)
+        if mode == "threshold":
+            accept = p >= threshold
+        else:
+            ident = _group_reduce_xor(ident0, label, m)
+            g_dwell = np.zeros(m, dtype=np.int64)
+            g_dwell[label] = dwell_id
+            accept = draw_uniform(seed, g_dwell[i], ident[i], ident[j]) < p
+        if not np.any(accept):
+            break
+        graph = sparse.coo_matrix((np.ones(int(accept.sum())), (i[accept], j[accept])), shape=(m, m))
+        m, comp = csgraph.connected_components(graph, directed=False)
+        label = comp[label].astype(np.int64)
+        if not iterate:
+            break
+
+    return _build(label, dwell_id, range_m, az, azimuth_rad, range_rate_mps if use_rr else None, snr,
+                  truth_id, weight, circular_azimuth, passes)
+
+
+def _build(label, dwell_id, range_m, az, az_in, range_rate_mps, snr, truth_id, weight, circular, passes):
+    n = len(label)
+    label = _canonical(label) if n else label
+    m = int(label.max()) + 1 if n else 0
+    count = np.bincount(label, minlength=m).astype(np.int64)
+    wsum = np.bincount(label, weights=weight, minlength=m)
+
+    def mean(v):
+        return np.bincount(label, weights=weight * v, minlength=m) / wsum
+
+    # Strongest ancestor: sort by group, then descending SNR, then input order.
+    order = np.lexsort((np.arange(n), -snr, label))
+    starts = np.flatnonzero(np.r_[True, label[order][1:] != label[order][:-1]]) if n else np.zeros(0, int)
+    strongest = order[starts].astype(np.int64)
+    single = count == 1
+    r_out = mean(range_m)
+    a_out = mean(az)
+    rr_out = mean(range_rate_mps) if range_rate_mps is not None else None
+    # Singletons keep their values bit for bit (no (w·x)/w round trip).
+    if circular:
+        a_out = np.mod(a_out, TWO_PI)
+    r_out[single] = range_m[strongest[single]]
+    a_out[single] = az_in[strongest[single]]
+    if rr_out is not None:
+        rr_out[single] = range_rate_mps[strongest[single]]
+    anc = np.flatnonzero(count[label] > 1)
+    anc = anc[np.lexsort((anc, label[anc]))]
+    return MergeResult(
+        group=label, dwell_id=dwell_id[strongest], range_m=r_out, azimuth_rad=a_out,
+        range_rate_mps=rr_out, snr=np.bincount(label, weights=snr, minlength=m),
+        truth_id=truth_id[strongest], strongest=strongest, n_ancestors=count,
+        ancestor_row=label[anc], ancestor_truth_id=truth_id[anc], ancestor_index=anc.astype(np.int64),
+        passes=passes)

@@ -1,0 +1,253 @@
+"""Merging of unresolved reports (paper eq. 18, DESIGN §5.6)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.sparse import csgraph, coo_matrix
+
+from gmtiflow.sensor import merge as mg
+
+DR = 50.0       # range cell, m
+DAZ = 0.01      # azimuth cell, rad
+DRR = 0.5       # range-rate cell, m/s
+
+
+def _merge(r, az, *, dwell=None, snr=None, tid=None, **kw):
+    n = len(r)
+    dwell = np.zeros(n, int) if dwell is None else dwell
+    snr = np.ones(n) if snr is None else snr
+    tid = np.arange(n) if tid is None else tid
+    return mg.merge_reports(dwell, r, az, snr, tid, DR, DAZ, **kw)
+
+
+# ---------------------------------------------------------------- the probability itself
+
+def test_probability_is_one_half_at_one_cell_in_every_dimension():
+    assert mg.merge_probability(DR, 0.0, DR, DAZ) == 0.5
+    assert mg.merge_probability(0.0, DAZ, DR, DAZ) == 0.5
+    assert mg.merge_probability(0.0, 0.0, DR, DAZ, DRR, DRR) == 0.5
+    assert mg.merge_probability(DR, DAZ, DR, DAZ) == 0.25
+    # Matches the textbook form exp(-1/2 d^T R_u^-1 d), R_u = A / (2 ln 2).
+    d = np.array([30.0, 0.004])
+    ru = np.diag([DR ** 2, DAZ ** 2]) / (2 * np.log(2))
+    assert mg.merge_probability(*d, DR, DAZ) == pytest.approx(np.exp(-0.5 * d @ np.linalg.solve(ru, d)), rel=1e-12)
+
+
+# ---------------------------------------------------------------- threshold mode
+
+def test_threshold_one_half_merges_exactly_at_one_cell_and_not_beyond():
+    at = _merge([1000.0, 1050.0], [0.5, 0.5], threshold=0.5)
+    assert at.group.tolist() == [0, 0] and at.merged.tolist() == [True]
+    beyond = _merge([1000.0, 1050.0 + 1e-6], [0.5, 0.5], threshold=0.5)
+    assert beyond.group.tolist() == [0, 1]
+    stricter = _merge([1000.0, 1050.0], [0.5, 0.5], threshold=0.5 + 1e-12)
+    assert stricter.group.tolist() == [0, 1]
+
+
+def test_far_apart_never_merge_in_either_mode():
+    r = np.array([1000.0, 1000.0 + 6 * DR])  # P_u = 2^-36, beyond the draw-mode cut-off
+    dwell = np.repeat(np.arange(2000), 2)
+    rr = np.tile(r, 2000)
+    az = np.full(len(rr), 1.0)
+    tid = np.tile([7, 8], 2000)
+    for kw in ({"mode": "threshold", "threshold": 1e-10}, {"mode": "draw", "seed": 1}):
+        res = mg.merge_reports(dwell, rr, az, np.ones(len(rr)), tid, DR, DAZ, **kw)
+        assert not res.merged.any()
+
+
+def test_same_position_in_different_dwells_never_merge():
+    res = _merge([1000.0, 1000.0, 1000.0], [0.3, 0.3, 0.3], dwell=np.array([0, 1, 2]))
+    assert res.group.tolist() == [0, 1, 2]
+
+
+def test_convoy_in_one_cell_becomes_one_report_with_all_ancestors():
+    r = 20_000.0 + np.array([0.0, 8.0, 16.0, 24.0, 32.0])      # within one range cell
+    az = np.full(5, 1.2) + np.array([0, 1, 2, 1, 0]) * 1e-3
+    snr = np.array([10.0, 40.0, 20.0, 5.0, 25.0])
+    tid = np.array([11, 12, 13, 14, 15])
+    plain = _merge(r, az, snr=snr, tid=tid)
+    assert len(plain.range_m) == 1 and plain.n_ancestors.tolist() == [5]
+    assert sorted(plain.ancestor_truth_id.tolist()) == tid.tolist()
+    assert plain.ancestor_row.tolist() == [0] * 5
+    assert plain.truth_id.tolist() == [12] and plain.strongest.tolist() == [1]
+    assert plain.snr[0] == pytest.approx(snr.sum())
+    assert plain.range_m[0] == pytest.approx(r.mean()) and plain.azimuth_rad[0] == pytest.approx(az.mean())
+    power = _merge(r, az, snr=snr, tid=tid, centroid="power")
+    assert power.range_m[0] == pytest.approx(np.sum(snr * r) / snr.sum())
+
+
+def test_merging_is_transitive_in_one_pass():
+    # A-B and B-C are one cell apart; A-C two cells (P = 1/16) — one group all the same.
+    res = _merge([1000.0, 1050.0, 1100.0], [0.5] * 3, threshold=0.5)
+    assert res.group.tolist() == [0, 0, 0]
+
+
+def test_iterate_until_none_left():
+    # A=(0,0) and B=(1,0) cells merge; C=(0.5, 0.95) is 1.07 cells from each (no merge in pass 1)
+    # but 0.95 cells from their centroid, so the dense mode takes it in pass 2.
+    r = 10_000.0 + DR * np.array([0.0, 1.0, 0.5])
+    az = 0.2 + DAZ * np.array([0.0, 0.0, 0.95])
+    one = _merge(r, az, iterate=False)
+    assert one.group.tolist() == [0, 0, 1] and one.passes == 1
+    dense = _merge(r, az, iterate=True)
+    assert dense.group.tolist() == [0, 0, 0] and dense.passes == 2
+    assert dense.range_m[0] == pytest.approx(r.mean())  # centroid of the original ancestors
+
+
+def test_azimuth_differences_wrap_through_north():
+    res = _merge([5000.0, 5000.0], [0.002, 2 * np.pi - 0.002])
+    assert res.merged.tolist() == [True]
+    assert 0.0 <= res.azimuth_rad[0] < 2 * np.pi
+    assert min(res.azimuth_rad[0], 2 * np.pi - res.azimuth_rad[0]) < 1e-12
+
+
+def test_range_rate_separates_targets_in_the_same_cell():
+    r, az = [1000.0, 1000.0], [0.5, 0.5]
+    res = mg.merge_reports([0, 0], r, az, [1, 1], [1, 2], DR, DAZ, range_rate_mps=[0.0, 3 * DRR],
+                           range_rate_cell_mps=DRR)
+    assert res.group.tolist() == [0, 1]
+    res = mg.merge_reports([0, 0], r, az, [1, 1], [1, 2], DR, DAZ, range_rate_mps=[0.0, DRR],
+                           range_rate_cell_mps=DRR)
+    assert res.group.tolist() == [0, 0] and res.range_rate_mps[0] == pytest.approx(DRR / 2)
+
+
+def test_unmerged_reports_keep_their_values_bit_for_bit():
+    rg = np.random.default_rng(3)
+    r = rg.uniform(1e4, 5e4, 300)
+    az = rg.uniform(0, 2 * np.pi, 300)
+    res = _merge(r, az)
+    single = ~res.merged
+    assert np.array_equal(res.range_m[single], r[res.strongest[single]])
+    assert np.array_equal(res.azimuth_rad[single], az[res.strongest[single]])
+
+
+def test_cells_must_be_constant_within_a_dwell():
+    with pytest.raises(ValueError, match="constant within a dwell"):
+        mg.merge_reports([0, 0], [1, 2], [0, 0], [1, 1], [1, 2], [50.0, 60.0], DAZ)
+    ok = mg.merge_reports([0, 1], [1, 2], [0, 0], [1, 1], [1, 2], [50.0, 60.0], DAZ)
+    assert len(ok.range_m) == 2
+
+
+def test_empty_input():
+    res = _merge(np.zeros(0), np.zeros(0))
+    assert len(res.group) == 0 and len(res.range_m) == 0 and res.passes == 0
+
+
+# ---------------------------------------------------------------- draw mode
+
+def _binomial_ok(k, n, p, z=4.5):
+    return abs(k - n * p) <= z * np.sqrt(n * p * (1 - p))
+
+
+@pytest.mark.parametrize("cells, p", [((1.0, 0.0), 0.5), ((1.0, 1.0), 0.25), ((0.5, 0.0), 2 ** -0.25)])
+def test_draw_mode_merges_with_probability_p_u(cells, p):
+    n = 4000
+    dwell = np.repeat(np.arange(n), 2)
+    r = np.tile([30_000.0, 30_000.0 + cells[0] * DR], n)
+    az = np.tile([0.7, 0.7 + cells[1] * DAZ], n)
+    tid = np.tile([3, 4], n)
+    res = mg.merge_reports(dwell, r, az, np.ones(2 * n), tid, DR, DAZ, mode="draw", seed=2024)
+    k = int(res.merged.sum())
+    assert _binomial_ok(k, n, p), (k, n * p)
+
+
+def test_draw_is_common_random_numbers_per_pair_of_targets():
+    base = dict(mode="draw", seed=5)
+    n = 500
+    dwell = np.repeat(np.arange(n), 2)
+    r = np.tile([30_000.0, 30_050.0], n)
+    az = np.full(2 * n, 0.7)
+    tid = np.tile([3, 4], n)
+    a = mg.merge_reports(dwell, r, az, np.ones(2 * n), tid, DR, DAZ, **base)
+    # Add a far-away target to every dwell: the pair's decisions do not change.
+    dwell2 = np.concatenate([dwell, np.arange(n)])
+    r2 = np.concatenate([r, np.full(n, 45_000.0)])
+    az2 = np.concatenate([az, np.full(n, 0.7)])
+    tid2 = np.concatenate([tid, np.full(n, 99)])
+    b = mg.merge_reports(dwell2, r2, az2, np.ones(3 * n), tid2, DR, DAZ, **base)
+    assert np.array_equal(a.group[0::2] == a.group[1::2], b.group[0:2 * n:2] == b.group[1:2 * n:2])
+    c = mg.merge_reports(dwell, r, az, np.ones(2 * n), tid, DR, DAZ, mode="draw", seed=6)
+    assert not np.array_equal(a.merged, c.merged)
+
+
+def test_pair_id_keys_the_draw_when_truth_ids_repeat():
+    n = 4000
+    dwell = np.repeat(np.arange(n), 2)
+    r = np.tile([30_000.0, 30_000.0 + DR], n)
+    az = np.full(2 * n, 0.7)
+    tid = np.full(2 * n, -1)                        # two false alarms per dwell
+    pid = np.tile([1_000_001, 1_000_002], n)
+    res = mg.merge_reports(dwell, r, az, np.ones(2 * n), tid, DR, DAZ, mode="draw", seed=8, pair_id=pid)
+    assert _binomial_ok(int(res.merged.sum()), n, 0.5)
+    again = mg.merge_reports(dwell, r, az, np.ones(2 * n), tid, DR, DAZ, mode="draw", seed=8,
+                             pair_id=pid + 10)
+    assert not np.array_equal(res.merged, again.merged)
+
+
+def test_draw_mode_needs_a_seed():
+    with pytest.raises(ValueError, match="seed"):
+        _merge([1.0, 2.0], [0.0, 0.0], mode="draw")
+
+
+# ---------------------------------------------------------------- kd-tree vs brute force
+
+def _brute_force(dwell, r, az, snr, tid, *, mode, threshold, seed, iterate, p_min=1e-9):
+    """All pairs within each dwell, the documented rule, connected groups; repeat when dense."""
+    n = len(r)
+    label = np.arange(n)
+    ident0 = mg.report_identity(tid)
+    while True:
+        groups = np.unique(label)
+        if len(groups) < 2:
+            break
+        cr = np.array([r[label == g].mean() for g in groups]) / DR
+        ca = np.array([az[label == g].mean() for g in groups]) / DAZ
+        gd = np.array([dwell[label == g][0] for g in groups])
+        gid = np.array([np.bitwise_xor.reduce(ident0[label == g]) for g in groups], dtype=np.uint64)
+        rows, cols = [], []
+        for i in range(len(groups)):
+            for j in range(i + 1, len(groups)):
+                if gd[i] != gd[j]:
+                    continue
+                p = np.exp2(-((cr[i] - cr[j]) ** 2 + (ca[i] - ca[j]) ** 2))
+                if mode == "threshold":
+                    ok = p >= threshold
+                else:
+                    ok = p >= p_min and mg.draw_uniform(seed, gd[i], gid[i], gid[j]) < p
+                if ok:
+                    rows.append(i)
+                    cols.append(j)
+        if not rows:
+            break
+        _, comp = csgraph.connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)),
+                                                          shape=(len(groups),) * 2), directed=False)
+        label = comp[np.searchsorted(groups, label)]
+        if not iterate:
+            break
+    return mg._canonical(label)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(0, 40), n_dwells=st.integers(1, 4), spread=st.floats(0.5, 6.0),
+       mode=st.sampled_from(["threshold", "draw"]), threshold=st.floats(0.05, 0.95),
+       iterate=st.booleans(), seed=st.integers(0, 2 ** 31))
+def test_kdtree_equals_brute_force(n, n_dwells, spread, mode, threshold, iterate, seed):
+    g = np.random.default_rng(seed)
+    dwell = g.integers(0, n_dwells, n)
+    r = 20_000.0 + g.uniform(0, spread * DR, n)
+    az = 1.0 + g.uniform(0, spread * DAZ, n)
+    snr = g.uniform(1, 100, n)
+    tid = g.permutation(1000)[:n]
+    fast = mg.merge_reports(dwell, r, az, snr, tid, DR, DAZ, mode=mode, threshold=threshold,
+                            seed=seed, iterate=iterate, circular_azimuth=False)
+    slow = _brute_force(dwell, r, az, snr, tid, mode=mode, threshold=threshold, seed=seed, iterate=iterate)
+    assert np.array_equal(fast.group, slow)
+    if iterate and mode == "threshold" and len(fast.range_m) > 1:
+        # Dense mode leaves no pair of output reports in a dwell at or above the threshold.
+        same = fast.dwell_id[:, None] == fast.dwell_id[None, :]
+        p = mg.merge_probability(fast.range_m[:, None] - fast.range_m[None, :],
+                                 fast.azimuth_rad[:, None] - fast.azimuth_rad[None, :], DR, DAZ)
+        np.fill_diagonal(p, 0.0)
+        assert not np.any((p >= threshold * (1 + 1e-9)) & same)
