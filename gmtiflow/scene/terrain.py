@@ -240,6 +240,119 @@ class Terrain:
         """Per sample: is the ground above the ray by more than the clearance?"""
         raise NotImplementedError
 
+    def _above_ground_m(self, pts: np.ndarray) -> np.ndarray:
+        """Per (n, 3) ENU point: its height above the ground (NaN off the DEM), exact per point
+        (geodetic DEMs: along the local normal, through pymap3d)."""
+        return pts[:, 2] - self.height_at(pts[:, 0], pts[:, 1])
+
+    # -- ground points of measurements ------------------------------------------------------
+    def intersect(self, origin_xyz, direction_xyz, max_range_m: float = 200e3,
+                  step_m: Optional[float] = None) -> np.ndarray:
+        """First ground point along each ray ``origin + s * direction`` (s in [0, max_range_m]).
+
+        Marches at ``step_m`` (default half a grid cell), then bisects the crossing to < 1 mm.
+        A ray whose origin is below the ground, that leaves the DEM, or that does not reach the
+        ground within ``max_range_m`` gives a NaN row. Grazing crossings of a ridge thinner than
+        ``step_m`` can be missed, as in :meth:`line_of_sight`. Returns (n, 3) ENU metres.
+        """
+        p0 = _as_points(origin_xyz, "origin_xyz")
+        d = _as_points(direction_xyz, "direction_xyz")
+        p0, d = np.broadcast_arrays(p0, d)
+        norm = np.linalg.norm(d, axis=1)
+        u = np.divide(d, norm[:, None], out=np.zeros(d.shape), where=norm[:, None] > 0)
+        n = len(p0)
+        if step_m is None:
+            step_m = 0.5 * self.cell_m if self.cell_m > 0 else 10.0
+        out = np.full((n, 3), np.nan)
+        if self.flat:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = (self.height_m - p0[:, 2]) / u[:, 2]
+            ok = (u[:, 2] < 0) & (p0[:, 2] >= self.height_m) & (s <= max_range_m)
+            out[ok] = p0[ok] + u[ok] * s[ok, None]
+            return out
+        # descending rays are sampled from where they drop below the highest ground
+        room = p0[:, 2] - self.z_ceiling_m
+        s_lo = np.where((u[:, 2] < 0) & (room > 0),
+                        np.divide(room, -u[:, 2], out=np.zeros(n), where=u[:, 2] < 0), 0.0)
+        live = np.isfinite(p0).all(axis=1) & (norm > 0) & (s_lo <= max_range_m)
+        above = np.full(n, np.nan)
+        above[live] = self._above_ground_m(p0[live] + u[live] * s_lo[live, None])
+        live &= above > 0
+        s_hit = np.full(n, np.nan)
+        # march in blocks of samples; a ray leaves the march at its first sample below ground
+        block = 128
+        s_next = s_lo.copy()
+        lo_all = s_lo.copy()
+        idx = np.nonzero(live)[0]
+        while len(idx):
+            r = idx[: max(1, self.chunk_samples // block)]
+            s = np.minimum(s_next[r, None] + step_m * np.arange(block)[None, :], max_range_m)
+            pts = p0[r, None, :] + u[r, None, :] * s[..., None]
+            below = self._above_ground_m(pts.reshape(-1, 3)).reshape(s.shape) <= 0
+            first = np.argmax(below, axis=1)
+            rows = np.arange(len(r))
+            hit = below[rows, first]
+            lo = np.where(first > 0, s[rows, np.maximum(first - 1, 0)], lo_all[r])
+            hi = s[rows, first]
+            done = hit | (s[:, -1] >= max_range_m)
+            lo_all[r] = s[:, -1]
+            s_next[r] = s[:, -1] + step_m
+            rh, lo, hi = r[hit], lo[hit], hi[hit]
+            for _ in range(60):
+                if len(rh) == 0 or np.max(hi - lo) < 1e-3:
+                    break
+                mid = 0.5 * (lo + hi)
+                b = self._above_ground_m(p0[rh] + u[rh] * mid[:, None]) <= 0
+                hi = np.where(b, mid, hi)
+                lo = np.where(b, lo, mid)
+            s_hit[rh] = hi
+            idx = idx[~np.isin(idx, r[done])]
+        ok = np.isfinite(s_hit)
+        out[ok] = p0[ok] + u[ok] * s_hit[ok, None]
+        return out
+
+    def geolocate(self, platform_xyz, range_m, azimuth_rad, iterations: int = 50) -> np.ndarray:
+        """Ground point at slant range ``range_m`` and world azimuth ``azimuth_rad`` (clockwise
+        from north) from the platform, as a GMTI processor places a report: the point of the
+        terrain on the range sphere, in the vertical half-plane of the azimuth, nearest below
+        the platform's horizon. Solved for the horizontal distance rho by bisection on
+        ``z_p - sqrt(R² - rho²) - ground(rho)`` over [0, R] (< 1 mm). NaN where the range does
+        not reach the ground or the point is off the DEM. Returns (n, 3) ENU metres.
+
+        Where the terrain puts several points at the same range and azimuth (layover), this
+        returns one of them, not necessarily the true one: a radar cannot tell either.
+        """
+        p = _as_points(platform_xyz, "platform_xyz")
+        r_m = np.asarray(range_m, float).ravel()
+        az = np.asarray(azimuth_rad, float).ravel()
+        n = np.broadcast_shapes((len(p),), r_m.shape, az.shape)[0]
+        p = np.broadcast_to(p, (n, 3))
+        r_m = np.broadcast_to(r_m, (n,))
+        az = np.broadcast_to(az, (n,))
+        sin_a, cos_a = np.sin(az), np.cos(az)
+
+        def point(rho):
+            drop = np.sqrt(np.maximum(r_m ** 2 - rho ** 2, 0.0))
+            return np.c_[p[:, 0] + rho * sin_a, p[:, 1] + rho * cos_a, p[:, 2] - drop]
+
+        lo = np.zeros(len(r_m))
+        hi = np.where(np.isfinite(r_m), r_m, np.nan)
+        g_lo = self._above_ground_m(point(lo))
+        g_hi = self._above_ground_m(point(hi))
+        ok = (g_lo <= 0) & (g_hi > 0)
+        for _ in range(iterations):
+            if not ok.any() or np.nanmax(np.where(ok, hi - lo, 0.0)) < 1e-4:
+                break
+            mid = 0.5 * (lo + hi)
+            g = self._above_ground_m(point(mid))
+            ok &= np.isfinite(g)
+            below = g <= 0
+            lo = np.where(below, mid, lo)
+            hi = np.where(below, hi, mid)
+        out = point(0.5 * (lo + hi))
+        out[~ok] = np.nan
+        return out
+
 
 class FlatTerrain(Terrain):
     flat = True
@@ -333,6 +446,12 @@ class GeoTerrain(Terrain):
             done = ~(np.abs(dz) > 1e-4)  # converged, or NaN (off the DEM)
             live[idx[done]] = False
         return z.reshape(shape)
+
+    def _above_ground_m(self, pts: np.ndarray) -> np.ndarray:
+        o = self.origin
+        lat, lon, h = pymap3d.enu2geodetic(pts[:, 0], pts[:, 1], pts[:, 2], o.lat_deg, o.lon_deg,
+                                           o.height_m)
+        return np.asarray(h, float) - self.ellipsoid_height_at(lat, lon)
 
     def _coverage_text(self) -> str:
         g = self.grid

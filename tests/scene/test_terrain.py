@@ -303,3 +303,56 @@ def test_rays_off_the_dem_are_not_blocked_by_unknown_ground(monaco):
     x, y, _ = pymap3d.geodetic2enu(44.3, 7.4, 0, 43.7307, 7.421392, 0)
     assert np.isnan(monaco.height_at(x, y))
     assert monaco.line_of_sight([x, y, 10.0], [x + 5e3, y, 10.0], 30.0).all()
+
+
+# ------------------------------------------------------------------ ground points of measurements
+def test_intersect_finds_the_first_ground_point(hills):
+    flat = T.build_terrain(T.TerrainConfig(flat_height_m=12.0), ROCHER)
+    air = np.array([0.0, -30e3, 6000.0])
+    np.testing.assert_allclose(flat.intersect(air, [0.0, 30e3, -5988.0]), [[0.0, 0.0, 12.0]],
+                               atol=1e-6)
+    assert np.isnan(flat.intersect(air, [0.0, 1.0, 0.0])).all()  # level ray never lands
+    # aimed at a road hidden behind the ridge, the ray lands on the ridge's south face
+    road = _on_ground(hills, [0.0], [1200.0])
+    hit = hills.intersect(air, road - air)
+    assert 0.0 < hit[0, 1] < 500.0
+    assert hit[0, 2] == pytest.approx(hills.height_at(hit[0, 0], hit[0, 1])[()], abs=0.01)
+    # aimed 0.5 m under a visible point, it lands within 0.5 / sin(grazing) of it
+    front = _on_ground(hills, [300.0], [-800.0]) - [0, 0, 0.5]
+    hit = hills.intersect(air, front - air)
+    assert np.linalg.norm(hit - front) < 0.5 / math.sin(math.atan2(6000, 29.2e3)) + 0.01
+    # pointing up, or from under the ground: no ground point
+    assert np.isnan(hills.intersect([0, 0, 500.0], [0, 0, 1.0])).all()
+    assert np.isnan(hills.intersect([0, 500.0, 10.0], [0, 1.0, -0.1])).all()
+
+
+def test_geolocate_puts_a_report_back_on_the_ground(hills):
+    rng = np.random.default_rng(9)
+    tgt = _on_ground(hills, rng.uniform(-4e3, 4e3, 400), rng.uniform(-2e3, 3e3, 400))
+    air = np.array([1000.0, -30e3, 6000.0])
+    d = tgt - air
+    rng_m = np.linalg.norm(d, axis=1)
+    az = np.arctan2(d[:, 0], d[:, 1])
+    got = hills.geolocate(air, rng_m, az)
+    g = got - air
+    np.testing.assert_allclose(np.linalg.norm(g, axis=1), rng_m, atol=1e-3)
+    np.testing.assert_allclose(np.arctan2(g[:, 0], g[:, 1]), az, atol=1e-9)
+    np.testing.assert_allclose(got[:, 2], hills.height_at(got[:, 0], got[:, 1]), atol=0.01)
+    # a single point of the terrain at that range and azimuth for the visible targets
+    seen = hills.line_of_sight(air, tgt, 10.0)
+    assert np.mean(np.linalg.norm(got - tgt, axis=1)[seen] < 0.01) > 0.95
+    # a range shorter than the height above ground reaches no ground
+    assert np.isnan(hills.geolocate(air, 5000.0, 0.0)).all()
+
+
+@needs_tile
+def test_geolocate_on_the_monaco_tile(monaco):
+    rng = np.random.default_rng(10)
+    tgt = _on_ground(monaco, rng.uniform(-3e3, 3e3, 300), rng.uniform(-3e3, 3e3, 300))
+    air = np.c_[tgt[:, 0] + 5e3, tgt[:, 1] - 30e3, np.full(300, 6000.0)]
+    d = tgt - air
+    got = monaco.geolocate(air, np.linalg.norm(d, axis=1), np.arctan2(d[:, 0], d[:, 1]))
+    np.testing.assert_allclose(np.linalg.norm(got - air, axis=1), np.linalg.norm(d, axis=1),
+                               atol=1e-3)
+    np.testing.assert_allclose(got[:, 2], monaco.height_at(got[:, 0], got[:, 1]), atol=0.01)
+    assert np.median(np.linalg.norm(got - tgt, axis=1)) < 0.01
