@@ -236,8 +236,17 @@ class Terrain:
             raise ValueError(f"step_m must be a finite number > 0, got {step_m!r}")
         return ~_march(self, p_from, p_to, float(step_m))
 
-    def _blocked(self, p_to, u, rid, s, s_lo, s_hi, ray_slice) -> np.ndarray:
-        """Per sample: is the ground above the ray by more than the clearance?"""
+    # Hooks of the march. "Terrain coordinates" (a, b, c) are (x, y, z) for ENU grids and
+    # (lat, lon, h above the ellipsoid) for geodetic DEMs: c is what the ground is compared with.
+    def _coords(self, pts: np.ndarray):
+        return pts[:, 0], pts[:, 1], pts[:, 2]
+
+    def _ground(self, a, b) -> np.ndarray:
+        """Ground c at terrain coordinates (a, b); NaN where unknown."""
+        raise NotImplementedError
+
+    def _ground_bound(self, a, b, radius_m: float) -> np.ndarray:
+        """An upper bound of the ground c within ``radius_m`` (horizontally) of (a, b)."""
         raise NotImplementedError
 
     def _above_ground_m(self, pts: np.ndarray) -> np.ndarray:
@@ -394,10 +403,20 @@ class GridTerrain(Terrain):
         return (f"the grid covers x {g.x0_m:.0f}..{g.x1_m:.0f} m, y {g.y0_m:.0f}..{g.y1_m:.0f} m "
                 f"of the scene frame")
 
-    def _blocked(self, p_to, u, rid, s, s_lo, s_hi, ray_slice) -> np.ndarray:
-        pts = p_to[rid] + u[rid] * s[:, None]
-        ground = self.grid.at(pts[:, 0], pts[:, 1])
-        return ground > pts[:, 2] + self.clearance_m  # NaN (unknown ground) -> False
+    def _ground(self, a, b) -> np.ndarray:
+        return self.grid.at(a, b)
+
+    def _ground_bound(self, a, b, radius_m: float) -> np.ndarray:
+        g = self.grid
+        hx = int(math.ceil(radius_m / g.dx_m)) + 2
+        hy = int(math.ceil(radius_m / g.dy_m)) + 2
+        top = _max_filter(self, (hy, hx), g.z)
+        i = np.clip(np.round((np.asarray(b) - g.y0_m) / g.dy_m), 0, g.z.shape[0] - 1).astype(np.intp)
+        j = np.clip(np.round((np.asarray(a) - g.x0_m) / g.dx_m), 0, g.z.shape[1] - 1).astype(np.intp)
+        bound = top[i, j]
+        if not math.isnan(g.outside_z_m):
+            bound = np.maximum(bound, g.outside_z_m)
+        return bound
 
 
 class GeoTerrain(Terrain):
@@ -414,6 +433,8 @@ class GeoTerrain(Terrain):
         mid_lat = math.radians(0.5 * (grid.lat_min_deg + grid.lat_max_deg))
         self.cell_m = math.radians(grid.step_deg) * 6_371_000.0  # N-S spacing (the larger)
         self.cell_ew_m = self.cell_m * math.cos(mid_lat)
+        far_lat = math.radians(max(abs(grid.lat_min_deg), abs(grid.lat_max_deg)))
+        self.cell_ew_min_m = max(self.cell_m * math.cos(far_lat), 1e-3)  # smallest E-W spacing
         self.clearance_m = float(clearance_m)
         self.end_skip_m = self.cell_m if end_skip_m is None else float(end_skip_m)
         self.chunk_samples = int(chunk_samples)
@@ -458,35 +479,36 @@ class GeoTerrain(Terrain):
         return (f"the DEM spans {g.lat_min_deg:g}..{g.lat_max_deg:g} N, "
                 f"{g.lon_min_deg:g}..{g.lon_max_deg:g} E; add the missing tiles or shrink the scene")
 
-    def _blocked(self, p_to, u, rid, s, s_lo, s_hi, ray_slice) -> np.ndarray:
-        # knots every <= KNOT_M along [s_lo, s_hi] of each ray of the chunk
-        rays = np.arange(ray_slice.start, ray_slice.stop)
-        n_per = np.bincount(rid - ray_slice.start, minlength=len(rays))
-        seg = np.where(n_per > 0, s_hi[rays] - s_lo[rays], 0.0)
-        m = np.where(n_per > 0, np.maximum(np.ceil(seg / KNOT_M), 1.0), 0.0).astype(np.intp)
-        n_knots = np.where(n_per > 0, m + 1, 0)
-        first_knot = np.cumsum(n_knots) - n_knots
-        k_ray = np.repeat(rays, n_knots)
-        k_idx = np.arange(n_knots.sum()) - np.repeat(first_knot, n_knots)
-        spacing = np.where(m > 0, seg / np.maximum(m, 1), 1.0)
-        spacing = np.where(spacing > 0, spacing, 1.0)
-        k_s = s_lo[k_ray] + k_idx * spacing[k_ray - ray_slice.start]
-        kp = p_to[k_ray] + u[k_ray] * k_s[:, None]
+    def _coords(self, pts: np.ndarray):
         o = self.origin
-        klat, klon, kh = (np.asarray(v, float) for v in pymap3d.enu2geodetic(
-            kp[:, 0], kp[:, 1], kp[:, 2], o.lat_deg, o.lon_deg, o.height_m))
-        # interpolate the samples between their two knots
-        loc = rid - ray_slice.start
-        pos = (s - s_lo[rid]) / spacing[loc]
-        j = np.clip(np.floor(pos).astype(np.intp), 0, np.maximum(m[loc] - 1, 0))
-        f = pos - j
-        a = first_knot[loc] + j
-        b = np.minimum(a + 1, first_knot[loc] + n_knots[loc] - 1)
-        lat = klat[a] + (klat[b] - klat[a]) * f
-        lon = klon[a] + (klon[b] - klon[a]) * f
-        h = kh[a] + (kh[b] - kh[a]) * f
-        ground = self.ellipsoid_height_at(lat, lon)
-        return ground > h + self.clearance_m
+        lat, lon, h = pymap3d.enu2geodetic(pts[:, 0], pts[:, 1], pts[:, 2], o.lat_deg, o.lon_deg,
+                                           o.height_m)
+        return np.asarray(lat, float), np.asarray(lon, float), np.asarray(h, float)
+
+    def _ground(self, a, b) -> np.ndarray:
+        return self.ellipsoid_height_at(a, b)
+
+    def _ground_bound(self, a, b, radius_m: float) -> np.ndarray:
+        g = self.grid
+        hy = int(math.ceil(radius_m / self.cell_m)) + 2
+        hx = int(math.ceil(radius_m / self.cell_ew_min_m)) + 2
+        top = _max_filter(self, (hy, hx), g.values)
+        i = np.clip(np.round((g.lat_max_deg - np.asarray(a)) / g.step_deg), 0,
+                    g.values.shape[0] - 1)
+        j = np.clip(np.round((np.asarray(b) - g.lon_min_deg) / g.step_deg), 0,
+                    g.values.shape[1] - 1)
+        return top[i.astype(np.intp), j.astype(np.intp)] + self.geoid_offset_m
+
+
+def _max_filter(terrain: Terrain, half: tuple, values: np.ndarray) -> np.ndarray:
+    """Running maximum of ``values`` over (2*half + 1) windows, NaN (unknown) as -inf; cached."""
+    cache = terrain.__dict__.setdefault("_max_cache", {})
+    if half not in cache:
+        import scipy.ndimage
+        v = np.where(np.isnan(values), -np.inf, values)
+        cache[half] = scipy.ndimage.maximum_filter(v, size=(2 * half[0] + 1, 2 * half[1] + 1),
+                                                   mode="nearest")
+    return cache[half]
 
 
 def _march(terrain: Terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float) -> np.ndarray:
@@ -494,8 +516,12 @@ def _march(terrain: Terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float
 
     Samples sit at distances ``s = s_lo + k*step_m`` from the target end ``p_to``, where
     [s_lo, s_hi] is the part of [end_skip, length - end_skip] on which the ray is not above the
-    highest ground. Rays are grouped into chunks of at most ``chunk_samples`` samples (a single
-    longer ray is its own chunk).
+    highest ground. They are grouped in segments of ``C`` samples (about ``KNOT_M``): each
+    segment's ends are converted to terrain coordinates (pymap3d for geodetic DEMs), and a
+    segment is sampled only if the highest ground within reach of it (a max-filtered grid) comes
+    up to the ray; the samples inside are interpolated between the ends. Skipping a segment is
+    exact: no ground under it can block. Rays are grouped into chunks of at most
+    ``chunk_samples`` samples (a single longer ray is its own chunk).
     """
     n = len(p_from)
     blocked = np.zeros(n, dtype=bool)
@@ -519,20 +545,54 @@ def _march(terrain: Terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float
     count = np.zeros(n, dtype=np.int64)
     ok = s_hi >= s_lo
     count[ok] = np.floor((s_hi[ok] - s_lo[ok]) / step_m).astype(np.int64) + 1
+    per_seg = max(1, int(round(KNOT_M / step_m)))
+    seg_m = per_seg * step_m
+    n_seg = (count + per_seg - 1) // per_seg
     cum = np.cumsum(count)
     budget = terrain.chunk_samples
+    clr = terrain.clearance_m
+    sag = 0.05 if isinstance(terrain, GeoTerrain) else 0.0  # h below its chord over a segment
     start = 0
     while start < n:
         base = cum[start - 1] if start else 0
         end = max(int(np.searchsorted(cum, base + budget, side="right")), start + 1)
-        c = count[start:end]
-        total = int(c.sum())
-        if total:
-            rid = np.repeat(np.arange(start, end), c)
-            k = np.arange(total) - np.repeat(np.cumsum(c) - c, c)
-            s = s_lo[rid] + k * step_m
-            hit = terrain._blocked(p_to, u, rid, s, s_lo, s_hi, slice(start, end))
-            blocked[start:end] = np.bincount(rid[hit] - start, minlength=end - start) > 0
+        ns = n_seg[start:end]
+        total_seg = int(ns.sum())
+        if total_seg:
+            # segment ends: ray r has ns[r] segments and ns[r] + 1 ends
+            n_end = np.where(ns > 0, ns + 1, 0)
+            first_end = np.cumsum(n_end) - n_end
+            e_ray = np.repeat(np.arange(start, end), n_end)
+            e_idx = np.arange(int(n_end.sum())) - np.repeat(first_end, n_end)
+            e_s = np.minimum(s_lo[e_ray] + e_idx * seg_m, s_hi[e_ray])
+            ea, eb, ec = terrain._coords(p_to[e_ray] + u[e_ray] * e_s[:, None])
+            # segments: ends k and k + 1
+            g_ray = np.repeat(np.arange(start, end), ns)
+            g_idx = np.arange(total_seg) - np.repeat(np.cumsum(ns) - ns, ns)
+            ka = first_end[g_ray - start] + g_idx
+            kb = ka + 1
+            reach = 0.5 * seg_m + step_m
+            bound = terrain._ground_bound(0.5 * (ea[ka] + ea[kb]), 0.5 * (eb[ka] + eb[kb]), reach)
+            may = bound > np.minimum(ec[ka], ec[kb]) - sag + clr
+            g_ray, g_idx, ka, kb = g_ray[may], g_idx[may], ka[may], kb[may]
+            if len(g_ray):
+                # fine samples of the kept segments
+                first_k = g_idx * per_seg
+                n_in = np.minimum(per_seg, count[g_ray] - first_k)
+                f_seg = np.repeat(np.arange(len(g_ray)), n_in)
+                k = (np.arange(int(n_in.sum())) - np.repeat(np.cumsum(n_in) - n_in, n_in)
+                     + first_k[f_seg])
+                rid = g_ray[f_seg]
+                s = s_lo[rid] + k * step_m
+                sa = e_s[ka[f_seg]]
+                sb = e_s[kb[f_seg]]
+                f = np.divide(s - sa, sb - sa, out=np.zeros(len(s)), where=sb > sa)
+                a0, b0 = ka[f_seg], kb[f_seg]
+                a = ea[a0] + (ea[b0] - ea[a0]) * f
+                b = eb[a0] + (eb[b0] - eb[a0]) * f
+                c = ec[a0] + (ec[b0] - ec[a0]) * f
+                hit = terrain._ground(a, b) > c + clr  # NaN (unknown ground) -> False
+                blocked[start:end] = np.bincount(rid[hit] - start, minlength=end - start) > 0
         start = end
     blocked[~finite] = True
     return blocked

@@ -356,3 +356,21 @@ def test_geolocate_on_the_monaco_tile(monaco):
                                atol=1e-3)
     np.testing.assert_allclose(got[:, 2], monaco.height_at(got[:, 0], got[:, 1]), atol=0.01)
     assert np.median(np.linalg.norm(got - tgt, axis=1)) < 0.01
+
+
+@pytest.mark.parametrize("which", ["hills", "monaco"])
+def test_skipping_segments_above_the_ground_does_not_change_the_answer(which, request,
+                                                                       monkeypatch):
+    ter = request.getfixturevalue(which)
+    rng = np.random.default_rng(11)
+    n = 4000
+    tgt = _on_ground(ter, rng.uniform(-6e3, 6e3, n), rng.uniform(-6e3, 6e3, n))
+    tgt[:, 2] += rng.uniform(-3, 20, n)
+    ang = rng.uniform(0, 2 * np.pi, n)
+    dist = rng.uniform(100, 40e3, n)
+    air = np.c_[tgt[:, 0] + dist * np.sin(ang), tgt[:, 1] + dist * np.cos(ang),
+                rng.uniform(-100, 8000, n)]
+    screened = ter.line_of_sight(air, tgt, 30.0)
+    assert 0.05 < screened.mean() < 0.98
+    monkeypatch.setattr(ter, "_ground_bound", lambda a, b, r: np.full(np.shape(a), np.inf))
+    np.testing.assert_array_equal(screened, ter.line_of_sight(air, tgt, 30.0))
