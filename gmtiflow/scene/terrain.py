@@ -21,11 +21,15 @@ with (lat, lon, h) = enu2geodetic(x, y, z), from z = 0, until it moves < 0.1 mm 
 Line of sight (``line_of_sight``) samples every ray at ``step_m`` from the target end, all rays
 at once and in chunks of ``chunk_samples`` samples; a ray is blocked if at some sample the ground
 is more than ``clearance_m`` above the ray. Samples within ``end_skip_m`` (default: one grid
-cell) of either end are not tested, so a target's own ground cell never shadows it, and the part
-of a ray above the highest ground is skipped without sampling (exact: it cannot be blocked).
-Geodetic DEMs compare heights above the ellipsoid along the local normal: ray points are
-converted with pymap3d at knots every 1 km along the ray and interpolated linearly in between
+cell) of either end are not tested, so a target's own ground cell never shadows it. Two exact
+shortcuts: the part of a ray above the highest ground is not sampled, and of the ~1 km segments
+left only those that the highest ground within reach (a cached running-maximum grid) comes up to
+are sampled. Geodetic DEMs compare heights above the ellipsoid along the local normal: the
+segment ends are converted with pymap3d and the samples interpolated linearly in between
 (error < 2 cm in height, < 1 mm horizontally). Straight rays: no atmospheric refraction.
+
+``intersect`` (first ground point of a ray) and ``geolocate`` (ground point at a slant range and
+azimuth, as a GMTI processor places a report) give the ground points of measurements.
 
 Points off the DEM: ``height_at`` gives NaN (hills: the base height), ``drape`` raises
 InputFileError, ``line_of_sight`` treats unknown ground as not blocking, and
@@ -49,7 +53,8 @@ from gmtiflow.scene import dem
 
 log = logging.getLogger(__name__)
 
-#: knot spacing along a ray for the ENU -> geodetic conversion of geodetic DEMs (metres)
+#: segment length along a ray (metres): the screen against the ground's maximum, and the
+#: spacing of the ENU -> geodetic conversions for geodetic DEMs
 KNOT_M = 1000.0
 #: suggested ray steps for conf/fidelity (metres): fast, standard, full
 SUGGESTED_STEP_M = {"fast": 90.0, "standard": 30.0, "full": 10.0}
