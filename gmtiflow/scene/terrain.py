@@ -265,8 +265,8 @@ class Terrain:
         """First ground point along each ray ``origin + s * direction`` (s in [0, max_range_m]).
 
         Marches at ``step_m`` (default half a grid cell), then bisects the crossing to < 1 mm.
-        A ray whose origin is below the ground, that leaves the DEM, or that does not reach the
-        ground within ``max_range_m`` gives a NaN row. Grazing crossings of a ridge thinner than
+        A ray whose origin is below the ground, or that does not reach known ground within
+        ``max_range_m``, gives a NaN row (it may start off the DEM and land on it). Grazing crossings of a ridge thinner than
         ``step_m`` can be missed, as in :meth:`line_of_sight`. Returns (n, 3) ENU metres.
         """
         p0 = _as_points(origin_xyz, "origin_xyz")
@@ -291,8 +291,11 @@ class Terrain:
         live = np.isfinite(p0).all(axis=1) & (norm > 0) & (s_lo <= max_range_m)
         above = np.full(n, np.nan)
         above[live] = self._above_ground_m(p0[live] + u[live] * s_lo[live, None])
-        live &= above > 0
         s_hit = np.full(n, np.nan)
+        # coming down from above the highest ground, a ray on the ground at s_lo lands there
+        touch = live & (s_lo > 0) & (above <= 0)
+        s_hit[touch] = s_lo[touch]
+        live &= ~(above <= 0)  # start above the ground, or over unknown ground (off the DEM)
         # march in blocks of samples; a ray leaves the march at its first sample below ground
         block = 128
         s_next = s_lo.copy()
@@ -327,11 +330,12 @@ class Terrain:
 
     def geolocate(self, platform_xyz, range_m, azimuth_rad, iterations: int = 50) -> np.ndarray:
         """Ground point at slant range ``range_m`` and world azimuth ``azimuth_rad`` (clockwise
-        from north) from the platform, as a GMTI processor places a report: the point of the
-        terrain on the range sphere, in the vertical half-plane of the azimuth, nearest below
-        the platform's horizon. Solved for the horizontal distance rho by bisection on
-        ``z_p - sqrt(R² - rho²) - ground(rho)`` over [0, R] (< 1 mm). NaN where the range does
-        not reach the ground or the point is off the DEM. Returns (n, 3) ENU metres.
+        from north) from the platform, as a GMTI processor places a report: a point of the
+        terrain on the range sphere, in the vertical half-plane of the azimuth. Solved for the
+        horizontal distance rho by bisection on ``z_p - sqrt(R² - rho²) - ground(rho)`` over
+        [0, R] (< 0.1 mm). NaN where the range does not reach the ground, or where the ground
+        straight below the platform (rho = 0) or at rho = R is unknown (off the DEM): the bracket
+        needs both. Returns (n, 3) ENU metres.
 
         Where the terrain puts several points at the same range and azimuth (layover), this
         returns one of them, not necessarily the true one: a radar cannot tell either.

@@ -374,3 +374,19 @@ def test_skipping_segments_above_the_ground_does_not_change_the_answer(which, re
     assert 0.05 < screened.mean() < 0.98
     monkeypatch.setattr(ter, "_ground_bound", lambda a, b, r: np.full(np.shape(a), np.inf))
     np.testing.assert_array_equal(screened, ter.line_of_sight(air, tgt, 30.0))
+
+
+def test_intersect_from_off_the_dem_lands_on_it(tmp_path):
+    yy, xx = np.mgrid[0:21, 0:21]
+    path = tmp_path / "g.asc"
+    dem.write_ascii_grid(path, dem.EnuGrid(z=np.full((21, 21), 30.0), x0_m=0, y0_m=0, dx_m=100,
+                                           dy_m=100, source="g"))
+    ter = T.build_terrain(T.TerrainConfig(kind=T.TerrainKind.ascii_grid, path=str(path)), ROCHER)
+    hit = ter.intersect([1000.0, -20e3, 6000.0], [0.0, 21e3, -5970.0])
+    np.testing.assert_allclose(hit, [[1000.0, 1000.0, 30.0]], atol=0.01)
+    # a sloping grid: the ray crosses the ceiling off the DEM and lands further on
+    dem.write_ascii_grid(path, dem.EnuGrid(z=30.0 + 1.0 * xx, x0_m=0, y0_m=0, dx_m=100, dy_m=100,
+                                           source="g"))
+    ter = T.build_terrain(T.TerrainConfig(kind=T.TerrainKind.ascii_grid, path=str(path)), ROCHER)
+    hit = ter.intersect([1000.0, -20e3, 6000.0], [0.0, 21e3, -5960.0])
+    np.testing.assert_allclose(hit, [[1000.0, 1000.0, 40.0]], atol=0.01)
