@@ -37,7 +37,8 @@ def _keys(ids: np.ndarray, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray, f
 
 def interpolate_truth(truth: Mapping[str, np.ndarray], vehicle_id, time_s) -> Table:
     """Truth of ``vehicle_id[i]`` at ``time_s[i]``: x_m y_m (z_m if truth has it) vx_mps vy_mps
-    speed_mps heading_rad, plus ``valid`` (False where the vehicle has no truth sample on both sides)."""
+    speed_mps heading_rad, plus ``valid`` (False where the vehicle has no truth sample on both
+    sides)."""
     vid = np.asarray(vehicle_id, np.int64)
     tq = np.asarray(time_s, float)
     n = len(vid)

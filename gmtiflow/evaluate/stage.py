@@ -14,7 +14,8 @@ Returned tables (keys are run-file paths):
 ``metrics/track_errors``    per associated track row: track_id time_s vehicle_id
                             position_error_m speed_error_mps heading_error_rad range_rate_error_mps
 ``metrics/association``     per (step, truth): time_s vehicle_id track_id (-1 none)
-``metrics/truth_identity``  per vehicle: n_steps coverage identity_switches fragmentations n_track_ids
+``metrics/truth_identity``  per vehicle: n_steps coverage identity_switches fragmentations
+                            n_track_ids
 ``metrics/track_purity``    per track: n_associated purity dominant_vehicle_id n_vehicles
 ``metrics/identity_switches`` per switch: time_s vehicle_id from_track_id to_track_id
 ``metrics/events``          per stop / blind gap (:mod:`gmtiflow.evaluate.events`)

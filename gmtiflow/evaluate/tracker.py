@@ -117,7 +117,8 @@ def _dwell_footprints(dwells: Mapping[str, np.ndarray], origin: Optional[frames.
                                                         "range_half_extent_m")):
         cx, cy, cz = frames.geodetic_to_enu(origin, dwells["area_lat_deg"], dwells["area_lon_deg"],
                                             np.full(n, origin.height_m))
-        fp["range"] = np.sqrt((cx - dwells["platform_x_m"]) ** 2 + (cy - dwells["platform_y_m"]) ** 2
+        fp["range"] = np.sqrt((cx - dwells["platform_x_m"]) ** 2
+                              + (cy - dwells["platform_y_m"]) ** 2
                               + (cz - dwells["platform_z_m"]) ** 2)
         fp["half_range"] = np.asarray(dwells["range_half_extent_m"], float)
     return fp

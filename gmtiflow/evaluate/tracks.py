@@ -31,6 +31,11 @@ ALLOWED = (("track_id", "time_s", "x_m", "y_m", "lat_deg", "lon_deg", "height_m"
            + tuple(c for g in GROUPS for c in g) + SINGLE_OPTIONAL)
 
 
+def _show(value) -> str:
+    """A value as a user reads it (plain Python repr, not numpy's)."""
+    return repr(value.item() if isinstance(value, np.generic) else value)
+
+
 def _fail(source: str, message: str) -> InputFileError:
     return InputFileError(f"{source}: {message}")
 
@@ -44,12 +49,13 @@ def _numeric(table, name: str, source: str) -> np.ndarray:
             try:
                 float(v)
             except (TypeError, ValueError):
-                raise _fail(source, f"column {name!r} row {i}: {v!r} is not a number") from None
-        raise _fail(source, f"column {name!r} is not numeric") from None
+                raise _fail(source, f"column {_show(name)} row {i}: {_show(v)} is not a "
+                                    f"number") from None
+        raise _fail(source, f"column {_show(name)} is not numeric") from None
     bad = np.flatnonzero(~np.isfinite(col))
     if len(bad):
         i = int(bad[0])
-        raise _fail(source, f"column {name!r} row {i}: {raw[i]!r} is not a finite number"
+        raise _fail(source, f"column {_show(name)} row {i}: {_show(raw[i])} is not a finite number"
                             f" ({len(bad)} such row(s))")
     return col
 
@@ -70,17 +76,18 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
         raise _fail(source, f"columns have different lengths: {lengths}")
     for n in ("track_id", "time_s"):
         if n not in table:
-            raise _fail(source, f"missing required column {n!r}")
+            raise _fail(source, f"missing required column {_show(n)}")
     has_xy = "x_m" in table or "y_m" in table
     has_ll = "lat_deg" in table or "lon_deg" in table
     if has_xy:
         for n in ("x_m", "y_m"):
             if n not in table:
-                raise _fail(source, f"missing column {n!r} (x_m and y_m come together)")
+                raise _fail(source, f"missing column {_show(n)} (x_m and y_m come together)")
     elif has_ll:
         for n in ("lat_deg", "lon_deg"):
             if n not in table:
-                raise _fail(source, f"missing column {n!r} (lat_deg and lon_deg come together)")
+                raise _fail(source, f"missing column {_show(n)} (lat_deg and lon_deg come "
+                                    f"together)")
         if origin is None:
             raise _fail(source, "positions are lat_deg/lon_deg but no scene origin was given to "
                                 "convert them to x_m/y_m")
@@ -98,7 +105,7 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
     frac = np.flatnonzero(ids != np.round(ids))
     if len(frac):
         i = int(frac[0])
-        raise _fail(source, f"column 'track_id' row {i}: {ids[i]!r} is not an integer")
+        raise _fail(source, f"column 'track_id' row {i}: {_show(ids[i])} is not an integer")
     out["track_id"] = ids.astype(np.int64)
     out["time_s"] = _numeric(table, "time_s", source)
     if has_xy:
@@ -112,7 +119,8 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
         bad = np.flatnonzero((np.abs(lat) > 90.0) | (np.abs(lon) > 360.0))
         if len(bad):
             i = int(bad[0])
-            raise _fail(source, f"row {i}: lat_deg {lat[i]!r} / lon_deg {lon[i]!r} out of range")
+            raise _fail(source, f"row {i}: lat_deg {_show(lat[i])} / lon_deg "
+                                f"{_show(lon[i])} out of range")
         x, y, z = frames.geodetic_to_enu(origin, lat, lon, h)
         out["x_m"], out["y_m"] = x, y
         if "z_m" not in table:
@@ -131,7 +139,7 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
             bad = np.flatnonzero((vals != 0) & (vals != 1))
             if len(bad):
                 i = int(bad[0])
-                raise _fail(source, f"column 'confirmed' row {i}: {conf[i]!r} is not a bool "
+                raise _fail(source, f"column 'confirmed' row {i}: {_show(conf[i])} is not a bool "
                                     f"(true/false or 1/0)")
             conf = vals.astype(bool)
         out["confirmed"] = conf.astype(bool)
@@ -149,7 +157,7 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
         if len(same):
             a, b = sorted((int(order[same[0]]), int(order[same[0] + 1])))
             raise _fail(source, f"column 'track_id': rows {a} and {b} are both track "
-                                f"{sid[same[0]]} at time_s {st[same[0]]!r} (ids collide)")
+                                f"{sid[same[0]]} at time_s {_show(st[same[0]])} (ids collide)")
         # Times must increase within each track in the order the rows were given.
         by_id = np.argsort(out["track_id"], kind="stable")
         bid, bt = out["track_id"][by_id], out["time_s"][by_id]
@@ -157,7 +165,8 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
         if len(back):
             row = int(by_id[back[0] + 1])
             raise _fail(source, f"column 'time_s' row {row}: track {bid[back[0]]} goes back in "
-                                f"time ({bt[back[0] + 1]!r} after {bt[back[0]]!r}); rows of a "
+                                f"time ({_show(bt[back[0] + 1])} after "
+                                f"{_show(bt[back[0]])}); rows of a "
                                 f"track must be in increasing time order")
         out = {k: v[order] for k, v in out.items()}
     return out
