@@ -9,8 +9,10 @@ Two alignments, both vectorised (one ``searchsorted`` over a combined (object, t
 * :func:`tracks_at_grid`: the tracks present at each time of an evaluation grid.  A track takes
   part at grid time ``t`` when it has a row at or before ``t`` no older than
   ``max_extrapolation_s``; its position is that row's, extrapolated to ``t`` at the row's
-  velocity (held when the table has no velocity).  A track is therefore absent before its first
-  row and ``max_extrapolation_s`` after its last one.  Used for OSPA/GOSPA and identity.
+  velocity (held when the table has no velocity).  A track ends with its last row: it is absent
+  before its first row and more than ``end_hold_s`` after its last one (a tracker stops reporting
+  a track when it deletes it; without this, a deleted track would linger next to its successor
+  and make the association flip between the two).  Used for OSPA/GOSPA and identity.
 
 The evaluation grid defaults to the truth table's own sample times, at which truth is exact.
 """
@@ -107,7 +109,7 @@ def truth_at_grid(truth: Mapping[str, np.ndarray], grid: np.ndarray) -> Table:
 
 
 def tracks_at_grid(tracks: Mapping[str, np.ndarray], grid: np.ndarray,
-                   max_extrapolation_s: float) -> Table:
+                   max_extrapolation_s: float, end_hold_s: float = np.inf) -> Table:
     """Track states at grid instants: ``step``, track_id, x_m, y_m (sorted by step, track)."""
     tid = np.asarray(tracks["track_id"], np.int64)
     tt = np.asarray(tracks["time_s"], float)
@@ -126,7 +128,8 @@ def tracks_at_grid(tracks: Mapping[str, np.ndarray], grid: np.ndarray,
     first = np.searchsorted(dense, np.arange(len(uniq)))
     last = np.searchsorted(dense, np.arange(len(uniq)), side="right") - 1
     lo = np.searchsorted(grid, tt[first] - _EPS_S)
-    hi = np.searchsorted(grid, tt[last] + max_extrapolation_s + _EPS_S, side="right")
+    hold = min(float(max_extrapolation_s), float(end_hold_s))
+    hi = np.searchsorted(grid, tt[last] + hold + _EPS_S, side="right")
     counts = np.maximum(hi - lo, 0)
     qk = np.repeat(np.arange(len(uniq)), counts)
     starts = np.repeat(lo - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)

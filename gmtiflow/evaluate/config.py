@@ -82,6 +82,9 @@ class MetricsConfig:
     max_extrapolation_s: float = 10.0
     """A track takes part at a grid time t when it has a row at or before t no older than this;
     its state is extrapolated to t at constant velocity."""
+    track_end_hold_s: float = 1.0
+    """A track still takes part this long after its last row (then it has ended).  The default is
+    the default truth step, so a track ending between two grid times is counted at the next."""
     event_lookback_s: float = 15.0
     """How far before a stop / blind gap to look for the track that held the vehicle."""
     min_gap_looks: int = 1
@@ -90,6 +93,7 @@ class MetricsConfig:
     def problems(self) -> List[Problem]:
         out = positive(self, "cutoff_m", "assoc_gate_m", "max_extrapolation_s", "event_lookback_s")
         out += positive(self, "eval_dt_s")
+        out += non_negative(self, "track_end_hold_s")
         out += in_range(self, "order_p", 1.0, float("inf"), hi_open=True)
         if self.gospa_alpha != 2.0:
             out.append(Problem("gospa_alpha", f"only 2 is supported, got {self.gospa_alpha!r}"))

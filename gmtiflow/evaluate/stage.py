@@ -87,7 +87,8 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
         tracks = {k: v[tracks["confirmed"]] for k, v in tracks.items()}
     grid = align.evaluation_grid(truth, cfg.eval_dt_s)
     truth_at = align.truth_at_grid(truth, grid)
-    tracks_at = align.tracks_at_grid(tracks, grid, cfg.max_extrapolation_s)
+    tracks_at = align.tracks_at_grid(tracks, grid, cfg.max_extrapolation_s,
+                                     cfg.track_end_hold_s)
 
     ospa_tab = ospa.series(truth_at, tracks_at, grid, cfg.cutoff_m, cfg.order_p)
     assigned = identity.associate(truth_at, tracks_at, len(grid), cfg.assoc_gate_m)

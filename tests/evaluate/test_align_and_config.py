@@ -55,3 +55,10 @@ def test_metrics_config_problems():
     assert MetricsConfig().problems() == []
     keys = {p.key for p in MetricsConfig(gospa_alpha=1.0, order_p=0.5, cutoff_m=0).problems()}
     assert keys == {"gospa_alpha", "order_p", "cutoff_m"}
+
+
+def test_a_track_ends_with_its_last_row():
+    tracks = {"track_id": np.array([1, 1]), "time_s": np.array([0.5, 1.5]),
+              "x_m": np.array([0.0, 10.0]), "y_m": np.zeros(2)}
+    at = tracks_at_grid(tracks, np.arange(6.0), max_extrapolation_s=2.0, end_hold_s=1.0)
+    assert list(at["step"]) == [1, 2]
