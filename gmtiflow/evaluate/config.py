@@ -33,6 +33,9 @@ class TrackerConfig:
     """N of M-of-N confirmation; a tentative track that cannot reach M hits in N is deleted."""
     delete_misses: int = 5
     """K: a confirmed track is deleted after K consecutive misses of dwells that covered it."""
+    max_coast_s: float = 120.0
+    """Any track not updated for this long is deleted, covered or not (so tracks that no later
+    footprint covers do not live on in memory)."""
     footprint_margin_m: float = 200.0
     """Margin added around a dwell's footprint when deciding whether it covered a track."""
     default_sigma_range_m: float = 20.0
@@ -43,7 +46,8 @@ class TrackerConfig:
     """Range-rate σ when a detection carries none."""
 
     def problems(self) -> List[Problem]:
-        out = positive(self, "accel_sigma_mps2", "init_speed_sigma_mps", "default_sigma_range_m",
+        out = positive(self, "accel_sigma_mps2", "init_speed_sigma_mps", "max_coast_s",
+                       "default_sigma_range_m",
                        "default_sigma_azimuth_deg", "default_sigma_range_rate_mps")
         out += non_negative(self, "footprint_margin_m")
         out += in_range(self, "gate_probability", 0.0, 1.0, lo_open=True, hi_open=True)

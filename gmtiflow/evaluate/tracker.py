@@ -22,7 +22,7 @@ Per dwell, in time order (a Python loop over dwells; everything inside is batche
 5. **Confirm / delete.**  Hits and covered dwells are counted per track: a tentative track is
    confirmed at ``confirm_m`` hits within its first ``confirm_n`` covering dwells, and deleted
    when it has not made it by then; a confirmed track is deleted after ``delete_misses``
-   consecutive covered misses.
+   consecutive covered misses.  Any track not updated for ``max_coast_s`` is deleted too.
 6. **Initiate** a tentative track at every detection left unassigned: single-point initiation,
    position and covariance from the detection, velocity prior 0 ± ``init_speed_sigma_mps`` per
    axis, refined at once by the detection's range rate when ``use_range_rate``.
@@ -286,6 +286,7 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
         dead = np.zeros(n_tr, bool)
         dead[counted] = ((tr.confirmed[counted] & (tr.misses[counted] >= cfg.delete_misses))
                          | (~tr.confirmed[counted] & (tr.covered[counted] >= cfg.confirm_n)))
+        dead |= (t - tr.t) > cfg.max_coast_s
         if fp is None and last_of_revisit[k]:
             tr.revisit_hit[:] = False
 

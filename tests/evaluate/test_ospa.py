@@ -95,3 +95,23 @@ def test_agrees_with_stone_soup_on_random_sets(p):
         assert ours["localisation"] == pytest.approx(ss_gospa["localisation"], rel=1e-9, abs=1e-9)
         assert ours["missed"] == pytest.approx(ss_gospa["missed"], rel=1e-9, abs=1e-9)
         assert ours["false"] == pytest.approx(ss_gospa["false"], rel=1e-9, abs=1e-9)
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+from hypothesis.extra.numpy import arrays  # noqa: E402
+
+points = st.integers(0, 6).flatmap(
+    lambda n: arrays(np.float64, (n, 2), elements=st.floats(-500, 500, allow_nan=False)))
+
+
+@settings(max_examples=200, deadline=None)
+@given(points, points, st.floats(1.0, 200.0), st.sampled_from([1.0, 2.0, 3.5]))
+def test_metric_properties(X, Y, c, p):
+    a, b = ospa_gospa(X, Y, c, p), ospa_gospa(Y, X, c, p)
+    assert a["ospa"] == pytest.approx(b["ospa"], rel=1e-9, abs=1e-9)          # symmetric
+    assert a["gospa"] == pytest.approx(b["gospa"], rel=1e-9, abs=1e-9)
+    assert 0.0 <= a["ospa"] <= c * (1 + 1e-12)                                  # bounded by c
+    assert a["gospa"] ** p == pytest.approx(a["localisation"] + a["missed"] + a["false"],
+                                            rel=1e-9, abs=1e-9)
+    assert a["missed"] == pytest.approx(c ** p / 2 * (len(X) - a["n_assigned"]))
+    assert ospa_gospa(X, X, c, p)["gospa"] == pytest.approx(0.0, abs=1e-9)      # identity
