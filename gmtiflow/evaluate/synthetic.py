@@ -29,11 +29,14 @@ def straight_scene(*, n_vehicles: int = 1, n_revisits: int = 60, revisit_s: floa
                    stops: Optional[Dict[int, Tuple[float, float]]] = None,
                    blind: Optional[Dict[int, Sequence[Tuple[float, float]]]] = None,
                    clutter_per_dwell: float = 0.0, clutter_half_width_m: float = 3000.0,
-                   convoy_ids: Optional[Sequence[int]] = None) -> Dict[str, Table]:
+                   convoy_ids: Optional[Sequence[int]] = None, n_beams: int = 1,
+                   dwell_s: float = 0.05) -> Dict[str, Table]:
     """A scene of straight-driving vehicles; returns truth, vehicles, dwells, detections, looks.
 
     ``stops``: vehicle -> (t0, t1), standing still (mode 2, undetectable) on [t0, t1].
     ``blind``: vehicle -> list of (t0, t1) intervals in which it is Doppler blind (outcome 4).
+    ``n_beams``: dwells per revisit, ``dwell_s`` apart, whose beams tile a ±30° sector around the
+    scene centre; a vehicle is looked at (and can be detected) only by the beam it is in.
     """
     rng = np.random.default_rng(seed)
     stops = stops or {}
@@ -76,20 +79,25 @@ def straight_scene(*, n_vehicles: int = 1, n_revisits: int = 60, revisit_s: floa
     order = np.lexsort((truth["vehicle_id"], truth["time_s"]))
     truth = {k: c[order] for k, c in truth.items()}
 
-    t_dw = np.arange(n_revisits) * revisit_s
+    revisit = np.repeat(np.arange(n_revisits), n_beams)
+    index = np.tile(np.arange(n_beams), n_revisits)
+    t_dw = revisit * revisit_s + index * dwell_s
     plat = PLATFORM_START[None, :] + t_dw[:, None] * PLATFORM_VEL[None, :]
     centre = np.array([n_vehicles * spacing_m / 2.0, 500.0])
-    beam_az = frames.heading_rad(centre[0] - plat[:, 0], centre[1] - plat[:, 1])
-    nd = n_revisits
+    half = np.radians(30.0) / n_beams
+    beam_az = (frames.heading_rad(centre[0] - plat[:, 0], centre[1] - plat[:, 1])
+               + (2 * index - (n_beams - 1)) * half)
+    nd = len(t_dw)
     dwells = {
-        "dwell_id": np.arange(nd, dtype=np.int64), "revisit_id": np.arange(nd, dtype=np.int64),
-        "dwell_index": np.zeros(nd, np.int64), "last_dwell": np.ones(nd, bool), "time_s": t_dw,
+        "dwell_id": np.arange(nd, dtype=np.int64), "revisit_id": revisit.astype(np.int64),
+        "dwell_index": index.astype(np.int64), "last_dwell": index == n_beams - 1,
+        "time_s": t_dw,
         "cpi_s": np.full(nd, 0.05), "beam_scan_rad": np.zeros(nd), "beam_az_rad": beam_az,
         "platform_x_m": plat[:, 0], "platform_y_m": plat[:, 1], "platform_z_m": plat[:, 2],
         "platform_vx_mps": np.full(nd, PLATFORM_VEL[0]),
         "platform_vy_mps": np.full(nd, PLATFORM_VEL[1]),
         "platform_vz_mps": np.full(nd, PLATFORM_VEL[2]),
-        "angle_half_extent_rad": np.full(nd, np.radians(30.0)),
+        "angle_half_extent_rad": np.full(nd, half),
         "mdv_mps": np.full(nd, 1.0), "wrap_velocity_mps": np.full(nd, np.nan)}
 
     det_parts, look_parts = [], []
@@ -104,6 +112,8 @@ def straight_scene(*, n_vehicles: int = 1, n_revisits: int = 60, revisit_s: floa
         for t0, t1 in blind.get(int(v), ()):
             outcome[(t_dw >= t0) & (t_dw <= t1)] = 4
         outcome[~moving] = 4
+        in_beam = np.abs(frames.wrap_pi(frames.heading_rad(d[:, 0], d[:, 1]) - beam_az)) <= half
+        outcome[~in_beam] = 1
         noise = rng.normal(0.0, sigma_m, (nd, 2))
         rr_noise = rng.normal(0.0, sigma_rr_mps, nd)
         det = outcome == 0
@@ -119,14 +129,19 @@ def straight_scene(*, n_vehicles: int = 1, n_revisits: int = 60, revisit_s: floa
             "sigma_range_rate_mps": np.full(n, sigma_rr_mps),
             "x_m": pos[det, 0] + noise[det, 0], "y_m": pos[det, 1] + noise[det, 1],
             "z_m": np.zeros(n), "truth_id": np.full(n, v, np.int64)})
-        look_parts.append({"dwell_id": np.arange(nd, dtype=np.int64),
-                           "vehicle_id": np.full(nd, v, np.int64), "time_s": t_dw,
-                           "outcome": outcome, "det_id": np.full(nd, -1, np.int64)})
+        look_parts.append({"dwell_id": np.flatnonzero(in_beam).astype(np.int64),
+                           "vehicle_id": np.full(int(in_beam.sum()), v, np.int64),
+                           "time_s": t_dw[in_beam], "outcome": outcome[in_beam],
+                           "det_id": np.full(int(in_beam.sum()), -1, np.int64)})
     if clutter_per_dwell > 0:
         counts = rng.poisson(clutter_per_dwell, nd)
         k = np.repeat(np.arange(nd), counts)
         n = len(k)
         xy = centre + rng.uniform(-clutter_half_width_m, clutter_half_width_m, (n, 2))
+        az = frames.heading_rad(xy[:, 0] - plat[k, 0], xy[:, 1] - plat[k, 1])
+        inside = np.abs(frames.wrap_pi(az - beam_az[k])) <= half      # nothing outside the beam
+        k, xy = k[inside], xy[inside]
+        n = len(k)
         d = np.concatenate([xy - plat[k, :2], -plat[k, 2:3]], axis=1)
         rng_m = np.linalg.norm(d, axis=1)
         ground = np.hypot(d[:, 0], d[:, 1])

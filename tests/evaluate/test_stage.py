@@ -63,3 +63,21 @@ def test_tables_have_equal_length_columns(scored):
 def test_disabled_metrics_give_nothing():
     scene = straight_scene(n_revisits=5)
     assert evaluate(MetricsConfig(enabled=False), scene["truth"], {}) == {}
+
+
+def test_tables_round_trip_through_the_run_file(scored, tmp_path):
+    from gmtiflow.store import RunWriter, read_table
+    _, tracks, out = scored
+    path = tmp_path / "run.h5"
+    with RunWriter(path, seed=1) as writer:
+        writer.write_table("tracks", tracks)
+        for name, table in out.items():
+            writer.write_table(name, table)
+        writer.commit()
+    back = read_table(path, "metrics")
+    assert list(back["name"]) == list(out["metrics"]["name"])
+    np.testing.assert_array_equal(back["value"], out["metrics"]["value"])
+    ev = read_table(path, "metrics/events")
+    assert list(ev["kind"]) == list(out["metrics/events"]["kind"])
+    tr = read_table(path, "tracks")
+    np.testing.assert_array_equal(tr["x_m"], tracks["x_m"])

@@ -153,3 +153,22 @@ def test_missing_detection_column_is_a_clear_error():
     det = {k: v for k, v in scene["detections"].items() if k != "x_m"}
     with pytest.raises(InputFileError, match="x_m"):
         track(TrackerConfig(), det, scene["dwells"])
+
+
+@pytest.mark.parametrize("footprints", [True, False])
+def test_several_beams_per_revisit_keep_every_track(footprints):
+    # 4 dwells per revisit, each vehicle inside one beam only: the 3 other dwells of a revisit
+    # must not count as misses (footprint mode) / misses are counted per revisit (revisit mode).
+    scene = straight_scene(n_vehicles=8, n_revisits=60, n_beams=4, spacing_m=1500.0,
+                           clutter_per_dwell=2.0, seed=3)
+    assert len(np.unique(scene["looks"]["dwell_id"] % 4)) == 2      # vehicles sit in 2 beams
+    dwells = scene["dwells"]
+    if not footprints:
+        dwells = {k: v for k, v in dwells.items()
+                  if k not in ("beam_az_rad", "angle_half_extent_rad")}
+    tr = track(TrackerConfig(), scene["detections"], dwells)
+    conf = tr["confirmed"]
+    assert len(np.unique(tr["track_id"][conf])) == 8
+    # every confirmed track lives from its confirmation to the end
+    for i in np.unique(tr["track_id"][conf]):
+        assert tr["time_s"][tr["track_id"] == i].max() >= 118.0
