@@ -28,11 +28,12 @@ class TrackerConfig:
     init_speed_sigma_mps: float = 15.0
     """Velocity prior σ (per axis) of a track started from one detection (velocity mean 0)."""
     confirm_m: int = 3
-    """M of M-of-N confirmation: hits needed among the first N covering dwells."""
+    """M of M-of-N confirmation: hits needed among the first N covering revisits."""
     confirm_n: int = 5
     """N of M-of-N confirmation; a tentative track that cannot reach M hits in N is deleted."""
     delete_misses: int = 5
-    """K: a confirmed track is deleted after K consecutive misses of dwells that covered it."""
+    """K: a confirmed track is deleted after K consecutive revisits that covered it (one of their
+    dwells' footprints held it) without updating it."""
     max_coast_s: float = 120.0
     """Any track not updated for this long is deleted, covered or not (so tracks that no later
     footprint covers do not live on in memory)."""

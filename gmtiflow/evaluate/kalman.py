@@ -97,23 +97,36 @@ def wrap_symmetric(value, half_period):
 
 
 def innovations(x: np.ndarray, P: np.ndarray, H: np.ndarray, h: np.ndarray, z: np.ndarray,
-                R: np.ndarray, rr_half_period=None):
-    """Innovations and their covariances for every (track, detection) pair.
+                R: np.ndarray, rr_half_period=None, gate=None):
+    """Innovations and squared Mahalanobis distances of every (track, detection) pair.
 
     ``x`` (nt, 4), ``P`` (nt, 4, 4); ``H`` (nt, m, 4) and ``h`` (nt, m) the linearised measurement
-    model per track; ``z`` (nd, m) and ``R`` (nd, m, m) per detection.  Returns ``nu`` (nt, nd, m),
-    ``S`` (nt, nd, m, m) and the squared Mahalanobis distances ``d2`` (nt, nd).  When
+    model per track; ``z`` (nd, m) and ``R`` (nd, m, m) per detection.  Returns ``nu``
+    (nt, nd, m), ``HPHt`` (nt, m, m) (so ``S = HPHt[i] + R[j]``) and ``d2`` (nt, nd).  When
     ``rr_half_period`` (nd,) is given, the third (range-rate) innovation is wrapped into
     ± that value (Doppler ambiguity, λ·PRF/4).
+
+    With ``gate``, ``d2`` is computed only for pairs that can be inside it and is ``inf``
+    elsewhere.  The pre-test is exact: the Mahalanobis distance of the full innovation is at
+    least that of its position part, which is at least ``‖ν_pos‖² / λ_max(S_pos)``, and
+    ``λ_max(S_pos) ≤ tr(S_pos) = tr(HPHᵀ_pos) + tr(R_pos)``.
     """
     nu = z[None, :, :] - h[:, None, :]
     if rr_half_period is not None and z.shape[1] == 3:
         nu[:, :, 2] = wrap_symmetric(nu[:, :, 2], np.asarray(rr_half_period)[None, :])
     HPHt = H @ P @ np.transpose(H, (0, 2, 1))
-    S = HPHt[:, None, :, :] + R[None, :, :, :]
-    sol = np.linalg.solve(S, nu[..., None])[..., 0]
-    d2 = np.einsum("tdi,tdi->td", nu, sol)
-    return nu, S, d2
+    if gate is None:
+        ti, di = np.nonzero(np.ones(nu.shape[:2], bool))
+    else:
+        bound = (np.trace(HPHt[:, :2, :2], axis1=1, axis2=2)[:, None]
+                 + np.trace(R[:, :2, :2], axis1=1, axis2=2)[None, :])
+        ti, di = np.nonzero((nu[:, :, :2] ** 2).sum(axis=-1) <= gate * bound)
+    d2 = np.full(nu.shape[:2], np.inf)
+    if len(ti):
+        S = HPHt[ti] + R[di]
+        v = nu[ti, di]
+        d2[ti, di] = np.einsum("ni,ni->n", v, np.linalg.solve(S, v[..., None])[..., 0])
+    return nu, HPHt, d2
 
 
 def kalman_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, nu: np.ndarray, S: np.ndarray,

@@ -9,8 +9,7 @@ Per dwell, in time order (a Python loop over dwells; everything inside is batche
    ``beam_az_rad ± angle_half_extent_rad`` and, when the scene origin is given, slant range within
    ``range_half_extent_m`` of the slant range to the dwell-area centre (``area_lat_deg
    area_lon_deg``); both widened by ``footprint_margin_m``.  Without these /dwells columns every
-   dwell covers every track for gating, and a *miss* is counted once per revisit (at the revisit's
-   last dwell, for a track no dwell of that revisit updated).
+   dwell covers every track.  Only covered tracks are gated against a dwell's detections.
 2. **Predict** the covered tracks from their last update to the dwell time (CV model,
    :mod:`gmtiflow.evaluate.kalman`).
 3. **Gate and assign.**  Squared Mahalanobis distance of every (track, detection) innovation,
@@ -19,17 +18,22 @@ Per dwell, in time order (a Python loop over dwells; everything inside is batche
    confirmed tracks, then for the tentative tracks on the detections left over.
 4. **Update** assigned tracks (Kalman on position, EKF on range rate; the range-rate innovation
    is wrapped into ± ``wrap_velocity_mps`` when the detection carries a finite one).
-5. **Confirm / delete.**  Hits and covered dwells are counted per track: a tentative track is
-   confirmed at ``confirm_m`` hits within its first ``confirm_n`` covering dwells, and deleted
+5. **Confirm / delete**, counted in *revisits* (``revisit_id``; each dwell is its own revisit
+   when /dwells has no such column): a revisit *covers* a track when any of its dwells covers
+   it, and *hits* it when any of them updates it — so overlapping beams of one scan neither
+   double-count a hit nor turn the neighbouring beam's look into a miss.  A tentative track is
+   confirmed at ``confirm_m`` hits within its first ``confirm_n`` covering revisits and deleted
    when it has not made it by then; a confirmed track is deleted after ``delete_misses``
-   consecutive covered misses.  Any track not updated for ``max_coast_s`` is deleted too.
+   consecutive covering revisits without a hit (a track outside every beam of a revisit is not
+   missed).  Any track not updated for ``max_coast_s`` is deleted too.
 6. **Initiate** a tentative track at every detection left unassigned: single-point initiation,
    position and covariance from the detection, velocity prior 0 ± ``init_speed_sigma_mps`` per
    axis, refined at once by the detection's range rate when ``use_range_rate``.
 
 Output: one /tracks row per (track, covering dwell), updated or coasted (a coasted row is the
 prediction; it is not stored back, so the next update predicts from the last measurement).
-A deleted track has no row at the dwell that deleted it.  ``range_rate_mps`` is the range rate
+Without footprints: a row per update, and a coasted row at the end of a revisit that missed the
+track.  A deleted track has no row at the dwell that deleted it.  ``range_rate_mps`` is the range rate
 the track state implies, seen from the dwell's platform.  Detections flagged ``implausible`` (a
 folded report below the surface, as the processor flags it) are not used.  Track ids count from
 0 in order of creation.  The tracker draws no random numbers; ``seed`` is accepted for the stage
@@ -92,9 +96,11 @@ class _Tracks:
         self.covered = np.zeros(0, np.int64)
         self.misses = np.zeros(0, np.int64)
         self.confirmed = np.zeros(0, bool)
-        self.revisit_hit = np.zeros(0, bool)
+        self.rev_covered = np.zeros(0, bool)
+        self.rev_hit = np.zeros(0, bool)
 
-    _FIELDS = ("id", "x", "P", "t", "z", "hits", "covered", "misses", "confirmed", "revisit_hit")
+    _FIELDS = ("id", "x", "P", "t", "z", "hits", "covered", "misses", "confirmed", "rev_covered",
+               "rev_hit")
 
     def keep(self, mask) -> None:
         for f in self._FIELDS:
@@ -249,7 +255,7 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
             zmeas, R, zdet, wrap = _measurements(detections, didx, plat_pos, cfg)
         if len(didx) and len(ci):
             h, H = _model(xp, tr.z[ci], plat_pos, plat_vel, use_rr)
-            nu, S, d2 = kalman.innovations(xp, Pp, H, h, zmeas, R, wrap)
+            nu, HPHt, d2 = kalman.innovations(xp, Pp, H, h, zmeas, R, wrap, gate)
             for group in (tr.confirmed[ci], ~tr.confirmed[ci]):
                 rows = np.flatnonzero(group)
                 cols = np.flatnonzero(~det_taken)
@@ -261,52 +267,17 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
             a = np.flatnonzero(assigned_track >= 0)
             if len(a):
                 j = assigned_track[a]
-                xu, Pu = kalman.kalman_update(xp[a], Pp[a], H[a], nu[a, j], S[a, j], R[j])
+                xu, Pu = kalman.kalman_update(xp[a], Pp[a], H[a], nu[a, j], HPHt[a] + R[j], R[j])
                 gi = ci[a]
                 tr.x[gi], tr.P[gi], tr.t[gi], tr.z[gi] = xu, Pu, t, zdet[j]
                 xp[a], Pp[a] = xu, Pu
         hit = assigned_track >= 0
-        # Bookkeeping (footprint mode: every covering dwell counts; revisit mode: every hit
-        # counts, and a track no dwell of the revisit updated gets one miss at its last dwell).
-        missed_rev = np.zeros(0, np.int64)
-        if fp is not None:
-            counted, counted_hit = ci, hit
-        else:
-            tr.revisit_hit[ci[hit]] = True
-            if last_of_revisit[k]:
-                missed_rev = np.flatnonzero(~tr.revisit_hit)
-            counted = np.concatenate([ci[hit], missed_rev])
-            counted_hit = np.concatenate([np.ones(int(hit.sum()), bool),
-                                          np.zeros(len(missed_rev), bool)])
-        tr.covered[counted] += 1
-        tr.hits[counted[counted_hit]] += 1
-        tr.misses[counted[counted_hit]] = 0
-        tr.misses[counted[~counted_hit]] += 1
-        tr.confirmed |= tr.hits >= cfg.confirm_m
-        dead = np.zeros(n_tr, bool)
-        dead[counted] = ((tr.confirmed[counted] & (tr.misses[counted] >= cfg.delete_misses))
-                         | (~tr.confirmed[counted] & (tr.covered[counted] >= cfg.confirm_n)))
-        dead |= (t - tr.t) > cfg.max_coast_s
-        if fp is None and last_of_revisit[k]:
-            tr.revisit_hit[:] = False
 
-        # Rows: covered tracks (updated or coasted) in footprint mode; updated tracks, and at the
-        # end of a revisit the ones it missed, in revisit mode.
-        if fp is not None:
-            row_sel = np.ones(len(ci), bool)
-        else:
-            row_sel = hit | np.isin(ci, missed_rev)
-        row_sel &= ~dead[ci]
-        rows_i = ci[row_sel]
-        if len(rows_i):
-            out.append(_rows(tr.id[rows_i], t, xp[row_sel], Pp[row_sel], tr.z[rows_i], plat_pos,
-                             plat_vel, tr.confirmed[rows_i]))
-        tr.keep(~dead)
-
-        # Initiation from the detections no track took.
+        # Initiation from the detections no track took (before the bookkeeping, so that a track
+        # started in a revisit's last dwell is counted in that revisit).
         free = np.flatnonzero(~det_taken)
-        if len(free):
-            nf = len(free)
+        nf = len(free)
+        if nf:
             x0 = np.zeros((nf, 4))
             x0[:, :2] = zmeas[free, :2]
             P0 = np.zeros((nf, 4, 4))
@@ -320,12 +291,50 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
                 x0, P0 = kalman.kalman_update(x0, P0, H1, nu1, S1, R[free, 2:3, 2:3])
             ids = next_id + np.arange(nf, dtype=np.int64)
             next_id += nf
-            confirmed = np.full(nf, cfg.confirm_m <= 1)
-            tr.append(id=ids, x=x0, P=P0, t=np.full(nf, t), z=zdet[free],
-                      hits=np.ones(nf, np.int64), covered=np.ones(nf, np.int64),
-                      misses=np.zeros(nf, np.int64), confirmed=confirmed,
-                      revisit_hit=np.full(nf, fp is None))
-            out.append(_rows(ids, t, x0, P0, zdet[free], plat_pos, plat_vel, confirmed))
+            zeros = np.zeros(nf, np.int64)
+            tr.append(id=ids, x=x0, P=P0, t=np.full(nf, t), z=zdet[free], hits=zeros,
+                      covered=zeros, misses=zeros, confirmed=np.full(nf, cfg.confirm_m <= 1),
+                      rev_covered=np.ones(nf, bool), rev_hit=np.ones(nf, bool))
+
+        # Bookkeeping per revisit: a revisit covers a track when one of its dwells does (every
+        # dwell, without footprints) and hits it when one of them updates it; hits, covered
+        # revisits and consecutive misses are counted at the revisit's last dwell.
+        tr.rev_covered[ci] = True
+        tr.rev_hit[ci[hit]] = True
+        dead = (t - tr.t) > cfg.max_coast_s
+        missed_rev = np.zeros(0, np.int64)
+        if last_of_revisit[k]:
+            counted = np.flatnonzero(tr.rev_covered)
+            got = tr.rev_hit[counted]
+            tr.covered[counted] += 1
+            tr.hits[counted[got]] += 1
+            tr.misses[counted[got]] = 0
+            tr.misses[counted[~got]] += 1
+            tr.confirmed |= tr.hits >= cfg.confirm_m
+            c_conf = tr.confirmed[counted]
+            dead[counted] |= ((c_conf & (tr.misses[counted] >= cfg.delete_misses))
+                              | (~c_conf & (tr.covered[counted] >= cfg.confirm_n)))
+            missed_rev = counted[~got]
+            tr.rev_covered[:] = False
+            tr.rev_hit[:] = False
+
+        # Rows: covered tracks (updated or coasted) with footprints; without, the updated tracks
+        # and, at a revisit's end, the ones it missed.  New tracks: their first row.
+        if fp is not None:
+            row_sel = np.ones(len(ci), bool)
+        else:
+            row_sel = hit | np.isin(ci, missed_rev)
+        row_sel &= ~dead[ci]
+        rows_i = ci[row_sel]
+        if len(rows_i):
+            out.append(_rows(tr.id[rows_i], t, xp[row_sel], Pp[row_sel], tr.z[rows_i], plat_pos,
+                             plat_vel, tr.confirmed[rows_i]))
+        if nf:
+            new = n_tr + np.arange(nf)
+            new = new[~dead[new]]
+            out.append(_rows(tr.id[new], t, tr.x[new], tr.P[new], tr.z[new], plat_pos, plat_vel,
+                             tr.confirmed[new]))
+        tr.keep(~dead)
 
     if not out:
         return empty_tracks()

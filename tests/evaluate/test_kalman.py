@@ -56,3 +56,28 @@ def test_gated_assignment_is_global_and_respects_the_gate():
 def test_wrap_symmetric():
     np.testing.assert_allclose(kalman.wrap_symmetric([11.0, -11.0, 3.0], 10.0), [-9.0, 9.0, 3.0])
     assert kalman.wrap_symmetric(25.0, np.nan) == 25.0
+
+
+def test_gated_innovations_equal_the_full_ones_inside_the_gate():
+    rng = np.random.default_rng(1)
+    nt, nd, gate = 30, 40, 16.0
+    x = np.column_stack([rng.uniform(0, 2000, (nt, 2)), rng.normal(0, 5, (nt, 2))])
+    A = rng.normal(0, 1, (nt, 4, 4))
+    P = A @ np.transpose(A, (0, 2, 1)) * 400 + np.eye(4) * 10
+    H = np.zeros((nt, 3, 4))
+    H[:, 0, 0] = H[:, 1, 1] = 1.0
+    H[:, 2, :] = rng.normal(0, 0.5, (nt, 4))
+    h = np.column_stack([x[:, :2], rng.normal(0, 5, nt)])
+    z = np.column_stack([rng.uniform(0, 2000, (nd, 2)), rng.normal(0, 5, nd)])
+    B = rng.normal(0, 1, (nd, 3, 3))
+    R = B @ np.transpose(B, (0, 2, 1)) * 100 + np.eye(3)
+    nu, HPHt, full = kalman.innovations(x, P, H, h, z, R)
+    _, _, gated = kalman.innovations(x, P, H, h, z, R, gate=gate)
+    inside = full <= gate
+    assert inside.sum() > 5
+    np.testing.assert_allclose(gated[inside], full[inside], rtol=1e-12)
+    assert np.all(gated[~inside] > gate)
+    # and the full ones are the textbook ν' S⁻¹ ν
+    i, j = np.argwhere(inside)[0]
+    S = H[i] @ P[i] @ H[i].T + R[j]
+    assert full[i, j] == pytest.approx(nu[i, j] @ np.linalg.solve(S, nu[i, j]))
