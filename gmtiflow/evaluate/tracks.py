@@ -134,6 +134,14 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
             out[n] = _numeric(table, n, source)
     if "confirmed" in table:
         conf = np.asarray(table["confirmed"])
+        if conf.dtype.kind in "UO":            # text from CSV/XML: true/false/1/0
+            words = {"true": True, "false": False, "1": True, "0": False}
+            text = [str(v).strip().lower() for v in conf]
+            bad = [i for i, w in enumerate(text) if w not in words]
+            if bad:
+                raise _fail(source, f"column 'confirmed' row {bad[0]}: {_show(conf[bad[0]])} is "
+                                    f"not a bool (true/false or 1/0)")
+            conf = np.asarray([words[w] for w in text], bool)
         if conf.dtype != bool:
             vals = _numeric(table, "confirmed", source)
             bad = np.flatnonzero((vals != 0) & (vals != 1))

@@ -172,3 +172,21 @@ def test_several_beams_per_revisit_keep_every_track(footprints):
     # every confirmed track lives from its confirmation to the end
     for i in np.unique(tr["track_id"][conf]):
         assert tr["time_s"][tr["track_id"] == i].max() >= 118.0
+
+
+def test_range_window_of_the_footprint_needs_the_origin():
+    from gmtiflow import frames
+    origin = frames.Origin(48.0, 11.0, 0.0)
+    scene = straight_scene(n_revisits=50, blind={0: [(40.0, 60.0)]}, seed=1)
+    dwells = dict(scene["dwells"])
+    n = len(dwells["time_s"])
+    # the range window is centred on the scene, except on t in [40, 60] where it is 20 km beyond
+    away = (dwells["time_s"] >= 40.0) & (dwells["time_s"] <= 60.0)
+    cx = np.where(away, 250.0, 250.0)
+    cy = np.where(away, 500.0 + 20000.0, 500.0)
+    lat, lon, _ = frames.enu_to_geodetic(origin, cx, cy, np.zeros(n))
+    dwells.update(area_lat_deg=lat, area_lon_deg=lon, range_half_extent_m=np.full(n, 2000.0))
+    with_origin = track(TrackerConfig(), scene["detections"], dwells, origin=origin)
+    assert len(np.unique(with_origin["track_id"][with_origin["confirmed"]])) == 1
+    without = track(TrackerConfig(), scene["detections"], dwells)       # azimuth only
+    assert len(np.unique(without["track_id"][without["confirmed"]])) == 2

@@ -47,6 +47,17 @@ def test_bad_tables_name_the_problem(edit, pattern):
         validate_tracks(table, source="ext.csv")
 
 
+def test_text_columns_as_a_csv_reader_gives_them():
+    table = {k: np.asarray([str(v) for v in col], dtype=object) for k, col in good().items()}
+    table["confirmed"] = np.array(["true", "False", " 1", "0"], dtype=object)
+    out = validate_tracks(table)
+    assert list(out["confirmed"]) == [False, True, True, False]     # sorted by (id, time)
+    assert out["x_m"].dtype == np.float64
+    table["confirmed"][1] = "maybe"
+    with pytest.raises(InputFileError, match=r"column 'confirmed' row 1: 'maybe'"):
+        validate_tracks(table)
+
+
 def test_message_names_the_source():
     table = good()
     table["x_m"][0] = np.inf
