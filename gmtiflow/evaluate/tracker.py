@@ -159,6 +159,8 @@ def _measurements(det, idx, plat, cfg: TrackerConfig):
     nall = len(det["x_m"])
     s_r = _column(det, "sigma_range_m", nall, cfg.default_sigma_range_m)[idx]
     s_az = _column(det, "sigma_azimuth_rad", nall, np.radians(cfg.default_sigma_azimuth_deg))[idx]
+    s_r = np.maximum(s_r, 1e-3)                 # a zero σ would make the covariance singular
+    s_az = np.maximum(s_az, 1e-9)
     along = s_r * slant / np.maximum(ground, 0.1 * slant)
     cross = slant * s_az
     R_pos = kalman.position_covariance(los_az, along, cross)
@@ -166,7 +168,13 @@ def _measurements(det, idx, plat, cfg: TrackerConfig):
     if not use_rr:
         return np.stack([x, y], axis=1), R_pos, z, None
     rr = np.asarray(det["range_rate_mps"], float)[idx]
-    s_rr = _column(det, "sigma_range_rate_mps", nall, cfg.default_sigma_range_rate_mps)[idx]
+    s_rr = np.maximum(_column(det, "sigma_range_rate_mps", nall,
+                              cfg.default_sigma_range_rate_mps)[idx], 1e-4)
+    # A detection without a range rate still updates the position: its range-rate row gets a
+    # value of 0 with a σ so large that it carries no information.
+    no_rr = ~np.isfinite(rr)
+    rr = np.where(no_rr, 0.0, rr)
+    s_rr = np.where(no_rr, 1e6, s_rr)
     wrap = _column(det, "wrap_velocity_mps", nall, np.nan)[idx]
     R = np.zeros((n, 3, 3))
     R[:, :2, :2] = R_pos

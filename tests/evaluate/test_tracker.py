@@ -190,3 +190,17 @@ def test_range_window_of_the_footprint_needs_the_origin():
     assert len(np.unique(with_origin["track_id"][with_origin["confirmed"]])) == 1
     without = track(TrackerConfig(), scene["detections"], dwells)       # azimuth only
     assert len(np.unique(without["track_id"][without["confirmed"]])) == 2
+
+
+def test_detections_without_range_rate_or_sigmas_still_track():
+    scene = straight_scene(n_vehicles=2, n_revisits=40, spacing_m=1000.0, seed=6)
+    det = dict(scene["detections"])
+    det["range_rate_mps"] = np.where(np.arange(len(det["x_m"])) % 3 == 0, np.nan,
+                                     det["range_rate_mps"])
+    det["sigma_range_m"] = np.where(np.arange(len(det["x_m"])) % 5 == 0, np.nan,
+                                    det["sigma_range_m"])
+    tr = track(TrackerConfig(default_sigma_range_m=10.0), det, scene["dwells"])
+    assert np.all(np.isfinite(tr["x_m"])) and np.all(np.isfinite(tr["vx_mps"]))
+    assert len(np.unique(tr["track_id"][tr["confirmed"]])) == 2
+    mse = errors_by_vehicle(scene, tr, 30.0)
+    assert np.all(np.sqrt(mse) < SIGMA_M * np.sqrt(2.0))
