@@ -27,6 +27,21 @@ from scipy.optimize import linear_sum_assignment
 from gmtiflow.tables import Table
 
 
+def unique_pairs(a: np.ndarray, b: np.ndarray, return_counts: bool = False):
+    """Distinct (a, b) integer pairs sorted by a then b (a faster ``np.unique(axis=0)``)."""
+    a = np.asarray(a, np.int64)
+    b = np.asarray(b, np.int64)
+    if len(a) == 0:
+        empty = np.zeros((0, 2), np.int64)
+        return (empty, np.zeros(0, np.int64)) if return_counts else empty
+    b0 = b.min()
+    span = int(b.max() - b0) + 1
+    key = (a - a.min()) * span + (b - b0)
+    _, idx, counts = np.unique(key, return_index=True, return_counts=True)
+    pairs = np.stack([a[idx], b[idx]], axis=1)
+    return (pairs, counts) if return_counts else pairs
+
+
 def associate(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
               n_steps: int, gate_m: float) -> np.ndarray:
     """Track id associated with every ``truth_at`` row (-1 when none); one assignment per step."""
@@ -39,7 +54,7 @@ def associate(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.nda
     g2 = float(gate_m) ** 2
     for s in np.flatnonzero((np.diff(tb) > 0) & (np.diff(kb) > 0)):
         a, b, c, d = tb[s], tb[s + 1], kb[s], kb[s + 1]
-        D2 = ((X[a:b, None, :] - Y[None, c:d, :]) ** 2).sum(axis=-1)
+        D2 = ((X[a:b, None, 0] - Y[None, c:d, 0]) ** 2 + (X[a:b, None, 1] - Y[None, c:d, 1]) ** 2)
         r, k = linear_sum_assignment(np.minimum(D2, g2))
         inside = D2[r, k] < g2
         out[a + r[inside]] = tid[c + k[inside]]
@@ -85,8 +100,7 @@ def identity_metrics(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,
     n_assoc = np.bincount(vpos, weights=has, minlength=len(vehicles))
     n_sw = np.bincount(np.searchsorted(vehicles, av[sw]), minlength=len(vehicles))
     n_fr = np.bincount(vpos[frag], minlength=len(vehicles))
-    pairs = np.unique(np.stack([v[has], a[has]], axis=1), axis=0) if has.any() else np.zeros(
-        (0, 2), np.int64)
+    pairs = unique_pairs(v[has], a[has])
     n_ids = np.bincount(np.searchsorted(vehicles, pairs[:, 0]), minlength=len(vehicles))
     truth_table = {"vehicle_id": vehicles, "n_steps": n_steps.astype(np.int64),
                    "coverage": np.where(n_steps > 0, n_assoc / np.maximum(n_steps, 1), np.nan),
@@ -95,8 +109,7 @@ def identity_metrics(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,
 
     # Purity per track: its associated steps, and the share of its dominant truth.
     if has.any():
-        tv = np.stack([a[has], v[has]], axis=1)
-        uniq, counts = np.unique(tv, axis=0, return_counts=True)
+        uniq, counts = unique_pairs(a[has], v[has], return_counts=True)
         o = np.lexsort((uniq[:, 1], -counts, uniq[:, 0]))   # track, count desc, vehicle
         u2, c2 = uniq[o], counts[o]
         firsts = np.flatnonzero(np.r_[True, u2[1:, 0] != u2[:-1, 0]])
@@ -131,8 +144,7 @@ def convoy_confusions(vehicle_id: np.ndarray, assigned: np.ndarray,
     associated with two or more different members of the convoy over time (split/merge
     confusions: a track that hops from one convoy vehicle to another)."""
     has = assigned >= 0
-    pairs = np.unique(np.stack([assigned[has], vehicle_id[has]], axis=1), axis=0) if has.any() \
-        else np.zeros((0, 2), np.int64)
+    pairs = unique_pairs(assigned[has], vehicle_id[has])
     convoys = sorted({c for c in convoy_of.values() if c >= 0})
     out = {"convoy_id": np.asarray(convoys, np.int64),
            "n_members": np.zeros(len(convoys), np.int64),

@@ -49,7 +49,8 @@ def ospa_gospa(X: np.ndarray, Y: np.ndarray, c: float, p: float) -> dict:
     loc = 0.0
     capped_sum = 0.0
     if m and n:
-        D = np.sqrt(((X[:, None, :] - Y[None, :, :]) ** 2).sum(axis=-1))
+        diff = X[:, None, :] - Y[None, :, :]
+        D = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
         C = np.minimum(D, c) ** p
         r, k = linear_sum_assignment(C)
         capped_sum = float(C[r, k].sum())

@@ -33,9 +33,9 @@ Per dwell, in time order (a Python loop over dwells; everything inside is batche
 Output: one /tracks row per (track, covering dwell), updated or coasted (a coasted row is the
 prediction; it is not stored back, so the next update predicts from the last measurement).
 Without footprints: a row per update, and a coasted row at the end of a revisit that missed the
-track.  A deleted track has no row at the dwell that deleted it.  ``range_rate_mps`` is the range rate
-the track state implies, seen from the dwell's platform.  Detections flagged ``implausible`` (a
-folded report below the surface, as the processor flags it) are not used.  Track ids count from
+track.  A deleted track has no row at the dwell that deleted it.  ``range_rate_mps`` is the range
+rate the track state implies, seen from the dwell's platform.  Detections flagged
+``implausible`` (a folded report below the surface, as the processor flags it) are not used.  Track ids count from
 0 in order of creation.  The tracker draws no random numbers; ``seed`` is accepted for the stage
 interface only, and the output is deterministic.
 """
