@@ -1,0 +1,135 @@
+"""GMTI events: does a track keep its identity through a stop or a blind gap, and how fast is a
+vehicle re-acquired?  (The paper's outlook, §7: "the loss of track identities after stop events
+is a great problem for GMTI trackers, and a quantification for this quality must be developed".)
+
+Events, per vehicle:
+
+* **stop**: a run of truth samples with ``mode == 2`` (stopped).  ``start_s`` = first stopped
+  sample, ``end_s`` = first sample after the run (the vehicle moves again); NaN when it never does.
+* **blind gap**: a run of consecutive /looks of the vehicle that are not detections, holding at
+  least ``min_gap_looks`` looks whose outcome is doppler_blind (4), terrain (3) or
+  invisible_road (2).  ``kind`` = the most frequent of those outcomes in the run (ties: the
+  lowest code).  ``start_s`` = first look of the run, ``end_s`` = the next detected look of the
+  vehicle (the first moment it could be re-acquired); NaN when none follows.  A stopped vehicle
+  is usually also Doppler blind, so a stop normally shows up as a stop *and* as a
+  doppler_blind gap; they are scored separately.
+
+Scoring, from the per-step association (:mod:`gmtiflow.evaluate.identity`) on the evaluation grid:
+
+* ``track_before``: the last track id associated with the vehicle at a grid time in
+  ``[start_s − event_lookback_s, start_s]`` (-1: the vehicle was not held before the event; such
+  events are reported but not scored for identity);
+* ``track_after``: the first track id associated at a grid time ≥ ``end_s``;
+* ``id_kept``: ``track_after == track_before`` (and ``track_before`` ≥ 0);
+* ``reacq_delay_s``: (that first grid time) − ``end_s``; NaN when never re-acquired.  It is
+  quantised by the evaluation grid.
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from gmtiflow.tables import Table
+
+OUTCOME_DETECTED = 0
+BLIND_OUTCOMES = {2: "invisible_road", 3: "terrain", 4: "doppler_blind"}
+STOPPED = 2
+
+EVENT_COLUMNS = ("vehicle_id", "kind", "start_s", "end_s", "duration_s", "track_before",
+                 "track_after", "id_kept", "reacquired", "reacq_delay_s")
+
+
+def _runs(flag: np.ndarray, group: np.ndarray):
+    """(start, end) index pairs (inclusive) of runs of True in ``flag`` within equal ``group``."""
+    n = len(flag)
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    new = np.ones(n, bool)
+    new[1:] = group[1:] != group[:-1]
+    prev = np.zeros(n, bool)
+    prev[1:] = flag[:-1]
+    nxt = np.zeros(n, bool)
+    nxt[:-1] = flag[1:]
+    last = np.ones(n, bool)
+    last[:-1] = group[1:] != group[:-1]
+    starts = np.flatnonzero(flag & (new | ~prev))
+    ends = np.flatnonzero(flag & (last | ~nxt))
+    return starts, ends
+
+
+def stop_events(truth: Mapping[str, np.ndarray]) -> Table:
+    """Stop events (vehicle_id, kind, start_s, end_s) from the truth ``mode`` column."""
+    v = np.asarray(truth["vehicle_id"], np.int64)
+    t = np.asarray(truth["time_s"], float)
+    o = np.lexsort((t, v))
+    v, t = v[o], t[o]
+    stopped = np.asarray(truth["mode"])[o] == STOPPED
+    s, e = _runs(stopped, v)
+    after = e + 1
+    has_after = (after < len(v)) & (v[np.minimum(after, len(v) - 1)] == v[e])
+    end = np.where(has_after, t[np.minimum(after, len(v) - 1)], np.nan)
+    return {"vehicle_id": v[s], "kind": np.array(["stop"] * len(s), dtype=object).astype(str),
+            "start_s": t[s], "end_s": end}
+
+
+def blind_gap_events(looks: Mapping[str, np.ndarray], min_gap_looks: int = 1) -> Table:
+    """Blind-gap events (vehicle_id, kind, start_s, end_s) from the /looks outcomes."""
+    v = np.asarray(looks["vehicle_id"], np.int64)
+    t = np.asarray(looks["time_s"], float)
+    o = np.lexsort((t, v))
+    v, t = v[o], t[o]
+    outcome = np.asarray(looks["outcome"]).astype(np.int64)[o]
+    s, e = _runs(outcome != OUTCOME_DETECTED, v)
+    keep, kinds, ends = [], [], []
+    for a, b in zip(s, e):
+        seg = outcome[a:b + 1]
+        blind = seg[np.isin(seg, list(BLIND_OUTCOMES))]
+        if len(blind) < min_gap_looks:
+            continue
+        codes, counts = np.unique(blind, return_counts=True)
+        kinds.append(BLIND_OUTCOMES[int(codes[np.argmax(counts)])])
+        keep.append(a)
+        nxt = b + 1
+        ends.append(t[nxt] if nxt < len(v) and v[nxt] == v[b] else np.nan)
+    keep = np.asarray(keep, np.int64)
+    return {"vehicle_id": v[keep], "kind": np.asarray(kinds, dtype=str).reshape(-1),
+            "start_s": t[keep], "end_s": np.asarray(ends, float)}
+
+
+def score_events(events: Mapping[str, np.ndarray], assoc_vehicle: np.ndarray,
+                 assoc_time: np.ndarray, assoc_track: np.ndarray, lookback_s: float) -> Table:
+    """Add track_before/after, id_kept, reacquired and reacq_delay_s to an event table.
+
+    ``assoc_*``: the per-step association (vehicle_id, time_s, track_id; -1 = none).
+    """
+    o = np.lexsort((assoc_time, assoc_vehicle))
+    av, at, ak = assoc_vehicle[o], assoc_time[o], assoc_track[o]
+    has = ak >= 0
+    av, at, ak = av[has], at[has], ak[has]
+    n = len(events["vehicle_id"])
+    before = np.full(n, -1, np.int64)
+    after = np.full(n, -1, np.int64)
+    delay = np.full(n, np.nan)
+    eps = 1e-9
+    for i in range(n):
+        vid = events["vehicle_id"][i]
+        lo, hi = np.searchsorted(av, [vid, vid + 1])
+        times, ids = at[lo:hi], ak[lo:hi]
+        t0, t1 = events["start_s"][i], events["end_s"][i]
+        j = np.searchsorted(times, t0 + eps, side="right") - 1
+        if j >= 0 and times[j] >= t0 - lookback_s - eps:
+            before[i] = ids[j]
+        if np.isfinite(t1):
+            j = np.searchsorted(times, t1 - eps, side="left")
+            if j < len(times):
+                after[i] = ids[j]
+                delay[i] = max(times[j] - t1, 0.0)
+    out = {k: np.asarray(events[k]) for k in ("vehicle_id", "kind", "start_s", "end_s")}
+    out["duration_s"] = out["end_s"] - out["start_s"]
+    out["track_before"] = before
+    out["track_after"] = after
+    out["id_kept"] = (before >= 0) & (after == before)
+    out["reacquired"] = after >= 0
+    out["reacq_delay_s"] = delay
+    return out

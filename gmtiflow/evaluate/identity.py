@@ -1,0 +1,161 @@
+"""Track-to-truth identity: per-step association, switches, fragmentation, purity, coverage.
+
+**Association.**  At every grid step, truths and tracks are paired by one optimal assignment
+(``linear_sum_assignment`` on ``min(d, g)²``, ``g`` = ``assoc_gate_m``, matrix built by numpy
+broadcasting); pairs at or beyond the gate stay unassociated.  This is GOSPA's assignment with
+the gate as cut-off (it minimises the summed squared distance of the associated pairs and never
+pairs objects farther apart than the gate).
+
+**Counting** (CLEAR-MOT style, Bernardin & Stiefelhagen 2008), per truth, over its grid steps:
+
+* *identity switch*: the truth is associated with a track id different from the last track id
+  it was associated with (gaps in between do not reset the memory).  A track replaced by a new
+  one counts 1; two tracks swapping two truths count 1 for each truth, 2 in all; a switch is
+  counted once, at the step it happens, never again while the new id holds.
+* *fragmentation*: an associated run of the truth resumes after at least one unassociated step
+  (whatever the id): every associated run but the first.
+* *coverage*: fraction of the truth's steps at which it is associated with some track.
+* *purity* of a track: fraction of its associated steps spent on its dominant truth.
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from gmtiflow.tables import Table
+
+
+def unique_pairs(a: np.ndarray, b: np.ndarray, return_counts: bool = False):
+    """Distinct (a, b) integer pairs sorted by a then b (a faster ``np.unique(axis=0)``)."""
+    a = np.asarray(a, np.int64)
+    b = np.asarray(b, np.int64)
+    if len(a) == 0:
+        empty = np.zeros((0, 2), np.int64)
+        return (empty, np.zeros(0, np.int64)) if return_counts else empty
+    b0 = b.min()
+    span = int(b.max() - b0) + 1
+    key = (a - a.min()) * span + (b - b0)
+    _, idx, counts = np.unique(key, return_index=True, return_counts=True)
+    pairs = np.stack([a[idx], b[idx]], axis=1)
+    return (pairs, counts) if return_counts else pairs
+
+
+def associate(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
+              n_steps: int, gate_m: float) -> np.ndarray:
+    """Track id associated with every ``truth_at`` row (-1 when none); one assignment per step."""
+    out = np.full(len(truth_at["step"]), -1, np.int64)
+    tb = np.searchsorted(truth_at["step"], np.arange(n_steps + 1))
+    kb = np.searchsorted(tracks_at["step"], np.arange(n_steps + 1))
+    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1)
+    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1)
+    tid = tracks_at["track_id"]
+    g2 = float(gate_m) ** 2
+    for s in np.flatnonzero((np.diff(tb) > 0) & (np.diff(kb) > 0)):
+        a, b, c, d = tb[s], tb[s + 1], kb[s], kb[s + 1]
+        D2 = ((X[a:b, None, 0] - Y[None, c:d, 0]) ** 2 + (X[a:b, None, 1] - Y[None, c:d, 1]) ** 2)
+        r, k = linear_sum_assignment(np.minimum(D2, g2))
+        inside = D2[r, k] < g2
+        out[a + r[inside]] = tid[c + k[inside]]
+    return out
+
+
+def identity_metrics(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,
+                     grid: np.ndarray) -> dict:
+    """Per-truth and per-track identity tables and the totals.
+
+    Returns ``{"truth": table, "tracks": table, "switches": int, "fragmentations": int,
+    "switch_times": table}``.
+    """
+    vid = np.asarray(truth_at["vehicle_id"], np.int64)
+    step = np.asarray(truth_at["step"], np.int64)
+    order = np.lexsort((step, vid))
+    v, s, a = vid[order], step[order], assigned[order]
+    n = len(v)
+    new_vehicle = np.ones(n, bool)
+    new_vehicle[1:] = v[1:] != v[:-1]
+    has = a >= 0
+
+    # Switches: compare every associated row with the previous associated row of the vehicle.
+    ai = np.flatnonzero(has)
+    av, aid = v[ai], a[ai]
+    sw = np.zeros(len(ai), bool)
+    sw[1:] = (av[1:] == av[:-1]) & (aid[1:] != aid[:-1])
+    # Fragmentation: starts of associated runs that are not the vehicle's first run.
+    run_start = has & (new_vehicle | ~np.roll(has, 1))
+    first_run = np.zeros(n, bool)
+    vehicles = np.unique(v)
+    starts_idx = np.flatnonzero(run_start)
+    if len(starts_idx):
+        # first run start per vehicle
+        sv = v[starts_idx]
+        first = np.ones(len(starts_idx), bool)
+        first[1:] = sv[1:] != sv[:-1]
+        first_run[starts_idx[first]] = True
+    frag = run_start & ~first_run
+
+    vpos = np.searchsorted(vehicles, v)
+    n_steps = np.bincount(vpos, minlength=len(vehicles))
+    n_assoc = np.bincount(vpos, weights=has, minlength=len(vehicles))
+    n_sw = np.bincount(np.searchsorted(vehicles, av[sw]), minlength=len(vehicles))
+    n_fr = np.bincount(vpos[frag], minlength=len(vehicles))
+    pairs = unique_pairs(v[has], a[has])
+    n_ids = np.bincount(np.searchsorted(vehicles, pairs[:, 0]), minlength=len(vehicles))
+    truth_table = {"vehicle_id": vehicles, "n_steps": n_steps.astype(np.int64),
+                   "coverage": np.where(n_steps > 0, n_assoc / np.maximum(n_steps, 1), np.nan),
+                   "identity_switches": n_sw.astype(np.int64),
+                   "fragmentations": n_fr.astype(np.int64), "n_track_ids": n_ids.astype(np.int64)}
+
+    # Purity per track: its associated steps, and the share of its dominant truth.
+    if has.any():
+        uniq, counts = unique_pairs(a[has], v[has], return_counts=True)
+        o = np.lexsort((uniq[:, 1], -counts, uniq[:, 0]))   # track, count desc, vehicle
+        u2, c2 = uniq[o], counts[o]
+        firsts = np.flatnonzero(np.r_[True, u2[1:, 0] != u2[:-1, 0]])
+        tracks, dom, best = u2[firsts, 0], u2[firsts, 1], c2[firsts]
+        total = np.add.reduceat(c2, firsts)
+        n_truths = np.diff(np.r_[firsts, len(u2)])
+    else:
+        tracks = total = best = dom = n_truths = np.zeros(0, np.int64)
+    track_table = {"track_id": tracks.astype(np.int64), "n_associated": total.astype(np.int64),
+                   "purity": np.where(total > 0, best / np.maximum(total, 1), np.nan),
+                   "dominant_vehicle_id": dom.astype(np.int64),
+                   "n_vehicles": n_truths.astype(np.int64)}
+    sw_rows = ai[sw]
+    switch_times = {"time_s": np.asarray(grid, float)[s[sw_rows]], "vehicle_id": v[sw_rows],
+                    "from_track_id": aid[np.flatnonzero(sw) - 1],
+                    "to_track_id": a[sw_rows]}
+    return {"truth": truth_table, "tracks": track_table, "switches": int(sw.sum()),
+            "fragmentations": int(frag.sum()), "switch_times": switch_times}
+
+
+def association_table(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,
+                      grid: np.ndarray) -> Table:
+    """The per-step association as a table: time_s, vehicle_id, track_id (-1 = none)."""
+    return {"time_s": np.asarray(grid, float)[truth_at["step"]],
+            "vehicle_id": np.asarray(truth_at["vehicle_id"], np.int64),
+            "track_id": np.asarray(assigned, np.int64)}
+
+
+def convoy_confusions(vehicle_id: np.ndarray, assigned: np.ndarray,
+                      convoy_of: Mapping[int, int]) -> Table:
+    """Per convoy: members, tracks associated with any member, and *confused* tracks — those
+    associated with two or more different members of the convoy over time (split/merge
+    confusions: a track that hops from one convoy vehicle to another)."""
+    has = assigned >= 0
+    pairs = unique_pairs(assigned[has], vehicle_id[has])
+    convoys = sorted({c for c in convoy_of.values() if c >= 0})
+    out = {"convoy_id": np.asarray(convoys, np.int64),
+           "n_members": np.zeros(len(convoys), np.int64),
+           "n_tracks": np.zeros(len(convoys), np.int64),
+           "n_confused_tracks": np.zeros(len(convoys), np.int64)}
+    pair_convoy = np.array([convoy_of.get(int(vv), -1) for vv in pairs[:, 1]], np.int64)
+    for i, c in enumerate(convoys):
+        out["n_members"][i] = sum(1 for cc in convoy_of.values() if cc == c)
+        sel = pairs[pair_convoy == c]
+        if len(sel):
+            tids, counts = np.unique(sel[:, 0], return_counts=True)
+            out["n_tracks"][i] = len(tids)
+            out["n_confused_tracks"][i] = int((counts > 1).sum())
+    return out

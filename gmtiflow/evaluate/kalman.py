@@ -1,0 +1,140 @@
+"""Batched constant-velocity Kalman filter in the ground plane, with an optional range-rate EKF row.
+
+State ``[x, y, vx, vy]`` (ENU metres, m/s).  Every function works on a batch of tracks at once
+(leading axis ``n``), so one dwell's predictions, gates and updates are a handful of numpy calls.
+
+Motion model: constant velocity with *discrete white-noise acceleration* (Bar-Shalom, Li &
+Kirubarajan 2001, §6.3.3): the acceleration is constant over a step of length ``T`` and white
+between steps, with σ ``accel_sigma_mps2`` per axis, so per axis
+
+.. math::  F = \\begin{pmatrix}1 & T\\\\ 0 & 1\\end{pmatrix},\\qquad
+           Q = σ_a^2 \\begin{pmatrix}T^4/4 & T^3/2\\\\ T^3/2 & T^2\\end{pmatrix}.
+
+The tracker always predicts from a track's *last update* (a missed dwell does not store a
+prediction), so ``T`` is the time since the last measurement and the model is not re-applied in
+small pieces.
+
+Measurements: the ground position ``(x_m, y_m)`` of a detection, whose covariance is diagonal in
+(along the line of sight, cross range) and rotated by the LOS azimuth ``a`` (clockwise from north):
+
+.. math::  R = σ_\\parallel^2\\,u u^T + σ_\\perp^2\\,w w^T,\\quad u = (\\sin a, \\cos a),\\;
+           w = (\\cos a, -\\sin a),
+
+with ``σ_⊥ = R_slant σ_az`` and ``σ_∥ = σ_r R_slant / ρ`` (a slant-range error projected onto flat
+ground at ground range ``ρ``).  Optionally the range rate
+
+.. math::  \\dot r = \\frac{(p - p_p)\\cdot(v - v_p)}{|p - p_p|}
+
+(target ``p = (x, y, z)``, ``v = (vx, vy, 0)``; platform ``p_p, v_p``; + = receding) is a third,
+nonlinear measurement row, linearised at the prediction (extended Kalman filter).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def cv_predict(x: np.ndarray, P: np.ndarray, dt_s: np.ndarray, accel_sigma_mps2: float):
+    """Predict states ``x`` (n, 4) and covariances ``P`` (n, 4, 4) over ``dt_s`` (n,)."""
+    dt = np.asarray(dt_s, float)
+    n = len(x)
+    F = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    F[:, 0, 2] = dt
+    F[:, 1, 3] = dt
+    q = accel_sigma_mps2 ** 2
+    Q = np.zeros((n, 4, 4))
+    pp, pv, vv = q * dt ** 4 / 4.0, q * dt ** 3 / 2.0, q * dt ** 2
+    for a, b in ((0, 2), (1, 3)):
+        Q[:, a, a] = pp
+        Q[:, a, b] = Q[:, b, a] = pv
+        Q[:, b, b] = vv
+    x_new = np.einsum("nij,nj->ni", F, x)
+    P_new = F @ P @ np.transpose(F, (0, 2, 1)) + Q
+    return x_new, P_new
+
+
+def extrapolate_position(x: np.ndarray, dt_s) -> np.ndarray:
+    """Constant-velocity position after ``dt_s`` (no covariance): (n, 2)."""
+    return x[:, :2] + x[:, 2:4] * np.asarray(dt_s, float)[:, None]
+
+
+def position_covariance(los_az_rad, sigma_along_m, sigma_cross_m) -> np.ndarray:
+    """(n, 2, 2) ENU covariances of ground positions, from σ along / across the LOS azimuth."""
+    a = np.asarray(los_az_rad, float)
+    u = np.stack([np.sin(a), np.cos(a)], axis=-1)
+    w = np.stack([np.cos(a), -np.sin(a)], axis=-1)
+    sa = np.asarray(sigma_along_m, float)[:, None, None]
+    sc = np.asarray(sigma_cross_m, float)[:, None, None]
+    return sa ** 2 * u[:, :, None] * u[:, None, :] + sc ** 2 * w[:, :, None] * w[:, None, :]
+
+
+def predicted_range_rate(x: np.ndarray, z_m: np.ndarray, platform_pos: np.ndarray,
+                         platform_vel: np.ndarray):
+    """Range rate ``h(x)`` (n,) and its Jacobian row (n, 4) w.r.t. ``[x, y, vx, vy]``."""
+    d = np.stack([x[:, 0] - platform_pos[0], x[:, 1] - platform_pos[1],
+                  np.asarray(z_m, float) - platform_pos[2]], axis=-1)
+    w = np.stack([x[:, 2] - platform_vel[0], x[:, 3] - platform_vel[1],
+                  np.broadcast_to(-platform_vel[2], len(x))], axis=-1)
+    r = np.linalg.norm(d, axis=-1)
+    r = np.where(r > 0.0, r, 1.0)
+    dw = np.einsum("ni,ni->n", d, w)
+    h = dw / r
+    J = np.empty((len(x), 4))
+    J[:, 0] = w[:, 0] / r - dw * d[:, 0] / r ** 3
+    J[:, 1] = w[:, 1] / r - dw * d[:, 1] / r ** 3
+    J[:, 2] = d[:, 0] / r
+    J[:, 3] = d[:, 1] / r
+    return h, J
+
+
+def wrap_symmetric(value, half_period):
+    """Wrap ``value`` into [-half_period, half_period); NaN/inf half-periods leave it unchanged."""
+    value = np.asarray(value, float)
+    hp = np.asarray(half_period, float)
+    finite = np.isfinite(hp) & (hp > 0)
+    safe = np.where(finite, hp, 1.0)
+    wrapped = np.mod(value + safe, 2.0 * safe) - safe
+    return np.where(finite, wrapped, value)
+
+
+def innovations(x: np.ndarray, P: np.ndarray, H: np.ndarray, h: np.ndarray, z: np.ndarray,
+                R: np.ndarray, rr_half_period=None, gate=None):
+    """Innovations and squared Mahalanobis distances of every (track, detection) pair.
+
+    ``x`` (nt, 4), ``P`` (nt, 4, 4); ``H`` (nt, m, 4) and ``h`` (nt, m) the linearised measurement
+    model per track; ``z`` (nd, m) and ``R`` (nd, m, m) per detection.  Returns ``nu``
+    (nt, nd, m), ``HPHt`` (nt, m, m) (so ``S = HPHt[i] + R[j]``) and ``d2`` (nt, nd).  When
+    ``rr_half_period`` (nd,) is given, the third (range-rate) innovation is wrapped into
+    ± that value (Doppler ambiguity, λ·PRF/4).
+
+    With ``gate``, ``d2`` is computed only for pairs that can be inside it and is ``inf``
+    elsewhere.  The pre-test is exact: the Mahalanobis distance of the full innovation is at
+    least that of its position part, which is at least ``‖ν_pos‖² / λ_max(S_pos)``, and
+    ``λ_max(S_pos) ≤ tr(S_pos) = tr(HPHᵀ_pos) + tr(R_pos)``.
+    """
+    nu = z[None, :, :] - h[:, None, :]
+    if rr_half_period is not None and z.shape[1] == 3:
+        nu[:, :, 2] = wrap_symmetric(nu[:, :, 2], np.asarray(rr_half_period)[None, :])
+    HPHt = H @ P @ np.transpose(H, (0, 2, 1))
+    if gate is None:
+        ti, di = np.nonzero(np.ones(nu.shape[:2], bool))
+    else:
+        bound = (np.trace(HPHt[:, :2, :2], axis1=1, axis2=2)[:, None]
+                 + np.trace(R[:, :2, :2], axis1=1, axis2=2)[None, :])
+        ti, di = np.nonzero((nu[:, :, :2] ** 2).sum(axis=-1) <= gate * bound)
+    d2 = np.full(nu.shape[:2], np.inf)
+    if len(ti):
+        S = HPHt[ti] + R[di]
+        v = nu[ti, di]
+        d2[ti, di] = np.einsum("ni,ni->n", v, np.linalg.solve(S, v[..., None])[..., 0])
+    return nu, HPHt, d2
+
+
+def kalman_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, nu: np.ndarray, S: np.ndarray,
+                  R: np.ndarray):
+    """Joseph-form update of n (track, measurement) pairs; all arrays batched on axis 0."""
+    K = np.transpose(np.linalg.solve(S, H @ P), (0, 2, 1))          # P Hᵀ S⁻¹ (S symmetric)
+    x_new = x + np.einsum("nij,nj->ni", K, nu)
+    IKH = np.eye(4)[None] - K @ H
+    P_new = IKH @ P @ np.transpose(IKH, (0, 2, 1)) + K @ R @ np.transpose(K, (0, 2, 1))
+    P_new = 0.5 * (P_new + np.transpose(P_new, (0, 2, 1)))
+    return x_new, P_new

@@ -1,0 +1,360 @@
+"""Baseline NN-Kalman tracker: the stage ``track(cfg, detections, dwells, seed) -> /tracks``.
+
+A baseline, honest and simple, so every run shows the whole chain; not the product.
+
+Per dwell, in time order (a Python loop over dwells; everything inside is batched numpy):
+
+1. **Coverage.**  A track is *covered* by a dwell when its constant-velocity extrapolated
+   position lies inside the dwell's footprint: world azimuth from the platform within
+   ``beam_az_rad ± angle_half_extent_rad`` and, when the scene origin is given, slant range within
+   ``range_half_extent_m`` of the slant range to the dwell-area centre (``area_lat_deg
+   area_lon_deg``); both widened by ``footprint_margin_m``.  Without these /dwells columns every
+   dwell covers every track.  Only covered tracks are gated against a dwell's detections.
+2. **Predict** the covered tracks from their last update to the dwell time (CV model,
+   :mod:`gmtiflow.evaluate.kalman`).
+3. **Gate and assign.**  Squared Mahalanobis distance of every (track, detection) innovation,
+   chi-square gate with ``gate_probability`` (2 degrees of freedom, 3 with range rate); global
+   nearest neighbour with :func:`~gmtiflow.evaluate.assignment.gated_assignment`, first for the
+   confirmed tracks, then for the tentative tracks on the detections left over.
+4. **Update** assigned tracks (Kalman on position, EKF on range rate; the range-rate innovation
+   is wrapped into ± ``wrap_velocity_mps`` when the detection carries a finite one).
+5. **Confirm / delete**, counted in *revisits* (``revisit_id``; each dwell is its own revisit
+   when /dwells has no such column): a revisit *covers* a track when any of its dwells covers
+   it, and *hits* it when any of them updates it — so overlapping beams of one scan neither
+   double-count a hit nor turn the neighbouring beam's look into a miss.  A tentative track is
+   confirmed at ``confirm_m`` hits within its first ``confirm_n`` covering revisits and deleted
+   when it has not made it by then; a confirmed track is deleted after ``delete_misses``
+   consecutive covering revisits without a hit (a track outside every beam of a revisit is not
+   missed).  Any track not updated for ``max_coast_s`` is deleted too.
+6. **Initiate** a tentative track at every detection left unassigned: single-point initiation,
+   position and covariance from the detection, velocity prior 0 ± ``init_speed_sigma_mps`` per
+   axis, refined at once by the detection's range rate when ``use_range_rate``.
+
+Output: one /tracks row per (track, covering dwell), updated or coasted (a coasted row is the
+prediction; it is not stored back, so the next update predicts from the last measurement).
+Without footprints: a row per update, and a coasted row at the end of a revisit that missed the
+track.  A deleted track has no row at the dwell that deleted it.  ``range_rate_mps`` is the range
+rate the track state implies, seen from the dwell's platform.  Detections flagged
+``implausible`` (a folded report below the surface, as the processor flags it) are not used.  Track ids count from
+0 in order of creation.  The tracker draws no random numbers; ``seed`` is accepted for the stage
+interface only, and the output is deterministic.
+"""
+from __future__ import annotations
+
+from typing import Mapping, Optional
+
+import numpy as np
+from scipy.stats import chi2
+
+from gmtiflow import frames
+from gmtiflow.errors import InputFileError
+from gmtiflow.evaluate import kalman
+from gmtiflow.evaluate.assignment import gated_assignment
+from gmtiflow.evaluate.config import TrackerConfig
+from gmtiflow.tables import Table
+
+TRACK_COLUMNS = ("track_id", "time_s", "x_m", "y_m", "vx_mps", "vy_mps", "cov_xx_m2",
+                 "cov_xy_m2", "cov_yy_m2", "range_rate_mps", "confirmed")
+
+_DET_REQUIRED = ("dwell_id", "x_m", "y_m")
+_DWELL_REQUIRED = ("dwell_id", "time_s", "platform_x_m", "platform_y_m", "platform_z_m",
+                   "platform_vx_mps", "platform_vy_mps", "platform_vz_mps")
+
+
+def empty_tracks() -> Table:
+    """A zero-row /tracks table with the baseline's columns and dtypes."""
+    out = {name: np.zeros(0, float) for name in TRACK_COLUMNS}
+    out["track_id"] = np.zeros(0, np.int64)
+    out["confirmed"] = np.zeros(0, bool)
+    return out
+
+
+def _require(table: Mapping[str, np.ndarray], names, what: str) -> None:
+    missing = [n for n in names if n not in table]
+    if missing:
+        raise InputFileError(f"{what}: missing column(s) {', '.join(missing)} "
+                             f"(docs/tables.md lists the columns)")
+
+
+def _column(table, name, n, default):
+    if name in table:
+        col = np.asarray(table[name], float)
+        return np.where(np.isfinite(col), col, default)
+    return np.full(n, float(default))
+
+
+class _Tracks:
+    """Live track state as parallel arrays (rows = live tracks)."""
+
+    def __init__(self) -> None:
+        self.id = np.zeros(0, np.int64)
+        self.x = np.zeros((0, 4))
+        self.P = np.zeros((0, 4, 4))
+        self.t = np.zeros(0)
+        self.z = np.zeros(0)
+        self.hits = np.zeros(0, np.int64)
+        self.covered = np.zeros(0, np.int64)
+        self.misses = np.zeros(0, np.int64)
+        self.confirmed = np.zeros(0, bool)
+        self.rev_covered = np.zeros(0, bool)
+        self.rev_hit = np.zeros(0, bool)
+
+    _FIELDS = ("id", "x", "P", "t", "z", "hits", "covered", "misses", "confirmed", "rev_covered",
+               "rev_hit")
+
+    def keep(self, mask) -> None:
+        for f in self._FIELDS:
+            setattr(self, f, getattr(self, f)[mask])
+
+    def append(self, **new) -> None:
+        for f in self._FIELDS:
+            setattr(self, f, np.concatenate([getattr(self, f), new[f]]))
+
+
+def _dwell_footprints(dwells: Mapping[str, np.ndarray], origin: Optional[frames.Origin]):
+    """Per-dwell footprint arrays, or None when /dwells lacks the beam columns."""
+    if not all(c in dwells for c in ("beam_az_rad", "angle_half_extent_rad")):
+        return None
+    n = len(dwells["dwell_id"])
+    fp = {"az": np.asarray(dwells["beam_az_rad"], float),
+          "half_az": np.asarray(dwells["angle_half_extent_rad"], float),
+          "range": np.full(n, np.nan), "half_range": np.full(n, np.nan)}
+    if origin is not None and all(c in dwells for c in ("area_lat_deg", "area_lon_deg",
+                                                        "range_half_extent_m")):
+        cx, cy, cz = frames.geodetic_to_enu(origin, dwells["area_lat_deg"], dwells["area_lon_deg"],
+                                            np.full(n, origin.height_m))
+        fp["range"] = np.sqrt((cx - dwells["platform_x_m"]) ** 2
+                              + (cy - dwells["platform_y_m"]) ** 2
+                              + (cz - dwells["platform_z_m"]) ** 2)
+        fp["half_range"] = np.asarray(dwells["range_half_extent_m"], float)
+    return fp
+
+
+def _covered(fp, k: int, pos: np.ndarray, z: np.ndarray, plat: np.ndarray, margin_m: float):
+    """Which positions (n, 2) the footprint of dwell index ``k`` covers."""
+    dx, dy, dz = pos[:, 0] - plat[0], pos[:, 1] - plat[1], z - plat[2]
+    ground = np.hypot(dx, dy)
+    az = frames.heading_rad(dx, dy)
+    off = np.abs(frames.wrap_pi(az - fp["az"][k]))
+    half = fp["half_az"][k]
+    ok = np.ones(len(pos), bool)
+    if np.isfinite(half):
+        ok &= off <= half + margin_m / np.maximum(ground, 1.0)
+    if np.isfinite(fp["range"][k]) and np.isfinite(fp["half_range"][k]):
+        slant = np.sqrt(ground ** 2 + dz ** 2)
+        ok &= np.abs(slant - fp["range"][k]) <= fp["half_range"][k] + margin_m
+    return ok
+
+
+def _measurements(det, idx, plat, cfg: TrackerConfig):
+    """Position (and range-rate) measurements of detections ``idx`` and their covariances."""
+    n = len(idx)
+    x = np.asarray(det["x_m"], float)[idx]
+    y = np.asarray(det["y_m"], float)[idx]
+    z = _column(det, "z_m", len(det["x_m"]), 0.0)[idx]
+    dx, dy, dz = x - plat[0], y - plat[1], z - plat[2]
+    ground = np.hypot(dx, dy)
+    slant = np.sqrt(ground ** 2 + dz ** 2)
+    los_az = frames.heading_rad(dx, dy)
+    nall = len(det["x_m"])
+    s_r = _column(det, "sigma_range_m", nall, cfg.default_sigma_range_m)[idx]
+    s_az = _column(det, "sigma_azimuth_rad", nall, np.radians(cfg.default_sigma_azimuth_deg))[idx]
+    s_r = np.maximum(s_r, 1e-3)                 # a zero σ would make the covariance singular
+    s_az = np.maximum(s_az, 1e-9)
+    along = s_r * slant / np.maximum(ground, 0.1 * slant)
+    cross = slant * s_az
+    R_pos = kalman.position_covariance(los_az, along, cross)
+    use_rr = cfg.use_range_rate and "range_rate_mps" in det
+    if not use_rr:
+        return np.stack([x, y], axis=1), R_pos, z, None
+    rr = np.asarray(det["range_rate_mps"], float)[idx]
+    s_rr = np.maximum(_column(det, "sigma_range_rate_mps", nall,
+                              cfg.default_sigma_range_rate_mps)[idx], 1e-4)
+    # A detection without a range rate still updates the position: its range-rate row gets a
+    # value of 0 with a σ so large that it carries no information.
+    no_rr = ~np.isfinite(rr)
+    rr = np.where(no_rr, 0.0, rr)
+    s_rr = np.where(no_rr, 1e6, s_rr)
+    wrap = _column(det, "wrap_velocity_mps", nall, np.nan)[idx]
+    R = np.zeros((n, 3, 3))
+    R[:, :2, :2] = R_pos
+    R[:, 2, 2] = s_rr ** 2
+    return np.stack([x, y, rr], axis=1), R, z, wrap
+
+
+def _model(x: np.ndarray, z: np.ndarray, plat_pos, plat_vel, use_rr: bool):
+    """Linearised measurement model ``h`` (n, m) and ``H`` (n, m, 4) at states ``x``."""
+    n = len(x)
+    m = 3 if use_rr else 2
+    H = np.zeros((n, m, 4))
+    H[:, 0, 0] = 1.0
+    H[:, 1, 1] = 1.0
+    h = np.zeros((n, m))
+    h[:, :2] = x[:, :2]
+    if use_rr:
+        h[:, 2], H[:, 2, :] = kalman.predicted_range_rate(x, z, plat_pos, plat_vel)
+    return h, H
+
+
+def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
+          dwells: Mapping[str, np.ndarray], seed: int = 0, *,
+          origin: Optional[frames.Origin] = None) -> Table:
+    """Run the baseline tracker over the detections of every dwell; returns the /tracks table.
+
+    ``origin`` (the scene's geodetic origin) enables the slant-range test of dwell footprints;
+    without it only the azimuth extent is used.  ``seed`` is unused (the tracker is
+    deterministic) and kept for the common stage signature.
+    """
+    del seed
+    if not cfg.enabled:
+        return empty_tracks()
+    _require(detections, _DET_REQUIRED, "/detections")
+    _require(dwells, _DWELL_REQUIRED, "/dwells")
+    n_det = len(detections["dwell_id"])
+    order_dw = np.lexsort((np.asarray(dwells["dwell_id"]), np.asarray(dwells["time_s"], float)))
+    dwells = {k: np.asarray(v)[order_dw] for k, v in dwells.items()}
+    n_dw = len(dwells["dwell_id"])
+    det_dwell = np.asarray(detections["dwell_id"], np.int64)
+    usable = np.ones(n_det, bool)
+    if "implausible" in detections:
+        usable &= ~np.asarray(detections["implausible"], bool)
+    for c in ("x_m", "y_m"):
+        usable &= np.isfinite(np.asarray(detections[c], float))
+    det_order = np.flatnonzero(usable)[np.argsort(det_dwell[usable], kind="stable")]
+    sorted_dwell = det_dwell[det_order]
+
+    fp = _dwell_footprints(dwells, origin)
+    if "revisit_id" in dwells:
+        rev = np.asarray(dwells["revisit_id"])
+        last_of_revisit = np.append(rev[1:] != rev[:-1], True)
+    else:
+        last_of_revisit = np.ones(n_dw, bool)
+    use_rr = cfg.use_range_rate and "range_rate_mps" in detections
+    m = 3 if use_rr else 2
+    gate = float(chi2.ppf(cfg.gate_probability, m))
+    init_var_v = cfg.init_speed_sigma_mps ** 2
+
+    tr = _Tracks()
+    next_id = 0
+    out = []
+    t_dw = np.asarray(dwells["time_s"], float)
+    plat_pos_all = np.stack([dwells["platform_x_m"], dwells["platform_y_m"],
+                             dwells["platform_z_m"]], axis=1).astype(float)
+    plat_vel_all = np.stack([dwells["platform_vx_mps"], dwells["platform_vy_mps"],
+                             dwells["platform_vz_mps"]], axis=1).astype(float)
+
+    for k in range(n_dw):
+        t = t_dw[k]
+        plat_pos, plat_vel = plat_pos_all[k], plat_vel_all[k]
+        lo, hi = np.searchsorted(sorted_dwell, [dwells["dwell_id"][k], dwells["dwell_id"][k] + 1])
+        didx = det_order[lo:hi]
+        n_tr = len(tr.id)
+        dt = t - tr.t
+        pos_guess = kalman.extrapolate_position(tr.x, dt)
+        if fp is not None:
+            cov = _covered(fp, k, pos_guess, tr.z, plat_pos, cfg.footprint_margin_m)
+        else:
+            cov = np.ones(n_tr, bool)
+        ci = np.flatnonzero(cov)
+        xp, Pp = kalman.cv_predict(tr.x[ci], tr.P[ci], dt[ci], cfg.accel_sigma_mps2)
+        assigned_track = np.full(len(ci), -1, np.int64)       # detection slot per covered track
+        det_taken = np.zeros(len(didx), bool)
+        if len(didx):
+            zmeas, R, zdet, wrap = _measurements(detections, didx, plat_pos, cfg)
+        if len(didx) and len(ci):
+            h, H = _model(xp, tr.z[ci], plat_pos, plat_vel, use_rr)
+            nu, HPHt, d2 = kalman.innovations(xp, Pp, H, h, zmeas, R, wrap, gate)
+            for group in (tr.confirmed[ci], ~tr.confirmed[ci]):
+                rows = np.flatnonzero(group)
+                cols = np.flatnonzero(~det_taken)
+                if len(rows) == 0 or len(cols) == 0:
+                    continue
+                r, c = gated_assignment(d2[np.ix_(rows, cols)], gate)
+                assigned_track[rows[r]] = cols[c]
+                det_taken[cols[c]] = True
+            a = np.flatnonzero(assigned_track >= 0)
+            if len(a):
+                j = assigned_track[a]
+                xu, Pu = kalman.kalman_update(xp[a], Pp[a], H[a], nu[a, j], HPHt[a] + R[j], R[j])
+                gi = ci[a]
+                tr.x[gi], tr.P[gi], tr.t[gi], tr.z[gi] = xu, Pu, t, zdet[j]
+                xp[a], Pp[a] = xu, Pu
+        hit = assigned_track >= 0
+
+        # Initiation from the detections no track took (before the bookkeeping, so that a track
+        # started in a revisit's last dwell is counted in that revisit).
+        free = np.flatnonzero(~det_taken)
+        nf = len(free)
+        if nf:
+            x0 = np.zeros((nf, 4))
+            x0[:, :2] = zmeas[free, :2]
+            P0 = np.zeros((nf, 4, 4))
+            P0[:, :2, :2] = R[free, :2, :2]
+            P0[:, 2, 2] = P0[:, 3, 3] = init_var_v
+            if use_rr:
+                h, H = _model(x0, zdet[free], plat_pos, plat_vel, True)
+                H1, h1 = H[:, 2:3, :], h[:, 2:3]
+                nu1 = kalman.wrap_symmetric(zmeas[free, 2:3] - h1, wrap[free, None])
+                S1 = H1 @ P0 @ np.transpose(H1, (0, 2, 1)) + R[free, 2:3, 2:3]
+                x0, P0 = kalman.kalman_update(x0, P0, H1, nu1, S1, R[free, 2:3, 2:3])
+            ids = next_id + np.arange(nf, dtype=np.int64)
+            next_id += nf
+            zeros = np.zeros(nf, np.int64)
+            tr.append(id=ids, x=x0, P=P0, t=np.full(nf, t), z=zdet[free], hits=zeros,
+                      covered=zeros, misses=zeros, confirmed=np.full(nf, cfg.confirm_m <= 1),
+                      rev_covered=np.ones(nf, bool), rev_hit=np.ones(nf, bool))
+
+        # Bookkeeping per revisit: a revisit covers a track when one of its dwells does (every
+        # dwell, without footprints) and hits it when one of them updates it; hits, covered
+        # revisits and consecutive misses are counted at the revisit's last dwell.
+        tr.rev_covered[ci] = True
+        tr.rev_hit[ci[hit]] = True
+        dead = (t - tr.t) > cfg.max_coast_s
+        missed_rev = np.zeros(0, np.int64)
+        if last_of_revisit[k]:
+            counted = np.flatnonzero(tr.rev_covered)
+            got = tr.rev_hit[counted]
+            tr.covered[counted] += 1
+            tr.hits[counted[got]] += 1
+            tr.misses[counted[got]] = 0
+            tr.misses[counted[~got]] += 1
+            tr.confirmed |= tr.hits >= cfg.confirm_m
+            c_conf = tr.confirmed[counted]
+            dead[counted] |= ((c_conf & (tr.misses[counted] >= cfg.delete_misses))
+                              | (~c_conf & (tr.covered[counted] >= cfg.confirm_n)))
+            missed_rev = counted[~got]
+            tr.rev_covered[:] = False
+            tr.rev_hit[:] = False
+
+        # Rows: covered tracks (updated or coasted) with footprints; without, the updated tracks
+        # and, at a revisit's end, the ones it missed.  New tracks: their first row.
+        if fp is not None:
+            row_sel = np.ones(len(ci), bool)
+        else:
+            row_sel = hit | np.isin(ci, missed_rev)
+        row_sel &= ~dead[ci]
+        rows_i = ci[row_sel]
+        if len(rows_i):
+            out.append(_rows(tr.id[rows_i], t, xp[row_sel], Pp[row_sel], tr.z[rows_i], plat_pos,
+                             plat_vel, tr.confirmed[rows_i]))
+        if nf:
+            new = n_tr + np.arange(nf)
+            new = new[~dead[new]]
+            out.append(_rows(tr.id[new], t, tr.x[new], tr.P[new], tr.z[new], plat_pos, plat_vel,
+                             tr.confirmed[new]))
+        tr.keep(~dead)
+
+    if not out:
+        return empty_tracks()
+    table = {name: np.concatenate([o[name] for o in out]) for name in TRACK_COLUMNS}
+    order = np.lexsort((table["time_s"], table["track_id"]))
+    return {name: col[order] for name, col in table.items()}
+
+
+def _rows(ids, t, x, P, z, plat_pos, plat_vel, confirmed) -> Table:
+    rr, _ = kalman.predicted_range_rate(x, z, plat_pos, plat_vel)
+    return {"track_id": np.asarray(ids, np.int64), "time_s": np.full(len(ids), float(t)),
+            "x_m": x[:, 0].copy(), "y_m": x[:, 1].copy(), "vx_mps": x[:, 2].copy(),
+            "vy_mps": x[:, 3].copy(), "cov_xx_m2": P[:, 0, 0].copy(),
+            "cov_xy_m2": P[:, 0, 1].copy(), "cov_yy_m2": P[:, 1, 1].copy(),
+            "range_rate_mps": rr, "confirmed": np.asarray(confirmed, bool).copy()}

@@ -1,0 +1,92 @@
+"""GMTI events: identity through a stop or a blind gap, and the re-acquisition delay."""
+import numpy as np
+import pytest
+
+from gmtiflow.evaluate.config import MetricsConfig
+from gmtiflow.evaluate.events import blind_gap_events
+from gmtiflow.evaluate.stage import evaluate, summary_value
+
+from .helpers import track_table, truth_table
+
+CFG = MetricsConfig(cutoff_m=100.0, assoc_gate_m=30.0, max_extrapolation_s=0.5)
+T = np.arange(40.0)
+
+
+def stopping_vehicle():
+    """Drives east at 10 m/s, stands still on t = 10..19 (mode 2), drives on from t = 20."""
+    s = 10.0 * (np.minimum(T, 10.0) + np.maximum(T - 19.0, 0.0))
+    mode = np.where((T >= 10) & (T <= 19), 2, 0)
+    return truth_table({0: (T, s, np.zeros_like(s))}, modes={0: mode})
+
+
+def rows(track_id, truth, times):
+    return [(track_id, t, truth["x_m"][int(t)] + 1.0, truth["y_m"][int(t)]) for t in times]
+
+
+def test_track_surviving_a_stop_is_credited():
+    truth = stopping_vehicle()
+    out = evaluate(CFG, truth, track_table(rows(1, truth, T)))
+    ev = out["metrics/events"]
+    assert list(ev["kind"]) == ["stop"]
+    assert (ev["start_s"][0], ev["end_s"][0]) == (10.0, 20.0)
+    assert ev["track_before"][0] == 1 and ev["track_after"][0] == 1
+    assert bool(ev["id_kept"][0]) and ev["reacq_delay_s"][0] == 0.0
+    assert summary_value(out, "stop_id_kept_fraction") == 1.0
+
+
+def test_track_replaced_after_a_stop_is_not_credited_and_delay_is_measured():
+    truth = stopping_vehicle()
+    # Track 1 is lost at t = 12 during the stop; track 2 picks the vehicle up at t = 23.
+    tracks = track_table(rows(1, truth, T[:13]) + rows(2, truth, T[23:]))
+    out = evaluate(CFG, truth, tracks)
+    ev = out["metrics/events"]
+    assert ev["track_before"][0] == 1 and ev["track_after"][0] == 2
+    assert not bool(ev["id_kept"][0])
+    assert ev["reacq_delay_s"][0] == pytest.approx(3.0)
+    assert summary_value(out, "stop_id_kept_fraction") == 0.0
+    assert summary_value(out, "stop_reacq_delay_mean_s") == pytest.approx(3.0)
+
+
+def test_never_reacquired():
+    truth = stopping_vehicle()
+    out = evaluate(CFG, truth, track_table(rows(1, truth, T[:13])))
+    ev = out["metrics/events"]
+    assert not bool(ev["reacquired"][0]) and np.isnan(ev["reacq_delay_s"][0])
+    assert summary_value(out, "stop_reacquired_fraction") == 0.0
+
+
+def test_event_without_a_track_before_is_not_scored():
+    truth = stopping_vehicle()
+    out = evaluate(CFG, truth, track_table(rows(2, truth, T[25:])))
+    assert summary_value(out, "stop_events") == 1
+    assert summary_value(out, "stop_events_held") == 0
+    assert np.isnan(summary_value(out, "stop_id_kept_fraction"))
+
+
+def looks_of(outcomes, times=None, vehicle=0):
+    n = len(outcomes)
+    times = np.arange(n) * 2.0 if times is None else np.asarray(times, float)
+    return {"dwell_id": np.arange(n), "vehicle_id": np.full(n, vehicle), "time_s": times,
+            "outcome": np.asarray(outcomes, np.uint8), "det_id": np.full(n, -1)}
+
+
+def test_blind_gaps_from_looks():
+    # detected, detected, blind, blind, terrain, detected, pd_miss, detected
+    looks = looks_of([0, 0, 4, 4, 3, 0, 5, 0])
+    ev = blind_gap_events(looks)
+    assert list(ev["kind"]) == ["doppler_blind"]          # 2 blind looks beat 1 terrain look
+    assert (ev["start_s"][0], ev["end_s"][0]) == (4.0, 10.0)
+    assert len(blind_gap_events(looks, min_gap_looks=3)["kind"]) == 1
+    assert len(blind_gap_events(looks, min_gap_looks=4)["kind"]) == 0
+
+
+def test_blind_gap_scored_against_tracks():
+    truth = truth_table({0: (T, 10.0 * T, np.zeros_like(T))})
+    looks = looks_of([0] * 5 + [4] * 4 + [0] * 11)          # blind at t = 10..16, seen at 18
+    kept = evaluate(CFG, truth, track_table(rows(1, truth, T)), looks=looks)
+    assert summary_value(kept, "doppler_blind_id_kept_fraction") == 1.0
+    assert summary_value(kept, "doppler_blind_reacq_delay_mean_s") == 0.0
+    lost = evaluate(CFG, truth, track_table(rows(1, truth, T[:12]) + rows(4, truth, T[21:])),
+                    looks=looks)
+    assert summary_value(lost, "doppler_blind_id_kept_fraction") == 0.0
+    assert summary_value(lost, "doppler_blind_reacq_delay_mean_s") == pytest.approx(3.0)

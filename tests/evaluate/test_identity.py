@@ -1,0 +1,98 @@
+"""Identity metrics on crafted association histories: switches, fragmentation, purity, coverage,
+convoy confusions.  Tracks carry no velocity (held between rows) and are scored only at their own
+second (max_extrapolation_s = 0.5 s), so every step's association is known by construction."""
+import numpy as np
+import pytest
+
+from gmtiflow.evaluate.config import MetricsConfig
+from gmtiflow.evaluate.stage import evaluate, summary_value
+
+from .helpers import line, track_table, truth_table
+
+CFG = MetricsConfig(cutoff_m=100.0, assoc_gate_m=30.0, max_extrapolation_s=0.5)
+T = np.arange(10.0)
+
+
+def follow(track_id, vehicle_path, times, offset=(2.0, 0.0)):
+    t, x, y = vehicle_path
+    return [(track_id, tt, x[int(tt)] + offset[0], y[int(tt)] + offset[1]) for tt in times]
+
+
+def test_replacement_is_one_switch_counted_once():
+    v0 = line(T, 0, 0, 10, 0)
+    truth = truth_table({0: v0})
+    tracks = track_table(follow(1, v0, T[:5]) + follow(2, v0, T[5:]))
+    out = evaluate(CFG, truth, tracks)
+    assert summary_value(out, "identity_switches") == 1
+    assert summary_value(out, "fragmentations") == 0
+    sw = out["metrics/identity_switches"]
+    assert list(sw["time_s"]) == [5.0]
+    assert (sw["from_track_id"][0], sw["to_track_id"][0]) == (1, 2)
+
+
+def test_switch_back_counts_twice():
+    v0 = line(T, 0, 0, 10, 0)
+    tracks = track_table(follow(1, v0, T[:4]) + follow(2, v0, T[4:7]) + follow(1, v0, T[7:]))
+    out = evaluate(CFG, truth_table({0: v0}), tracks)
+    assert summary_value(out, "identity_switches") == 2
+
+
+def test_two_tracks_swapping_two_truths_is_one_switch_per_truth():
+    v0, v1 = line(T, 0, 0, 10, 0), line(T, 0, 200, 10, 0)
+    tracks = track_table(follow(1, v0, T[:5]) + follow(1, v1, T[5:])
+                         + follow(2, v1, T[:5]) + follow(2, v0, T[5:]))
+    out = evaluate(CFG, truth_table({0: v0, 1: v1}), tracks)
+    assert summary_value(out, "identity_switches") == 2
+    assert list(out["metrics/truth_identity"]["identity_switches"]) == [1, 1]
+    assert summary_value(out, "track_purity_mean") == pytest.approx(0.5)
+
+
+def test_fragmentation_without_switch():
+    v0 = line(T, 0, 0, 10, 0)
+    tracks = track_table(follow(1, v0, T[:4]) + follow(1, v0, T[7:]))
+    out = evaluate(CFG, truth_table({0: v0}), tracks)
+    assert summary_value(out, "fragmentations") == 1
+    assert summary_value(out, "identity_switches") == 0
+    assert summary_value(out, "coverage_mean") == pytest.approx(7 / 10)
+
+
+def test_far_track_is_not_associated():
+    v0 = line(T, 0, 0, 10, 0)
+    tracks = track_table(follow(1, v0, T, offset=(40.0, 0.0)))   # beyond the 30 m gate
+    out = evaluate(CFG, truth_table({0: v0}), tracks)
+    assert summary_value(out, "coverage_mean") == 0.0
+    assert summary_value(out, "gospa_missed_mean") == pytest.approx(0.0)   # inside cut-off 100
+    assert np.isnan(summary_value(out, "position_rmse_m"))
+
+
+def test_purity_and_convoy_confusion():
+    v0, v1, v2 = line(T, 0, 0, 10, 0), line(T, -100, 0, 10, 0), line(T, 0, 500, 10, 0)
+    truth = truth_table({0: v0, 1: v1, 2: v2})
+    vehicles = {"vehicle_id": np.array([0, 1, 2]), "convoy_id": np.array([7, 7, -1])}
+    # Track 1 holds convoy member 0 for 6 s then hops to member 1; track 2 holds vehicle 2.
+    tracks = track_table(follow(1, v0, T[:6]) + follow(1, v1, T[6:]) + follow(2, v2, T))
+    out = evaluate(CFG, truth, tracks, vehicles=vehicles)
+    pur = out["metrics/track_purity"]
+    assert list(pur["track_id"]) == [1, 2]
+    assert pur["purity"] == pytest.approx([0.6, 1.0])
+    assert list(pur["dominant_vehicle_id"]) == [0, 2]
+    conv = out["metrics/convoys"]
+    assert list(conv["convoy_id"]) == [7] and list(conv["n_confused_tracks"]) == [1]
+    assert summary_value(out, "convoy_confused_tracks") == 1
+
+
+def test_perfect_tracks_score_zero():
+    v0, v1 = line(T, 0, 0, 10, 0), line(T, 0, 200, 0, -5)
+    truth = truth_table({0: v0, 1: v1})
+    tracks = {"track_id": np.where(truth["vehicle_id"] == 0, 10, 11), "time_s": truth["time_s"],
+              "x_m": truth["x_m"], "y_m": truth["y_m"], "vx_mps": truth["vx_mps"],
+              "vy_mps": truth["vy_mps"]}
+    platform = {"time_s": np.array([0.0, 9.0]), "x_m": np.array([0.0, 1350.0]),
+                "y_m": np.full(2, -30000.0), "z_m": np.full(2, 6000.0),
+                "vx_mps": np.full(2, 150.0), "vy_mps": np.zeros(2), "vz_mps": np.zeros(2)}
+    out = evaluate(CFG, truth, tracks, platform=platform)
+    for name in ("ospa_mean_m", "gospa_mean_m", "position_rmse_m", "speed_rmse_mps",
+                 "heading_rmse_rad", "range_rate_rmse_mps", "identity_switches",
+                 "fragmentations"):
+        assert summary_value(out, name) == pytest.approx(0.0, abs=1e-9), name
+    assert summary_value(out, "coverage_mean") == 1.0
