@@ -56,7 +56,7 @@ from ._io import n_rows, parse_epoch, source_name, write_atomic
 from .errors import FormatError, where
 
 __all__ = [
-    "write_4607", "encode_4607", "platform_location_packets", "iter_packets", "read_4607",
+    "write_4607", "encode_4607", "resolve_meta", "platform_location_packets", "iter_packets", "read_4607",
     "Packet", "Segment", "DEFAULT_META", "MAX_PACKET_BYTES",
     "dwell_mask_bit", "target_mask_bit",
 ]
@@ -292,15 +292,16 @@ def _mission_body(m: dict) -> bytes:
     return b.tobytes()
 
 
-def _job_body(m: dict, dwells, detections) -> bytes:
-    b = np.zeros(1, JOB_BODY)
-    b["job_id"] = m["job_id"]
-    b["sensor_type"] = m["sensor_type"]
-    b["sensor_model"] = _text(m["sensor_model"], 6)
-    b["target_filtering"] = m["target_filtering"]
-    b["priority"] = m["priority"]
-    area = m["bounding_area"]
-    if area is None:
+def resolve_meta(meta: Mapping, dwells: Mapping, detections: Mapping) -> dict:
+    """The meta dict with defaults applied and the data-derived defaults filled in.
+
+    ``bounding_area`` None -> the box (clockwise from the north-west corner) around the dwell
+    area centres, platform positions and detections; ``revisit_interval_s`` None -> median time
+    between revisit starts (0 for a single revisit); ``mdv_mps`` None -> median of the dwells'
+    ``mdv_mps`` (No Statement if they have none).  Adds ``epoch`` (aware datetime).
+    """
+    m = _meta(meta)
+    if m["bounding_area"] is None:
         lats = np.concatenate([np.asarray(dwells.get("area_lat_deg", []), float),
                                np.asarray(dwells.get("platform_lat_deg", []), float),
                                np.asarray(detections.get("lat_deg", []), float)])
@@ -309,21 +310,34 @@ def _job_body(m: dict, dwells, detections) -> bytes:
                                np.asarray(detections.get("lon_deg", []), float)])
         ok = np.isfinite(lats) & np.isfinite(lons)
         if ok.any():
-            s, n = lats[ok].min(), lats[ok].max()
-            w, e = lons[ok].min(), lons[ok].max()
+            s, n = float(lats[ok].min()), float(lats[ok].max())
+            w, e = float(lons[ok].min()), float(lons[ok].max())
         else:
             s = n = w = e = 0.0
-        area = [(n, w), (n, e), (s, e), (s, w)]  # clockwise from the north-west corner
+        m["bounding_area"] = [(n, w), (n, e), (s, e), (s, w)]
+    if m["revisit_interval_s"] is None:
+        m["revisit_interval_s"] = _median_revisit_s(dwells)
+    if m["mdv_mps"] is None and "mdv_mps" in dwells and len(dwells["mdv_mps"]):
+        mdv = np.asarray(dwells["mdv_mps"], float)
+        m["mdv_mps"] = float(np.median(mdv[np.isfinite(mdv)])) if np.isfinite(mdv).any() else None
+    return m
+
+
+def _job_body(m: dict) -> bytes:
+    b = np.zeros(1, JOB_BODY)
+    b["job_id"] = m["job_id"]
+    b["sensor_type"] = m["sensor_type"]
+    b["sensor_model"] = _text(m["sensor_model"], 6)
+    b["target_filtering"] = m["target_filtering"]
+    b["priority"] = m["priority"]
+    area = m["bounding_area"]
     if len(area) != 4:
         raise ValueError(f"4607 meta: bounding_area needs 4 (lat, lon) corners, got {len(area)}")
     for corner, (lat, lon) in zip("abcd", area):
         b[f"{corner}_lat"] = enc_sa32(lat)
         b[f"{corner}_lon"] = enc_ba32(lon)
     b["radar_mode"] = m["radar_mode"]
-    revisit = m["revisit_interval_s"]
-    if revisit is None:
-        revisit = _median_revisit_s(dwells)
-    b["revisit_ds"] = int(_sat(revisit * 10.0, 0, 65535))
+    b["revisit_ds"] = int(_sat(m["revisit_interval_s"] * 10.0, 0, 65535))
     along, cross, alt = m["sensor_position_sigma_m"]
     b["along_dm"] = _nostat(along, 10.0, 10000, 65535)
     b["cross_dm"] = _nostat(cross, 10.0, 10000, 65535)
@@ -334,10 +348,7 @@ def _job_body(m: dict, dwells, detections) -> bytes:
     cr = m["nominal_cross_range_sigma_deg"]
     b["cross_ba16"] = 0x8000 if cr is None else int(_sat(cr * 2.0**16 / 360.0, 0, 0x7FFF))
     b["los_cmps"] = _nostat(m["nominal_range_rate_sigma_mps"], 100.0, 5000, 65535)
-    mdv = m["mdv_mps"]
-    if mdv is None and "mdv_mps" in dwells and len(dwells["mdv_mps"]):
-        mdv = float(np.nanmedian(dwells["mdv_mps"])) if np.isfinite(dwells["mdv_mps"]).any() else None
-    b["mdv_dmps"] = _nostat(mdv, 10.0, 254, 255)
+    b["mdv_dmps"] = _nostat(m["mdv_mps"], 10.0, 254, 255)
     b["pd_pct"] = _nostat(m["pd"], 100.0, 100, 255)
     fa = m["false_alarm_density_per_m2"]
     b["fa_db"] = 255 if fa is None or not fa > 0 else int(_sat(-10.0 * math.log10(fa), 0, 254))
@@ -418,7 +429,7 @@ def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nd
     if edition not in ("30", "41"):
         raise ValueError(f"4607 edition must be '30' (STANAG 4607 Ed. 3) or '41' (AEDP-4607 Ed. A "
                          f"v1), got {edition!r}")
-    m = _meta(meta)
+    m = resolve_meta(meta, dwells, detections)
     nd = n_rows(dwells, "dwells")
     nt = n_rows(detections, "detections")
     for col in ("dwell_id", "revisit_id", "dwell_index", "last_dwell", "time_s",
@@ -558,7 +569,7 @@ def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nd
 
     # --- the stream ------------------------------------------------------------------------
     mission_pkt = _single_segment_packet(m, edition, MISSION, _mission_body(m))
-    job_pkt = _single_segment_packet(m, edition, JOB_DEFINITION, _job_body(m, dw, det))
+    job_pkt = _single_segment_packet(m, edition, JOB_DEFINITION, _job_body(m))
     head = [mission_pkt, job_pkt]
     if m["write_epoch_text"]:
         iso = epoch.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
