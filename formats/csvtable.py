@@ -138,9 +138,9 @@ def _text(source) -> tuple[str, str | None]:
 def _convert(values: list[str], kind: str, name, col_name, col_no) -> np.ndarray:
     try:
         if kind == F:
-            return np.array(values, dtype=str).astype(np.float64) if values else np.zeros(0)
+            return np.fromiter(map(float, values), np.float64, len(values))
         if kind in (I, U8):
-            a = np.array(values, dtype=str).astype(np.int64) if values else np.zeros(0, np.int64)
+            a = np.fromiter(map(int, values), np.int64, len(values))
             if kind == U8 and np.any((a < 0) | (a > 255)):
                 raise ValueError
             return a.astype(np.uint8) if kind == U8 else a

@@ -90,28 +90,21 @@ def _fmt(x: float) -> str:
     return repr(float(x))
 
 
-def _attr_strings(name: str, col: np.ndarray, kind: str) -> np.ndarray:
-    """Object array of ' name="value"' per row ('' where the value is NaN), built per column."""
+def _attr_strings(name: str, col: np.ndarray, kind: str) -> list[str]:
+    """' name="value"' per row ('' where the value is NaN), built per column."""
     col = np.asarray(col)
-    n = len(col)
     if kind == _BOOL:
-        vals = np.where(col.astype(bool), f' {name}="true"', f' {name}="false"').astype(object)
-        return vals
+        t, f = f' {name}="true"', f' {name}="false"'
+        return [t if v else f for v in col.astype(bool).tolist()]
+    pre = f' {name}="'
     if kind in (_INT, _U8):
         if col.dtype.kind == "f":
-            ok = np.isfinite(col)
-            out = np.full(n, "", dtype=object)
-            out[ok] = [f' {name}="{v}"' for v in col[ok].astype(np.int64).tolist()]
-            return out
-        return np.array([f' {name}="{v}"' for v in col.astype(np.int64).tolist()], dtype=object)
-    col = col.astype(np.float64)
-    ok = ~np.isnan(col)
-    out = np.full(n, "", dtype=object)
-    pre, post = f' {name}="', '"'
-    # repr() is the shortest string that round-trips a float64 exactly
-    out[ok] = [pre + (repr(v) if v - v == 0 else ("INF" if v > 0 else "-INF")) + post
-               for v in col[ok].tolist()]
-    return out
+            return [pre + str(int(v)) + '"' if v - v == 0 else "" for v in col.tolist()]
+        return [pre + str(v) + '"' for v in col.astype(np.int64).tolist()]
+    # repr() is the shortest string that round-trips a float64 exactly; NaN is left out
+    return [pre + repr(v) + '"' if v - v == 0 else
+            ("" if v != v else pre + ("INF" if v > 0 else "-INF") + '"')
+            for v in col.astype(np.float64).tolist()]
 
 
 # Value ranges the XSD restricts (checked before writing so every written file validates).
@@ -135,12 +128,12 @@ def _check_ranges(table, what):
                              f"[{lo}, {hi}] (row {int(np.flatnonzero(bad)[0])})")
 
 
-def _rows(table: Mapping[str, np.ndarray], columns: dict, n: int, skip=()) -> np.ndarray:
-    acc = np.full(n, "", dtype=object)
-    for name, kind in columns.items():
-        if name in table and name not in skip:
-            acc = acc + _attr_strings(name, table[name], kind)
-    return acc
+def _rows(table: Mapping[str, np.ndarray], columns: dict, n: int, skip=()) -> list[str]:
+    cols = [_attr_strings(name, table[name], kind) for name, kind in columns.items()
+            if name in table and name not in skip]
+    if not cols:
+        return [""] * n
+    return ["".join(parts) for parts in zip(*cols)]
 
 
 def encode_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarray],
@@ -213,8 +206,8 @@ def encode_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nda
         w(f'<Point lat_deg="{_fmt(lat)}" lon_deg="{_fmt(lon)}"/>')
     w('</BoundingArea>\n  </JobDefinition>\n')
     starts = np.concatenate([[0], np.cumsum(counts)]).tolist()
-    det_list = det_attrs.tolist()
-    for i, (attrs, t) in enumerate(zip(dw_attrs.tolist(), list(times))):
+    det_list = det_attrs
+    for i, (attrs, t) in enumerate(zip(dw_attrs, list(times))):
         a, b = starts[i], starts[i + 1]
         tu = f' timeUtc="{t}"' if t else ""
         if a == b:
@@ -277,21 +270,28 @@ def _validate(tree, name):
                           f"gmti.xsd: {e.message}")
 
 
+def _float(v):
+    return np.nan if v is None else float(v)
+
+
 def _columns(elements, columns: dict, name) -> dict:
-    attrs = [el.attrib for el in elements]
+    attrs = [dict(el.items()) for el in elements]
+    n = len(attrs)
     out = {}
     for col, kind in columns.items():
         vals = [a.get(col) for a in attrs]
-        if not any(v is not None for v in vals):
+        if vals.count(None) == n:
             continue
         if kind == _BOOL:
             out[col] = np.array([v in ("true", "1") for v in vals], dtype=bool)
         elif kind in (_INT, _U8):
-            fill = "-1" if kind == _INT else "0"
-            arr = np.array([fill if v is None else v for v in vals], dtype=np.int64)
+            fill = -1 if kind == _INT else 0
+            arr = np.fromiter((fill if v is None else int(v) for v in vals), np.int64, n)
             out[col] = arr.astype(np.uint8) if kind == _U8 else arr
         else:
-            out[col] = np.array(["NaN" if v is None else v for v in vals]).astype(np.float64)
+            # xs:double lexical forms that Python's float() reads: INF, -INF, NaN, 1E5, .5
+            conv = float if None not in vals else _float
+            out[col] = np.fromiter(map(conv, vals), np.float64, n)
     return out
 
 
