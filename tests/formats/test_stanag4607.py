@@ -275,7 +275,9 @@ def test_job_definition_repeats_every_30_s_within_a_long_revisit():
 
 
 def test_large_dwell_is_split_below_65535_bytes_with_continuing_report_index():
-    dwells, dets = synthetic.tables(3, 9000, seed=3)
+    dwells, dets = synthetic.tables(3, 9000, seed=3, dwells_per_revisit=3)
+    dets["dwell_id"] = np.repeat([0, 1, 2], [4000, 0, 5000])   # an empty dwell between two big ones
+    assert dwells["last_dwell"].tolist() == [False, False, True]
     data = s4607.encode_4607(dwells, dets, META)
     pk = _stream(data)
     assert max(p.size for p in pk) <= 65_535
@@ -288,7 +290,8 @@ def test_large_dwell_is_split_below_65535_bytes_with_continuing_report_index():
         assert r["detections"]["mti_report_index"][sel].tolist() == list(range(sel.sum()))
     # D4 only on the last piece of the last dwell
     lasts = [int.from_bytes(p.segments[0].body[12:13], "big") for p in dpk]
-    assert lasts.count(1) == int(dwells["last_dwell"].sum())
+    assert lasts[-1] == 1 and lasts.count(1) == 1
+    assert r["dwells"]["n_packets"].tolist()[1] == 1 and r["dwells"]["n_packets"][2] > 1
 
 
 def _independent(data):
