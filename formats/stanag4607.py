@@ -735,6 +735,8 @@ def iter_packets(source, *, max_packet_size: int | None = None) -> Iterator[Pack
     try:
         while True:
             head = f.read(32)
+            if not isinstance(head, (bytes, bytearray)):
+                raise FormatError(f"{where(name)}source is not a binary file (open it with 'rb')")
             if not head:
                 return
             if len(head) < 32:

@@ -559,3 +559,5 @@ def test_lying_segment_and_count_fields():
         s4607.read_4607(packet([mission(2023, 2, 30)]))
     with pytest.raises(FormatError, match="version id"):
         s4607.read_4607(b"XX" + packet([mission()])[2:])
+    with pytest.raises(FormatError, match="not a binary file"):
+        s4607.read_4607(io.StringIO("30 text"))
