@@ -561,3 +561,81 @@ def test_lying_segment_and_count_fields():
         s4607.read_4607(b"XX" + packet([mission()])[2:])
     with pytest.raises(FormatError, match="not a binary file"):
         s4607.read_4607(io.StringIO("30 text"))
+
+
+# ---------------------------------------------------------------------------------------------
+# Any conforming mask: random existence masks, hand-assembled, against the independent decoder
+# ---------------------------------------------------------------------------------------------
+
+_RANGES = {"H": (0, 65535), "B": (0, 255), "I": (0, 2**32 - 1), "i": (-2**31, 2**31 - 1),
+           "h": (-32768, 32767), "b": (-128, 127)}
+
+
+@st.composite
+def random_dwell(draw):
+    optional_groups = [(10, 11), (12, 13, 14), (15, 16, 17), (18, 19, 20), (21, 22, 23),
+                       (28,), (29,), (30,), (31,)]
+    position = draw(st.sampled_from(["hires", "delta", "none"]))
+    fields = set(s4607.MANDATORY_DWELL)
+    for g in optional_groups:
+        if g == (10, 11):
+            if position == "delta":
+                fields.update(g)
+        elif draw(st.booleans()):
+            fields.update(g)
+    tfields = {k for k in (1, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18) if draw(st.booleans())}
+    if position == "hires":
+        tfields |= {2, 3}
+    elif position == "delta":
+        tfields |= {4, 5}
+    values = {n: draw(st.integers(*_RANGES[DWELL_FMT[n]])) for n in fields if n != 5}
+    values[4] = draw(st.integers(0, 1))
+    n_targets = draw(st.integers(0, 4))
+    targets = [{k: draw(st.integers(*_RANGES[TARGET_FMT[k]])) for k in tfields}
+               for _ in range(n_targets)]
+    return values, targets, sorted(tfields)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(case=random_dwell())
+def test_any_existence_mask_decodes_like_the_independent_decoder(case):
+    values, targets, tfields = case
+    data = packet([mission()], job_id=0) + packet([dwell(values, targets, tfields=tfields)])
+    r = s4607.read_4607(data)
+    d, t = r["dwells"], r["detections"]
+    assert d["target_count"].tolist() == [len(targets)]
+    assert d["dwell_time_ms"].tolist() == [values[6]]
+    assert d["platform_height_m"][0] == values[9] / 100
+    assert d["range_half_extent_m"][0] == s4607.dec_b16(values[26]) * 1000
+    assert np.isnan(d["mdv_mps"][0]) == (31 not in values)
+    assert np.isnan(d["platform_heading_rad"][0]) == (21 not in values)
+    stanag, packets = _independent(data)
+    ev = [e.value for p in packets for e in stanag.iter_packet_events(p)][-1]
+    assert ev.target_report_count == len(targets)
+    for i in range(len(targets)):
+        loc = ev.target_location(i)
+        if loc is None:
+            assert np.isnan(t["lat_deg"][i])
+            continue
+        assert t["lat_deg"][i] == pytest.approx(float(loc.latitude.degrees), abs=1e-9)
+        lon = float(loc.longitude.degrees) % 360
+        assert t["lon_deg"][i] % 360 == pytest.approx(lon, abs=1e-9)
+        x = ev.targets[i]
+        h = x.geodetic_height_meters
+        assert (np.isnan(t["height_m"][i]) if h is None else t["height_m"][i] == h)
+        e = x.truth_tag_entity
+        assert t["truth_id"][i] == (-1 if e is None else (e - 2**32 if e >= 2**31 else e))
+        rcs = x.radar_cross_section_decibels
+        assert (np.isnan(t["rcs_dbsm"][i]) if rcs is None else t["rcs_dbsm"][i] == float(rcs))
+        v = x.radial_velocity_centimeters_per_second
+        assert (np.isnan(t["range_rate_mps"][i]) if v is None else t["range_rate_mps"][i] == v / 100)
+
+
+def test_iter_packets_is_lazy():
+    good = packet([mission()], job_id=0)
+    stream = io.BytesIO(good + b"\x00" * 10)     # a valid packet, then a torn header
+    it = s4607.iter_packets(stream)
+    first = next(it)
+    assert first.segments[0].type == 1 and stream.tell() == len(good)
+    with pytest.raises(FormatError, match=f"truncated packet header at byte offset {len(good)}"):
+        next(it)
