@@ -1180,6 +1180,12 @@ def _dwell_tables(seg_pkt, seg_job, seg_ref, seg_mask, seg_off, seg_counts, dwel
         raise FormatError(f"{where(name)}byte offset {seg_off[bad] + 5}: dwell sends delta "
                           "positions D32.4/D32.5 without the scale factors D10/D11")
     lat_raw = np.where(hr_ok, hr_lat, area_lat_raw[t_seg] + d_lat * lsc_raw[t_seg])
+    out_of_range = use_delta & ((lat_raw < -2**31) | (lat_raw >= 2**31))
+    if np.any(out_of_range):
+        bad = int(t_seg[np.flatnonzero(out_of_range)[0]])
+        raise FormatError(f"{where(name)}byte offset {seg_off[bad] + 5}: a delta latitude "
+                          "D24 + D32.4 x D10 falls outside the SA32 range +-90 deg (the scale "
+                          "factor D10 does not fit the dwell)")
     lon_raw = np.where(hr_ok, hr_lon, (area_lon_raw[t_seg] + d_lon * osc_raw[t_seg]) % 2**32)
     pos_ok = hr_ok | use_delta
     lat = np.where(pos_ok, dec_sa(lat_raw, 32), np.nan)
