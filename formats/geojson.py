@@ -213,12 +213,26 @@ def write_geojson(dest, **kwargs) -> None:
 
 # ---------------------------------------------------------------------------------------------
 
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
 def _typed(values: list, kind: str | None, what: str) -> np.ndarray:
     if kind == "bool":
-        return np.array([bool(v) for v in values], dtype=bool)
+        if not all(isinstance(v, bool) for v in values):
+            raise ValueError("expected true or false")
+        return np.array(values, dtype=bool)
     if kind in ("int", "u8"):
+        if not all(v is None or (_is_num(v) and float(v).is_integer()) for v in values):
+            raise ValueError("expected integers")
         a = np.array([-1 if v is None else int(v) for v in values], dtype=np.int64)
+        if kind == "u8" and np.any((a < 0) | (a > 255)):
+            raise ValueError("expected integers 0..255")
         return a.astype(np.uint8) if kind == "u8" else a
+    if kind == "float":
+        if not all(v is None or _is_num(v) for v in values):
+            raise ValueError("expected numbers or null")
+        return np.array([np.nan if v is None else v for v in values], dtype=np.float64)
     if kind == "str":
         return np.array(["" if v is None else str(v) for v in values], dtype=str)
     if all(v is None or isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
@@ -239,7 +253,8 @@ def _props_table(props: list[dict], kinds: dict, what: str) -> dict:
         try:
             out[k] = _typed([p.get(k) for p in props], kinds.get(k), what)
         except (TypeError, ValueError) as exc:
-            raise FormatError(f"{what}: property {k!r} has a value of the wrong type ({exc})") from None
+            raise FormatError(f"{what}: property {k!r} has a value of the wrong type "
+                              f"({exc})") from None
     return out
 
 

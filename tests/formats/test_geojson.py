@@ -118,6 +118,10 @@ def test_writer_needs_geodetic_columns():
      "per-vertex"),
     (b'{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"kind":"detection",'
      b'"det_id":"x"},"geometry":null}]}', "det_id"),
+    (b'{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"kind":"detection",'
+     b'"snr_db":"loud"},"geometry":null}]}', "snr_db"),
+    (b'{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"kind":"detection",'
+     b'"truth_id":1.5},"geometry":null}]}', "truth_id"),
     (b"\xff\xfe", "not"),
     (b"[" * 100000, "nested|not JSON"),
 ])
