@@ -38,6 +38,8 @@ def main(argv=None):
     dwells, dets = synthetic.tables(a.dwells, a.detections, seed=1)
     meta = {"epoch_utc": synthetic.EPOCH_UTC}
     n = a.detections
+    small_dw, small_det = synthetic.tables(20, 200)
+    stanag4607.read_4607(stanag4607.encode_4607(small_dw, small_det, meta))   # warm-up
     print(f"# {n} detections in {a.dwells} dwells; python {platform.python_version()}, "
           f"{platform.machine()}; best of {a.repeat}")
     print(f"{'format':<10} {'bytes':>12} {'write/s':>12} {'read/s':>12}")
