@@ -1198,8 +1198,11 @@ def _dwell_tables(seg_pkt, seg_job, seg_ref, seg_mask, seg_off, seg_counts, dwel
     slon = dwells["platform_lon_deg"][seg_dwell_t]
     sh = dwells["platform_height_m"][seg_dwell_t]
     # Height absent: the target lies on the earth model; use 0 m HAE for the geometry only.
-    rng, az = _range_azimuth(slat, slon, sh, lat, lon, np.where(np.isfinite(height), height, 0.0))
-    cross = tf("cr_dm", lambda r: r / 10.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rng, az = _range_azimuth(slat, slon, sh, lat, lon,
+                                 np.where(np.isfinite(height), height, 0.0))
+        cross = tf("cr_dm", lambda r: r / 10.0)
+        sigma_az = np.where(rng > 0, cross / rng, np.nan)
     wrap = tf("wrap_cmps", lambda r: r / 100.0)
     mti, mti_ok = tr("mti_index")
     cls, cls_ok = tr("class")
@@ -1217,7 +1220,7 @@ def _dwell_tables(seg_pkt, seg_job, seg_ref, seg_mask, seg_off, seg_counts, dwel
         "classification_probability": tf("class_prob", lambda r: r / 100.0),
         "sigma_range_m": tf("sr_cm", lambda r: r / 100.0),
         "sigma_cross_range_m": cross,
-        "sigma_azimuth_rad": cross / rng,
+        "sigma_azimuth_rad": sigma_az,
         "sigma_height_m": tf("h_m", lambda r: r * 1.0),
         "sigma_range_rate_mps": tf("rv_cmps", lambda r: r / 100.0),
         "truth_application": np.where(ent_ok, tr("tt_app")[0], -1).astype(np.int64),
