@@ -1,0 +1,236 @@
+"""CSV forms of the detection, truth and track tables (pandas and Stone Soup read them as is).
+
+One row per table row, one column per table column, a header line, comma separated, UTF-8,
+``\\n`` line ends.  The first two columns are the time as ISO-8601 UTC (``time_utc``,
+microseconds, ``Z``) and as seconds since the scene epoch (``time_s``, authoritative on reading);
+then the table's columns in the order of :data:`COLUMNS`.  Floats are written as their shortest
+round-trip repr (exact), NaN as ``nan``, booleans as ``True``/``False``.  Rows are written in time
+order (stable), as Stone Soup's readers require.
+
+Stone Soup::
+
+    from stonesoup.reader.generic import CSVDetectionReader
+    reader = CSVDetectionReader("detections.csv", state_vector_fields=("x_m", "y_m"),
+                                time_field="time_utc")
+    for time, detections in reader: ...   # every other column lands in Detection.metadata
+
+pandas: ``pandas.read_csv("detections.csv", parse_dates=["time_utc"])``.
+
+Reading validates the header (required columns present, no unknown or duplicate column) and every
+cell (numeric, integer, boolean as the column requires); a problem raises
+:class:`~formats.errors.FormatError` naming the line and column.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import os
+from typing import Mapping
+
+import numpy as np
+
+from ._io import iso_utc, n_rows, parse_epoch, source_name, write_atomic
+from .errors import FormatError, where
+
+__all__ = ["write_csv", "read_csv", "encode_csv", "write_detections_csv", "read_detections_csv",
+           "write_truth_csv", "read_truth_csv", "write_tracks_csv", "read_tracks_csv",
+           "COLUMNS", "REQUIRED"]
+
+F, I, B, U8 = "float", "int", "bool", "u8"
+
+COLUMNS: dict[str, dict[str, str]] = {
+    "detections": {
+        "time_s": F, "det_id": I, "dwell_id": I, "lat_deg": F, "lon_deg": F, "height_m": F,
+        "x_m": F, "y_m": F, "z_m": F, "range_m": F, "azimuth_rad": F, "range_rate_mps": F,
+        "sigma_range_m": F, "sigma_azimuth_rad": F, "sigma_range_rate_mps": F, "snr_db": F,
+        "truth_id": I, "true_range_m": F, "true_azimuth_rad": F, "true_range_rate_mps": F,
+        "merged": B, "range_folded": B, "doppler_wrapped": B, "implausible": B, "rcs_dbsm": F,
+        "wrap_velocity_mps": F, "sigma_cross_range_m": F, "sigma_height_m": F,
+        "classification": U8,
+    },
+    "truth": {
+        "time_s": F, "vehicle_id": I, "convoy_id": I, "x_m": F, "y_m": F, "z_m": F,
+        "lat_deg": F, "lon_deg": F, "height_m": F, "vx_mps": F, "vy_mps": F, "vz_mps": F,
+        "ax_mps2": F, "ay_mps2": F, "az_mps2": F, "speed_mps": F, "heading_rad": F,
+        "route_s_m": F, "edge_id": I, "mode": U8, "invisible": B,
+    },
+    "tracks": {
+        "time_s": F, "track_id": I, "x_m": F, "y_m": F, "vx_mps": F, "vy_mps": F,
+        "cov_xx_m2": F, "cov_xy_m2": F, "cov_yy_m2": F, "range_rate_mps": F, "confirmed": B,
+    },
+}
+REQUIRED = {
+    "detections": ("time_s", "det_id", "dwell_id"),
+    "truth": ("time_s", "vehicle_id", "x_m", "y_m"),
+    "tracks": ("time_s", "track_id", "x_m", "y_m"),
+}
+_ID = {"detections": "det_id", "truth": "vehicle_id", "tracks": "track_id"}
+TIME_UTC = "time_utc"
+
+
+def _kind(kind: str) -> dict:
+    if kind not in COLUMNS:
+        raise ValueError(f"CSV kind must be one of {sorted(COLUMNS)}, got {kind!r}")
+    return COLUMNS[kind]
+
+
+def _cells(col: np.ndarray, kind: str) -> list[str]:
+    col = np.asarray(col)
+    if kind == B:
+        return np.where(col.astype(bool), "True", "False").tolist()
+    if kind in (I, U8):
+        return [str(v) for v in col.astype(np.int64).tolist()]
+    return [repr(v) for v in col.astype(np.float64).tolist()]   # 'nan', 'inf' included
+
+
+def encode_csv(table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str) -> bytes:
+    """CSV bytes of a detections / truth / tracks table (columns outside COLUMNS[kind] are
+    refused with ValueError, so nothing is dropped silently)."""
+    cols = _kind(kind)
+    n = n_rows(table, kind)
+    unknown = [c for c in table if c not in cols]
+    if unknown:
+        raise ValueError(f"CSV writer ({kind}): columns {unknown} are not part of the {kind} CSV; "
+                         f"known: {list(cols)}")
+    missing = [c for c in REQUIRED[kind] if c not in table]
+    if missing:
+        raise ValueError(f"CSV writer ({kind}): table lacks required columns {missing}")
+    epoch = parse_epoch(epoch_utc)
+    t = np.asarray(table["time_s"], dtype=np.float64)
+    order = np.lexsort((np.asarray(table[_ID[kind]]), t))
+    names = [c for c in cols if c in table]
+    columns = [iso_utc(epoch, t[order]).tolist()]
+    columns += [_cells(np.asarray(table[c])[order], cols[c]) for c in names]
+    out = io.StringIO()
+    out.write(",".join([TIME_UTC] + names) + "\n")
+    if n:
+        out.write("\n".join(",".join(r) for r in zip(*columns)))
+        out.write("\n")
+    return out.getvalue().encode("utf-8")
+
+
+def write_csv(dest, table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str) -> None:
+    """Write a table as CSV to a path (atomically) or a binary file object."""
+    write_atomic(dest, encode_csv(table, kind, epoch_utc=epoch_utc))
+
+
+def _text(source) -> tuple[str, str | None]:
+    name = source_name(source)
+    try:
+        if isinstance(source, (bytes, bytearray)):
+            raw = bytes(source)
+        elif isinstance(source, (str, os.PathLike)):
+            with open(source, "rb") as f:
+                raw = f.read()
+        else:
+            raw = source.read()
+    except OSError as exc:
+        raise FormatError(f"{where(name)}cannot read: {exc}") from None
+    if isinstance(raw, str):
+        return raw, name
+    try:
+        return raw.decode("utf-8-sig"), name
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise FormatError(f"{where(name)}line {line}: not UTF-8 text (byte {exc.start})") from None
+
+
+def _convert(values: list[str], kind: str, name, col_name, col_no) -> np.ndarray:
+    try:
+        if kind == F:
+            return np.fromiter(map(float, values), np.float64, len(values))
+        if kind in (I, U8):
+            a = np.fromiter(map(int, values), np.int64, len(values))
+            if kind == U8 and np.any((a < 0) | (a > 255)):
+                raise ValueError
+            return a.astype(np.uint8) if kind == U8 else a
+        low = np.char.lower(np.char.strip(np.array(values, dtype=str))) if values else np.zeros(0, str)
+        ok = np.isin(low, ["true", "false", "1", "0"])
+        if not ok.all():
+            raise ValueError
+        return np.isin(low, ["true", "1"])
+    except ValueError:
+        pass
+    for i, v in enumerate(values):            # locate the first bad cell for the message
+        try:
+            if kind == F:
+                float(v)
+            elif kind in (I, U8):
+                x = int(v.strip())
+                if kind == U8 and not 0 <= x <= 255:
+                    raise ValueError
+            elif v.strip().lower() not in ("true", "false", "1", "0"):
+                raise ValueError
+        except ValueError:
+            expect = {F: "a number", I: "an integer", U8: "an integer 0..255",
+                      B: "True or False"}[kind]
+            raise FormatError(f"{where(name)}line {i + 2}, column {col_no} ({col_name}): "
+                              f"{v!r} is not {expect}") from None
+    raise FormatError(f"{where(name)}column {col_no} ({col_name}): cannot convert")  # pragma: no cover
+
+
+def read_csv(source, kind: str) -> dict:
+    """Read a detections / truth / tracks CSV back into a table (``time_utc`` is not returned:
+    ``time_s`` is authoritative)."""
+    cols = _kind(kind)
+    text, name = _text(source)
+    try:
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:
+        raise FormatError(f"{where(name)}not CSV: {exc}") from None
+    if not rows:
+        raise FormatError(f"{where(name)}line 1: empty file, expected a header line")
+    header = [h.strip() for h in rows[0]]
+    seen = set()
+    for j, h in enumerate(header):
+        if h in seen:
+            raise FormatError(f"{where(name)}line 1, column {j + 1}: duplicate column {h!r}")
+        seen.add(h)
+        if h != TIME_UTC and h not in cols:
+            raise FormatError(f"{where(name)}line 1, column {j + 1}: unknown column {h!r} for a "
+                              f"{kind} CSV; expected some of {[TIME_UTC] + list(cols)}")
+    missing = [c for c in REQUIRED[kind] if c not in header]
+    if missing:
+        raise FormatError(f"{where(name)}line 1: missing required columns {missing}")
+    body = rows[1:]
+    while body and not body[-1]:
+        body.pop()
+    width = len(header)
+    for i, r in enumerate(body):
+        if len(r) != width:
+            raise FormatError(f"{where(name)}line {i + 2}: {len(r)} fields, expected {width} "
+                              "(as in the header)")
+    out = {}
+    columns = list(zip(*body)) if body else [()] * width
+    for j, h in enumerate(header):
+        if h == TIME_UTC:
+            continue
+        out[h] = _convert(list(columns[j]), cols[h], name, h, j + 1)
+    return {c: out[c] for c in cols if c in out}
+
+
+def write_detections_csv(dest, detections, *, epoch_utc: str) -> None:
+    """Detections CSV (one row per detection); see the module docstring."""
+    write_csv(dest, detections, "detections", epoch_utc=epoch_utc)
+
+
+def read_detections_csv(source) -> dict:
+    return read_csv(source, "detections")
+
+
+def write_truth_csv(dest, truth, *, epoch_utc: str) -> None:
+    """Truth CSV (one row per sample time and vehicle)."""
+    write_csv(dest, truth, "truth", epoch_utc=epoch_utc)
+
+
+def read_truth_csv(source) -> dict:
+    return read_csv(source, "truth")
+
+
+def write_tracks_csv(dest, tracks, *, epoch_utc: str) -> None:
+    """Tracks CSV (one row per track and update time)."""
+    write_csv(dest, tracks, "tracks", epoch_utc=epoch_utc)
+
+
+def read_tracks_csv(source) -> dict:
+    return read_csv(source, "tracks")

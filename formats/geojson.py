@@ -1,0 +1,397 @@
+"""GeoJSON (RFC 7946) FeatureCollection of detections, truth, roads and clutter regions.
+
+For QGIS and web maps.  Positions are ``[lon_deg, lat_deg, height_m]`` (WGS-84, height above the
+ellipsoid), no ``crs`` member (RFC 7946 §4).  Every feature has ``properties.kind``:
+
+* ``"detection"`` — Point per detection; properties: every other detection column
+  (``det_id``, ``dwell_id``, ``time_s``, ``range_m``, ... ``truth_id``) and ``time_utc``.
+* ``"truth"`` — LineString per vehicle through its samples in time order (a Point if it has one
+  sample); properties: ``vehicle_id``, ``convoy_id`` and, per vertex, arrays of the other truth
+  columns (``time_s``, ``speed_mps``, ...), so the truth table can be read back.
+* ``"road_node"`` — Point per road node (``node_id``, ``name``, ``x_m y_m z_m``);
+  ``"road"`` — LineString per edge between its two nodes (``edge_id from_node to_node length_m
+  oneway speed_limit_mps invisible road_class``).
+* ``"clutter"`` — Polygon per clutter region (a closed exterior ring, counter-clockwise as RFC
+  7946 §3.1.6 recommends) plus the region's scalar properties.
+
+Floats are written as their shortest repr, so positions and values round-trip exactly; NaN is
+written as ``null`` (RFC 8259 has no NaN) and read back as NaN.  The geometry needs geodetic
+columns: ``lat_deg lon_deg height_m`` on detections, truth and road nodes (the caller converts
+ENU with ``gmtiflow.frames``; formats never imports gmtiflow).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ._io import iso_utc, n_rows, parse_epoch, source_name, write_atomic
+from .csvtable import COLUMNS
+from .errors import FormatError, where
+
+__all__ = ["write_geojson", "encode_geojson", "read_geojson"]
+
+_GEO = ("lat_deg", "lon_deg", "height_m")
+NODE_COLUMNS = {"node_id": "int", "name": "str", "x_m": "float", "y_m": "float", "z_m": "float"}
+EDGE_COLUMNS = {"edge_id": "int", "from_node": "int", "to_node": "int", "length_m": "float",
+                "oneway": "bool", "speed_limit_mps": "float", "invisible": "bool",
+                "road_class": "str"}
+
+
+def _num(v):
+    """JSON value of a numpy scalar: NaN/inf -> null."""
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        v = float(v)
+        return v if math.isfinite(v) else None
+    return str(v)
+
+
+def _need(table, cols, what):
+    missing = [c for c in cols if c not in table]
+    if missing:
+        raise ValueError(f"GeoJSON writer: {what} table lacks {missing} (convert ENU to "
+                         "geodetic first, e.g. with gmtiflow.frames)")
+
+
+def _json_cells(col: np.ndarray) -> list[str]:
+    col = np.asarray(col)
+    if col.dtype.kind == "b":
+        return np.where(col, "true", "false").tolist()
+    if col.dtype.kind in "iu":
+        return [str(v) for v in col.tolist()]
+    if col.dtype.kind == "f":
+        return [repr(v) if v - v == 0 else "null" for v in col.tolist()]
+    return [json.dumps(str(v)) for v in col.tolist()]
+
+
+def _detection_features(dets: Mapping[str, np.ndarray], epoch) -> list[str]:
+    n = n_rows(dets, "detections")
+    _need(dets, _GEO[:2], "detections")
+    lon = _json_cells(dets["lon_deg"])
+    lat = _json_cells(dets["lat_deg"])
+    h = _json_cells(dets["height_m"]) if "height_m" in dets else None
+    props = [c for c in dets if c not in _GEO]
+    cells = [_json_cells(dets[c]) for c in props]
+    names = [json.dumps(c) + ":" for c in props]
+    tutc = iso_utc(epoch, dets["time_s"]).tolist() if epoch is not None and "time_s" in dets else None
+    out = []
+    for i in range(n):
+        if lon[i] == "null" or lat[i] == "null":
+            geom = "null"          # RFC 7946 §3.2: an unlocated feature has a null geometry
+        else:
+            pos = f"{lon[i]},{lat[i]}" + (f",{h[i]}" if h is not None and h[i] != "null" else "")
+            geom = f'{{"type":"Point","coordinates":[{pos}]}}'
+        p = ",".join(nm + c[i] for nm, c in zip(names, cells))
+        if tutc is not None:
+            p += f',"time_utc":"{tutc[i]}"'
+        out.append(f'{{"type":"Feature","geometry":{geom},"properties":{{"kind":"detection"'
+                   f'{"," + p if p else ""}}}}}')
+    return out
+
+
+def _coords(lat, lon, h):
+    return [[_num(a), _num(b)] + ([] if c is None or not math.isfinite(c) else [float(c)])
+            for a, b, c in zip(lon, lat, h if h is not None else [None] * len(lat))]
+
+
+def _truth_features(truth: Mapping[str, np.ndarray]) -> list[dict]:
+    _need(truth, ("vehicle_id", "time_s") + _GEO[:2], "truth")
+    vid = np.asarray(truth["vehicle_id"])
+    order = np.lexsort((np.asarray(truth["time_s"], float), vid))
+    vid = vid[order]
+    starts = np.flatnonzero(np.r_[True, vid[1:] != vid[:-1]]) if len(vid) else np.zeros(0, int)
+    ends = np.r_[starts[1:], len(vid)]
+    cols = {c: np.asarray(v)[order] for c, v in truth.items()}
+    per_vertex = [c for c in cols if c not in _GEO + ("vehicle_id", "convoy_id")]
+    feats = []
+    for a, b in zip(starts.tolist(), ends.tolist()):
+        h = cols["height_m"][a:b].tolist() if "height_m" in cols else None
+        coords = _coords(cols["lat_deg"][a:b].tolist(), cols["lon_deg"][a:b].tolist(), h)
+        geom = ({"type": "LineString", "coordinates": coords} if b - a > 1
+                else {"type": "Point", "coordinates": coords[0]})
+        props = {"kind": "truth", "vehicle_id": int(vid[a])}
+        if "convoy_id" in cols:
+            props["convoy_id"] = int(cols["convoy_id"][a])
+        for c in per_vertex:
+            props[c] = [_num(v) for v in cols[c][a:b]]
+        feats.append({"type": "Feature", "geometry": geom, "properties": props})
+    return feats
+
+
+def _road_features(nodes, edges) -> list[dict]:
+    _need(nodes, ("node_id",) + _GEO[:2], "road nodes")
+    nid = np.asarray(nodes["node_id"], dtype=np.int64)
+    index = {int(k): i for i, k in enumerate(nid.tolist())}
+    lat = np.asarray(nodes["lat_deg"], float)
+    lon = np.asarray(nodes["lon_deg"], float)
+    h = np.asarray(nodes["height_m"], float) if "height_m" in nodes else None
+    feats = []
+    for i in range(len(nid)):
+        props = {"kind": "road_node"}
+        props.update({c: _num(np.asarray(nodes[c])[i]) for c in NODE_COLUMNS if c in nodes})
+        feats.append({"type": "Feature", "properties": props, "geometry": {
+            "type": "Point", "coordinates": _coords([lat[i]], [lon[i]], None if h is None else [h[i]])[0]}})
+    if edges is None:
+        return feats
+    _need(edges, ("edge_id", "from_node", "to_node"), "road edges")
+    ne = n_rows(edges, "road edges")
+    for i in range(ne):
+        ends = []
+        for c in ("from_node", "to_node"):
+            k = int(np.asarray(edges[c])[i])
+            if k not in index:
+                raise ValueError(f"GeoJSON writer: road edge {i} refers to unknown node {k}")
+            ends.append(index[k])
+        props = {"kind": "road"}
+        props.update({c: _num(np.asarray(edges[c])[i]) for c in EDGE_COLUMNS if c in edges})
+        feats.append({"type": "Feature", "properties": props, "geometry": {
+            "type": "LineString",
+            "coordinates": _coords(lat[ends].tolist(), lon[ends].tolist(),
+                                   None if h is None else h[ends].tolist())}})
+    return feats
+
+
+def _clutter_features(regions: Sequence[Mapping]) -> list[dict]:
+    feats = []
+    for k, reg in enumerate(regions):
+        if "lat_deg" not in reg or "lon_deg" not in reg:
+            raise ValueError(f"GeoJSON writer: clutter region {k} needs lat_deg and lon_deg arrays")
+        lat = np.asarray(reg["lat_deg"], float)
+        lon = np.asarray(reg["lon_deg"], float)
+        if len(lat) != len(lon) or len(lat) < 3:
+            raise ValueError(f"GeoJSON writer: clutter region {k} needs >= 3 vertices")
+        if lat[0] == lat[-1] and lon[0] == lon[-1] and len(lat) > 3:
+            lat, lon = lat[:-1], lon[:-1]
+        # exterior ring counter-clockwise (positive shoelace area in lon/lat)
+        area = np.sum(lon * np.roll(lat, -1) - np.roll(lon, -1) * lat)
+        if area < 0:
+            lat, lon = lat[::-1], lon[::-1]
+        ring = _coords(np.r_[lat, lat[0]].tolist(), np.r_[lon, lon[0]].tolist(), None)
+        props = {"kind": "clutter"}
+        for c, v in reg.items():
+            if c in ("lat_deg", "lon_deg"):
+                continue
+            if np.ndim(v):
+                raise ValueError(f"GeoJSON writer: clutter region {k} property {c!r} is not a scalar")
+            props[c] = _num(np.asarray(v)[()]) if not isinstance(v, str) else v
+        feats.append({"type": "Feature", "properties": props,
+                      "geometry": {"type": "Polygon", "coordinates": [ring]}})
+    return feats
+
+
+def encode_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=None,
+                   clutter_regions=None, epoch_utc: str | None = None) -> bytes:
+    """UTF-8 bytes of a FeatureCollection of whatever is given (see the module docstring)."""
+    epoch = parse_epoch(epoch_utc) if epoch_utc is not None else None
+    parts: list[str] = []
+    if detections is not None and n_rows(detections, "detections"):
+        parts += _detection_features(detections, epoch)
+    dumps = lambda f: json.dumps(f, allow_nan=False, separators=(",", ":"))   # noqa: E731
+    if truth is not None and n_rows(truth, "truth"):
+        parts += [dumps(f) for f in _truth_features(truth)]
+    if road_nodes is not None and n_rows(road_nodes, "road nodes"):
+        parts += [dumps(f) for f in _road_features(road_nodes, road_edges)]
+    if clutter_regions:
+        parts += [dumps(f) for f in _clutter_features(clutter_regions)]
+    head = '{"type":"FeatureCollection"'
+    if epoch is not None:
+        head += f',"scene_epoch_utc":"{epoch.strftime("%Y-%m-%dT%H:%M:%S.%fZ")}"'
+    return (head + ',"features":[\n' + ",\n".join(parts) + "\n]}\n").encode("utf-8")
+
+
+def write_geojson(dest, **kwargs) -> None:
+    """Write :func:`encode_geojson`'s document to a path (atomically) or binary file object."""
+    write_atomic(dest, encode_geojson(**kwargs))
+
+
+# ---------------------------------------------------------------------------------------------
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _typed(values: list, kind: str | None, what: str) -> np.ndarray:
+    if kind == "bool":
+        if not all(isinstance(v, bool) for v in values):
+            raise ValueError("expected true or false")
+        return np.array(values, dtype=bool)
+    if kind in ("int", "u8"):
+        if not all(v is None or (_is_num(v) and float(v).is_integer()) for v in values):
+            raise ValueError("expected integers")
+        a = np.array([-1 if v is None else int(v) for v in values], dtype=np.int64)
+        if kind == "u8" and np.any((a < 0) | (a > 255)):
+            raise ValueError("expected integers 0..255")
+        return a.astype(np.uint8) if kind == "u8" else a
+    if kind == "float":
+        if not all(v is None or _is_num(v) for v in values):
+            raise ValueError("expected numbers or null")
+        return np.array([np.nan if v is None else v for v in values], dtype=np.float64)
+    if kind == "str":
+        return np.array(["" if v is None else str(v) for v in values], dtype=str)
+    if all(v is None or isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return np.array([np.nan if v is None else v for v in values], dtype=np.float64)
+    if all(isinstance(v, bool) for v in values):
+        return np.array(values, dtype=bool)
+    return np.array(["" if v is None else str(v) for v in values], dtype=str)
+
+
+def _props_table(props: list[dict], kinds: dict, what: str) -> dict:
+    keys: list[str] = []
+    for p in props:
+        for k in p:
+            if k not in keys and k != "kind":
+                keys.append(k)
+    out = {}
+    for k in keys:
+        try:
+            out[k] = _typed([p.get(k) for p in props], kinds.get(k), what)
+        except (TypeError, ValueError) as exc:
+            raise FormatError(f"{what}: property {k!r} has a value of the wrong type "
+                              f"({exc})") from None
+    return out
+
+
+def _position(c, name, i):
+    if (not isinstance(c, list) or len(c) not in (2, 3)
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in c)):
+        raise FormatError(f"{where(name)}feature {i}: a position must be [lon, lat] or "
+                          f"[lon, lat, height] numbers, got {str(c)[:60]}")
+    return float(c[1]), float(c[0]), float(c[2]) if len(c) == 3 else np.nan
+
+
+def read_geojson(source) -> dict:
+    """Read a FeatureCollection written by :func:`write_geojson` (or any with ``kind``-tagged
+    features) back to ``{"detections", "truth", "road_nodes", "road_edges", "clutter_regions"}``.
+
+    Features without a known ``kind`` are ignored.  Malformed JSON raises FormatError with line
+    and column; a malformed feature raises FormatError naming its index.
+    """
+    name = source_name(source)
+    try:
+        if isinstance(source, (bytes, bytearray)):
+            raw = bytes(source)
+        elif isinstance(source, (str, os.PathLike)):
+            with open(source, "rb") as f:
+                raw = f.read()
+        else:
+            raw = source.read()
+        doc = json.loads(raw)
+    except OSError as exc:
+        raise FormatError(f"{where(name)}cannot read: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise FormatError(f"{where(name)}not UTF-8 text (byte {exc.start})") from None
+    except json.JSONDecodeError as exc:
+        raise FormatError(f"{where(name)}line {exc.lineno}, column {exc.colno}: not JSON: "
+                          f"{exc.msg}") from None
+    except RecursionError:
+        raise FormatError(f"{where(name)}JSON nested too deeply") from None
+    if not isinstance(doc, dict) or doc.get("type") != "FeatureCollection" \
+            or not isinstance(doc.get("features"), list):
+        raise FormatError(f"{where(name)}not a GeoJSON FeatureCollection (expected an object with "
+                          "type 'FeatureCollection' and a 'features' list)")
+    groups: dict[str, list] = {"detection": [], "truth": [], "road_node": [], "road": [],
+                               "clutter": []}
+    for i, f in enumerate(doc["features"]):
+        if not isinstance(f, dict) or f.get("type") != "Feature":
+            raise FormatError(f"{where(name)}feature {i}: not a GeoJSON Feature object")
+        props = f.get("properties")
+        geom = f.get("geometry")
+        if not isinstance(props, dict) or (geom is not None and not isinstance(geom, dict)):
+            raise FormatError(f"{where(name)}feature {i}: properties must be an object and "
+                              "geometry an object or null")
+        kind = props.get("kind")
+        if kind in groups:
+            groups[kind].append((i, geom, props))
+
+    def coords_of(i, geom, allowed):
+        if geom is None:
+            return None, None
+        t = geom.get("type")
+        c = geom.get("coordinates")
+        if t not in allowed:
+            raise FormatError(f"{where(name)}feature {i}: geometry type {t!r}, expected one of {allowed}")
+        if t == "Point":
+            return t, [_position(c, name, i)]
+        if t == "LineString":
+            if not isinstance(c, list) or len(c) < 2:
+                raise FormatError(f"{where(name)}feature {i}: a LineString needs >= 2 positions")
+            return t, [_position(p, name, i) for p in c]
+        if not isinstance(c, list) or not c or not isinstance(c[0], list) or len(c[0]) < 4:
+            raise FormatError(f"{where(name)}feature {i}: a Polygon needs a ring of >= 4 positions")
+        return t, [_position(p, name, i) for p in c[0]]
+
+    out: dict = {}
+    # detections
+    rows = groups["detection"]
+    pos = []
+    for i, g, p in rows:
+        _, c = coords_of(i, g, ("Point",))
+        pos.append(c[0] if c else (np.nan, np.nan, np.nan))
+    det_kinds = COLUMNS["detections"]
+    dets = _props_table([p for _, _, p in rows], det_kinds, f"{where(name)}detections")
+    dets.pop("time_utc", None)
+    if rows:
+        p = np.array(pos, dtype=np.float64).reshape(-1, 3)
+        dets["lat_deg"], dets["lon_deg"], dets["height_m"] = p[:, 0], p[:, 1], p[:, 2]
+    out["detections"] = dets
+    # truth
+    tparts = []
+    for i, g, p in groups["truth"]:
+        _, c = coords_of(i, g, ("Point", "LineString"))
+        if c is None:
+            raise FormatError(f"{where(name)}feature {i}: truth without geometry")
+        n = len(c)
+        row = {"vehicle_id": [p.get("vehicle_id")] * n}
+        if "convoy_id" in p:
+            row["convoy_id"] = [p["convoy_id"]] * n
+        for k, v in p.items():
+            if k in ("kind", "vehicle_id", "convoy_id"):
+                continue
+            if not isinstance(v, list) or len(v) != n:
+                raise FormatError(f"{where(name)}feature {i}: truth property {k!r} must be a list "
+                                  f"of {n} per-vertex values")
+            row[k] = v
+        arr = np.array(c, dtype=np.float64).reshape(-1, 3)
+        row["lat_deg"], row["lon_deg"], row["height_m"] = arr[:, 0].tolist(), arr[:, 1].tolist(), arr[:, 2].tolist()
+        tparts.append(row)
+    truth = {}
+    if tparts:
+        keys = list(dict.fromkeys(k for r in tparts for k in r))
+        merged = [{k: r[k][j] if k in r else None for k in keys}
+                  for r in tparts for j in range(len(r["vehicle_id"]))]
+        truth = _props_table(merged, COLUMNS["truth"], f"{where(name)}truth")
+        order = np.lexsort((truth["vehicle_id"], truth["time_s"])) if "time_s" in truth else None
+        if order is not None:
+            truth = {k: v[order] for k, v in truth.items()}
+    out["truth"] = truth
+    # roads
+    nodes = []
+    for i, g, p in groups["road_node"]:
+        _, c = coords_of(i, g, ("Point",))
+        lat, lon, h = c[0] if c else (np.nan, np.nan, np.nan)
+        nodes.append(dict(p, lat_deg=lat, lon_deg=lon, height_m=h))
+    out["road_nodes"] = _props_table(nodes, dict(NODE_COLUMNS, lat_deg="float", lon_deg="float",
+                                                 height_m="float"), f"{where(name)}road nodes")
+    edges = []
+    for i, g, p in groups["road"]:
+        coords_of(i, g, ("LineString",))
+        edges.append(p)
+    out["road_edges"] = _props_table(edges, EDGE_COLUMNS, f"{where(name)}roads")
+    # clutter
+    regions = []
+    for i, g, p in groups["clutter"]:
+        _, c = coords_of(i, g, ("Polygon",))
+        ring = np.array(c, dtype=np.float64)[:-1]
+        reg = {k: v for k, v in p.items() if k != "kind"}
+        reg["lat_deg"], reg["lon_deg"] = ring[:, 0], ring[:, 1]
+        regions.append(reg)
+    out["clutter_regions"] = regions
+    out["attrs"] = {"scene_epoch_utc": doc.get("scene_epoch_utc")}
+    return out
