@@ -1,0 +1,113 @@
+"""Routes: shortest paths on the road graph, as polylines with arc length (paper §3, DESIGN §3).
+
+Dijkstra (networkx) with the Euclidean 3-D road length as weight, from the start through the
+stopovers to the end. A :class:`Route` is a polyline: node positions, cumulative arc length,
+and per segment the road's edge id, invisible flag and speed limit. Off-road vehicles get a
+route from their waypoints (edge id -1, visible, no limit).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import networkx as nx
+import numpy as np
+
+from gmtiflow.errors import RoadMapError
+from gmtiflow.scene.roadmap import RoadMap
+
+
+@dataclass(frozen=True)
+class Route:
+    """A polyline route.
+
+    Attributes:
+        node_ids: road node ids along the route (n,), -1 for off-road waypoints.
+        xyz_m: vertex positions (n, 3), ENU metres.
+        s_m: cumulative arc length at each vertex (n,), s_m[0] = 0.
+        edge_id: road edge of each segment (n-1,), -1 off-road.
+        invisible: per segment (n-1,).
+        speed_limit_mps: per segment (n-1,), NaN = none.
+    """
+
+    node_ids: np.ndarray
+    xyz_m: np.ndarray
+    s_m: np.ndarray
+    edge_id: np.ndarray
+    invisible: np.ndarray
+    speed_limit_mps: np.ndarray
+
+    @property
+    def length_m(self) -> float:
+        return float(self.s_m[-1])
+
+    def position_at(self, s_m) -> np.ndarray:
+        """Points (…, 3) on the polyline at arc lengths ``s_m`` (clipped to the route)."""
+        s = np.clip(np.asarray(s_m, float), 0.0, self.length_m)
+        j = np.clip(np.searchsorted(self.s_m, s, side="right") - 1, 0, len(self.s_m) - 2)
+        seg = self.s_m[j + 1] - self.s_m[j]
+        f = np.where(seg > 0, (s - self.s_m[j]) / np.where(seg > 0, seg, 1.0), 0.0)
+        return self.xyz_m[j] + f[..., None] * (self.xyz_m[j + 1] - self.xyz_m[j])
+
+
+def _polyline(xyz: np.ndarray):
+    seg = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
+    return np.concatenate([[0.0], np.cumsum(seg)])
+
+
+def shortest_route(roadmap: RoadMap, start: Any, end: Any, stopovers: Sequence[Any] = (),
+                   who: str = "vehicle") -> Route:
+    """Shortest route start -> stopovers -> end; RoadMapError names ``who`` and the nodes."""
+    refs = [start, *stopovers, end]
+    try:
+        ids = [roadmap.node_index(r) for r in refs]
+    except RoadMapError as exc:
+        raise RoadMapError(f"{who}: {exc}") from None
+    names = [str(n) for n in roadmap.nodes["name"]]
+    path = [ids[0]]
+    for a, b in zip(ids[:-1], ids[1:]):
+        if a == b:
+            continue
+        try:
+            leg = nx.dijkstra_path(roadmap.graph, a, b, weight="length_m")
+        except nx.NetworkXNoPath:
+            raise RoadMapError(f"{who}: no route from node {names[a]!r} to node {names[b]!r} on "
+                               f"{roadmap.source} (unreachable: oneway roads or disconnected "
+                               f"parts)") from None
+        path.extend(leg[1:])
+    if len(path) < 2:
+        raise RoadMapError(f"{who}: start {names[ids[0]]!r} and end {names[ids[-1]]!r} are the "
+                           f"same node; the route would be empty")
+    node_ids = np.asarray(path, dtype=np.int64)
+    g = roadmap.graph
+    edge_id = np.asarray([g.edges[a, b]["edge_id"] for a, b in zip(path[:-1], path[1:])],
+                         dtype=np.int64)
+    xyz = roadmap.node_xyz(node_ids)
+    return Route(node_ids=node_ids, xyz_m=xyz, s_m=_polyline(xyz), edge_id=edge_id,
+                 invisible=roadmap.edges["invisible"][edge_id].copy(),
+                 speed_limit_mps=roadmap.edges["speed_limit_mps"][edge_id].copy())
+
+
+def off_road_route(waypoints_m: Sequence[Sequence[float]], who: str = "vehicle") -> Route:
+    """A route through off-road waypoints [x, y] or [x, y, z] (ENU m, z default 0)."""
+    pts = []
+    for p in waypoints_m:
+        vals = [float(c) for c in p]
+        if len(vals) == 2:
+            vals.append(0.0)
+        if len(vals) != 3 or not np.all(np.isfinite(vals)):
+            raise RoadMapError(f"{who}: off_road waypoint {list(p)!r} must be [x, y] or "
+                               f"[x, y, z] in finite metres")
+        pts.append(vals)
+    xyz = np.asarray(pts, dtype=float).reshape(-1, 3)
+    if len(xyz) < 2:
+        raise RoadMapError(f"{who}: off_road needs at least two waypoints")
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(xyz, axis=0), axis=1) > 0])
+    xyz = xyz[keep]
+    if len(xyz) < 2:
+        raise RoadMapError(f"{who}: off_road waypoints all coincide; the route would be empty")
+    n = len(xyz)
+    return Route(node_ids=np.full(n, -1, dtype=np.int64), xyz_m=xyz, s_m=_polyline(xyz),
+                 edge_id=np.full(n - 1, -1, dtype=np.int64),
+                 invisible=np.zeros(n - 1, dtype=bool),
+                 speed_limit_mps=np.full(n - 1, np.nan))
