@@ -103,6 +103,8 @@ class RoadmapConfig:
         implied_oneway: treat ``highway=motorway`` and ``junction=roundabout`` as oneway unless
             tagged ``oneway=no`` (OSM convention).
         merge_decimals: GeoJSON vertices whose lon/lat agree to this many decimals are one node.
+        attribution: credit line for outputs; ``None`` = automatic ("© OpenStreetMap
+            contributors" for OSM files, "" otherwise).
     """
 
     kind: RoadmapKind = RoadmapKind.default
@@ -115,6 +117,7 @@ class RoadmapConfig:
     drivable_classes: List[str] = field(default_factory=lambda: list(DRIVABLE_HIGHWAY_CLASSES))
     implied_oneway: bool = True
     merge_decimals: int = 7
+    attribution: Optional[str] = None
 
     def problems(self) -> List[schema.Problem]:
         out = schema.in_range(self, "origin_lat_deg", -90.0, 90.0)
@@ -265,6 +268,13 @@ def _build_graph(nodes: Table, edges: Table) -> nx.DiGraph:
 # --------------------------------------------------------------------------------------------
 def load_roadmap(cfg: RoadmapConfig) -> RoadMap:
     """The road map the config asks for (raises RoadMapError / InputFileError on bad input)."""
+    roadmap = _load(cfg)
+    if cfg.attribution is not None:
+        roadmap.attribution = str(cfg.attribution)
+    return roadmap
+
+
+def _load(cfg: RoadmapConfig) -> RoadMap:
     kind = RoadmapKind(cfg.kind)
     if kind == RoadmapKind.default:
         return from_inline(default_scene_config(), source="default scene")
