@@ -160,6 +160,7 @@ class RoadMap:
         self._name_to_id = {str(n): i for i, n in enumerate(nodes["name"])}
         self._xyz = np.column_stack([nodes["x_m"], nodes["y_m"], nodes["z_m"]])
         self._tree = None
+        self._routing_csr = None  # built on first use by gmtiflow.scene.routes
 
     @classmethod
     def from_lists(cls, origin: frames.Origin, names: Sequence[str], xyz_m: np.ndarray,

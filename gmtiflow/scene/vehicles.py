@@ -137,7 +137,9 @@ class VehicleSpec:
 @dataclass
 class RandomFleetSpec:
     """``count`` vehicles named ``<name_prefix>-0000`` … between random nodes of the largest
-    strongly connected part of the road graph; ``types``: vehicle type -> weight."""
+    strongly connected part of the road graph; ``types``: vehicle type -> weight; cruise speed
+    and start time uniform in their [min, max]; start and end at least ``min_route_m`` apart
+    in a straight line. The other fields are as in :class:`VehicleSpec`."""
 
     count: int = 0
     name_prefix: str = "random"
@@ -452,7 +454,12 @@ class Fleet:
         return len(self._veh)
 
     def state_at(self, time_s, vehicle_id) -> Table:
-        """Truth of ``vehicle_id[i]`` at ``time_s[i]`` (broadcast): /truth columns + ``active``."""
+        """Truth of ``vehicle_id[i]`` at ``time_s[i]`` (broadcast): /truth columns + ``active``.
+
+        ``active`` is False before the vehicle appears, from its arrival on, and after the
+        simulated horizon (the profile grid covers at least ``duration_s``); inactive rows hold
+        NaN, -1 ids, mode 255 and invisible False.
+        """
         t, vid = np.broadcast_arrays(np.asarray(time_s, dtype=float),
                                      np.asarray(vehicle_id, dtype=np.int64))
         shape = t.shape
@@ -468,7 +475,9 @@ class Fleet:
             out["active"] = np.zeros(n, bool)
             return {k: c.reshape(shape) for k, c in out.items()}
         tau = t - self._t0[vs]
-        active = valid & (tau >= self._on[vs]) & (tau < self._off[vs]) & np.isfinite(t)
+        horizon = self.profiles.n_steps * self.profiles.dt_s
+        active = (valid & (tau >= self._on[vs]) & (tau < self._off[vs]) & (tau <= horizon)
+                  & np.isfinite(t))
         idx = np.flatnonzero(active)
         out["active"] = active
         out["convoy_id"] = np.where(valid, self.vehicles["convoy_id"][vs], -1)

@@ -101,6 +101,21 @@ def test_monaco_routes_and_random_fleet(monaco):
 
 
 @needs_data
+def test_monaco_routes_are_as_short_as_networkx_dijkstra(monaco):
+    import networkx as nx
+    comp = monaco.largest_component()
+    rng = np.random.default_rng(0)
+    for a, b in rng.choice(comp, size=(15, 2)):
+        if a == b:
+            continue
+        r = shortest_route(monaco, str(monaco.nodes["name"][a]), str(monaco.nodes["name"][b]))
+        want = nx.dijkstra_path_length(monaco.graph, int(a), int(b), weight="length_m")
+        assert r.length_m == pytest.approx(want, rel=1e-12)
+        for u, v, eid in zip(r.node_ids[:-1], r.node_ids[1:], r.edge_id):
+            assert monaco.graph.edges[u, v]["edge_id"] == eid       # only allowed directions
+
+
+@needs_data
 def test_bautzen_without_metadata_attributes():
     rm = load_osm(BAUTZEN)
     e = rm.edges

@@ -293,6 +293,9 @@ def test_truth_table_columns_and_order(default_map):
     assert sorted(set(v["vehicle_type"])) == ["car", "truck"]
     st = fl.state_at(-5.0, np.arange(len(v["name"])))
     assert not st["active"].any() and np.all(np.isnan(st["x_m"]))
+    st = fl.state_at(1e4, np.arange(len(v["name"])))           # beyond the simulated horizon
+    assert not st["active"].any() and np.all(st["mode"] == 255)
+    assert fl.state_at(150.0, [-1, 99])["active"].tolist() == [False, False]
 
 
 # -- reproducibility -----------------------------------------------------------------------------------
