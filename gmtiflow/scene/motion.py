@@ -19,10 +19,12 @@ One time loop runs over the steps; every operation inside is numpy over all prof
 per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 2, DESIGN §3):
 
 * ``TRACK`` (modes 0 cruise / 1 decelerate / 3 accelerate): the speed heads for the target
-  :math:`v^* = \max(0, c(s) + \sigma n_k)` at the end of the step, where :math:`c(s)` is the
-  cruise speed of the road segment at the current position (vehicle cruise, changed permanently
-  at speed-change points, capped by the road's speed limit) and :math:`n_k` a standard normal
-  (the paper's per-step speed noise). The acceleration :math:`(v^*-v_k)/\Delta t` is clipped to
+  :math:`v^* = \max(0, \min(c(s) + \sigma n_k, v_{cap}))` at the end of the step, where
+  :math:`c(s)` is the cruise speed of the road segment at the current position (vehicle cruise,
+  changed permanently at speed-change points, capped by the road's speed limit), :math:`n_k` a
+  standard normal (the paper's per-step speed noise), and :math:`v_{cap}` the braking curve
+  (at 0.9 max_decel) towards any lower cruise speed further along the route, so a vehicle slows
+  down *before* a lower limit or a speed-change point. The acceleration :math:`(v^*-v_k)/\Delta t` is clipped to
   :math:`[-d_{max}, a_{max}]`; the label is cruise when unclipped, accelerate/decelerate when
   clipped. Restarting from rest is therefore "accelerate at max_accel back to cruise".
 * Random stop: a moving ``TRACK`` vehicle starts braking at :math:`d_{max}` when
@@ -167,6 +169,26 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
     stop_ptr = inp.stop_offset[:-1].copy()
     stop_end = inp.stop_offset[1:]
 
+    # Anticipation of lower cruise speeds ahead (speed limits, speed-change points): entering
+    # segment b at s_b with target T_b allows at most sqrt(T_b^2 + 2 d (s_b - s)) before it.
+    # The binding segment ahead of segment j is B(j) = argmin_{b > j} (T_b^2 + 2 d s_b), which
+    # does not depend on s, so it is precomputed (the nearest one on ties; d = 0.9 max_decel).
+    # The bound is evaluated at the step's look-ahead point and clamped at T_B once past s_B.
+    d_cap = 0.9 * dmax
+    cap_t = np.full(len(inp.seg_start_m), np.inf)
+    cap_s = np.full(len(inp.seg_start_m), np.inf)
+    for p in range(P):
+        a0, a1 = int(inp.seg_offset[p]), int(inp.seg_offset[p + 1])
+        if a1 - a0 > 1:
+            tb = inp.seg_target_mps[a0 + 1:a1]
+            sb = inp.seg_start_m[a0 + 1:a1]
+            r = (tb ** 2 + 2.0 * d_cap[p] * sb)[::-1]
+            acc = np.minimum.accumulate(r)
+            pos = np.maximum.accumulate(np.where(r == acc, np.arange(len(r)), -1))
+            best = (len(r) - 1 - pos)[::-1]           # index into tb/sb for segments a0..a1-2
+            cap_t[a0:a1 - 1] = tb[best]
+            cap_s[a0:a1 - 1] = sb[best]
+
     s = np.zeros(P)
     v = np.asarray(inp.v0_mps, float).copy()
     state = np.full(P, TRACK, dtype=np.int64)
@@ -207,7 +229,10 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
         tau = np.full(P, dt)
         label = np.full(P, MODE_STOPPED, dtype=np.uint8)
         tr = state == TRACK
-        v_des = np.maximum(target + sigma * inp.normal[k], 0.0)
+        with np.errstate(invalid="ignore"):
+            ahead = np.maximum(cap_s[j] - (s + v * dt), 0.0)
+        cap = np.sqrt(cap_t[j] ** 2 + 2.0 * d_cap * ahead)
+        v_des = np.maximum(np.minimum(target + sigma * inp.normal[k], cap), 0.0)
         raw = (v_des - v) / dt
         a_tr = np.clip(raw, -dmax, amax)
         a = np.where(tr, a_tr, a)
