@@ -24,7 +24,8 @@ per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 
   changed permanently at speed-change points, capped by the road's speed limit), :math:`n_k` a
   standard normal (the paper's per-step speed noise), and :math:`v_{cap}` the braking curve
   (at 0.9 max_decel) towards any lower cruise speed further along the route, so a vehicle slows
-  down *before* a lower limit or a speed-change point. The acceleration :math:`(v^*-v_k)/\Delta t` is clipped to
+  down *before* a lower limit or a speed-change point. The acceleration
+  :math:`(v^*-v_k)/\Delta t` is clipped to
   :math:`[-d_{max}, a_{max}]`; the label is cruise when unclipped, accelerate/decelerate when
   clipped. Restarting from rest is therefore "accelerate at max_accel back to cruise".
 * Random stop: a moving ``TRACK`` vehicle starts braking at :math:`d_{max}` when
@@ -212,8 +213,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
         release = stopped & (wait_left <= 0)
         state[release] = TRACK
         wait_left[stopped & ~release] -= 1
-        next_stop = np.where(stop_ptr < stop_end, stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)],
-                             np.inf)
+        next_stop = np.where(stop_ptr < stop_end,
+                             stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)], np.inf)
         dist = next_stop - s
         moving = state != STOPPED
         rand_stop = moving & (state == TRACK) & (v > 0) & (inp.u_stop[k] < inp.p_stop)

@@ -3,9 +3,10 @@
 Dijkstra with the Euclidean 3-D road length as weight, from the start through the stopovers to
 the end. The search runs on a CSR copy of ``RoadMap.graph`` with ``scipy.sparse.csgraph.dijkstra``
 (compiled; networkx's pure-Python Dijkstra took 10 ms a route on Monaco, 10 s for 1,000
-vehicles); the tests check it against networkx and brute force. A :class:`Route` is a polyline: node positions, cumulative arc length,
-and per segment the road's edge id, invisible flag and speed limit. Off-road vehicles get a
-route from their waypoints (edge id -1, visible, no limit).
+vehicles); the tests check it against networkx and brute force. A :class:`Route` is a
+polyline: node positions, cumulative arc length, and per segment the road's edge id, invisible
+flag and speed limit. Off-road vehicles get a route from their waypoints (edge id -1, visible,
+no limit).
 """
 from __future__ import annotations
 

@@ -35,7 +35,7 @@ def load_vehicles(name):
     return OmegaConf.to_object(cfg)
 
 
-# -- stops -------------------------------------------------------------------------------------
+# -- stops ----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("dt_s, v0", [(1.0, None), (0.7, 17.3), (0.25, None)])
 def test_vehicle_stops_exactly_at_the_stop_point(straight_map, dt_s, v0):
     spec = VehicleSpec(name="car", start="a", end="b", cruise_speed_mps=20.0,
@@ -72,7 +72,7 @@ def test_speed_is_never_negative_with_heavy_speed_noise(straight_map):
     assert np.all(st["speed_mps"][st["active"]] >= 0.0)
 
 
-# -- overshoot (paper Fig. 1) is carried onto the next road ------------------------------------
+# -- overshoot (paper Fig. 1) is carried onto the next road ---------------------------------------
 @pytest.mark.parametrize("dt_s", [1.0, 3.0])
 def test_overshoot_at_a_crossroad_lies_on_the_next_road(corner_map, dt_s):
     spec = VehicleSpec(name="c", start="a", end="b", cruise_speed_mps=7.0)
@@ -94,7 +94,7 @@ def test_overshoot_at_a_crossroad_lies_on_the_next_road(corner_map, dt_s):
     assert np.isnan(st["x_m"][1]) and st["edge_id"][1] == -1
 
 
-# -- position noise ------------------------------------------------------------------------------
+# -- position noise -------------------------------------------------------------------------------
 def test_positions_lie_on_the_route_within_the_position_noise(default_map):
     cfg = load_vehicles("default")
     fl = build_fleet(cfg, default_map, 11, 900.0, 1.0)
@@ -214,7 +214,7 @@ def test_random_stop_rate_does_not_depend_on_dt(long_road):
     assert a > 300 and abs(a - b) < 4.5 * np.sqrt(a + b)
 
 
-# -- convoys ---------------------------------------------------------------------------------------
+# -- convoys --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("convoy, gap", [(ConvoySpec(3, spacing_m=25.0), 25.0),
                                          (ConvoySpec(4, spacing_s=2.0), 40.0)])
 def test_convoy_members_keep_their_spacing(straight_map, convoy, gap):
@@ -239,7 +239,7 @@ def test_convoy_members_keep_their_spacing(straight_map, convoy, gap):
     assert np.allclose(st["route_s_m"][rest][0], 5000.0 - gap * np.arange(n))
 
 
-# -- speed limits, speed changes, tunnel, off-road --------------------------------------------------
+# -- speed limits, speed changes, tunnel, off-road ------------------------------------------------
 def test_speed_limit_and_speed_change_points(default_map):
     fast = VehicleSpec(name="fast", start="g_0_2", end="g_6_2", cruise_speed_mps=30.0)
     change = VehicleSpec(name="chg", start="hw_x-4000", end="hw_x0", cruise_speed_mps=30.0,
@@ -282,7 +282,7 @@ def test_off_road_vehicle_drives_its_waypoints(default_map):
     assert fl.end_time_s[0] == pytest.approx(220.0)
 
 
-# -- tables -------------------------------------------------------------------------------------------
+# -- tables ---------------------------------------------------------------------------------------
 def test_truth_table_columns_and_order(default_map):
     fl = build_fleet(load_vehicles("default"), default_map, 3, 300.0, 1.0)
     tt = fl.truth_table(np.arange(300.0, 0.0, -2.0))
@@ -302,7 +302,7 @@ def test_truth_table_columns_and_order(default_map):
     assert fl.state_at(150.0, [-1, 99])["active"].tolist() == [False, False]
 
 
-# -- reproducibility -----------------------------------------------------------------------------------
+# -- reproducibility ------------------------------------------------------------------------------
 def _equal(a, b):
     return all(np.array_equal(a[k], b[k], equal_nan=a[k].dtype.kind == "f") for k in a)
 
@@ -364,7 +364,7 @@ def test_random_preset_runs_on_the_default_scene(default_map):
     assert fl.n_vehicles == 100 and len(tt["time_s"]) > 1000
 
 
-# -- bad input -------------------------------------------------------------------------------------------
+# -- bad input ------------------------------------------------------------------------------------
 def test_config_problems_name_vehicle_and_key(straight_map):
     bad = VehicleSpec(name="neg", start="a", end="b", cruise_speed_mps=-1.0,
                       position_noise_m=[1.0, 2.0], mean_wait_s=100.0, max_wait_s=10.0,
