@@ -1,0 +1,263 @@
+"""OSM XML and GeoJSON road maps: real data (Monaco, Bautzen), tags, and malformed files."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from lxml import etree
+
+from gmtiflow.errors import InputFileError, RoadMapError
+from gmtiflow.scene.geojson_roads import load_geojson
+from gmtiflow.scene.osm import hardened_parser, load_osm, parse_maxspeed
+from gmtiflow.scene.roadmap import (DRIVABLE_HIGHWAY_CLASSES, OSM_ATTRIBUTION, RoadmapConfig,
+                                    RoadmapKind, load_roadmap)
+from gmtiflow.scene.routes import shortest_route
+from gmtiflow.scene.vehicles import RandomFleetSpec, VehiclesConfig, build_fleet
+
+DATA = Path("/work/shared/data")
+MONACO = DATA / "monaco.osm"
+BAUTZEN = DATA / "bautzen.osm"
+needs_data = pytest.mark.skipif(not MONACO.is_file() or not BAUTZEN.is_file(),
+                                reason="shared OSM test data not present")
+
+
+@pytest.fixture(scope="module")
+def monaco():
+    return load_roadmap(RoadmapConfig(kind=RoadmapKind.osm, path=str(MONACO)))
+
+
+@pytest.fixture(scope="module")
+def monaco_ways():
+    """(tags, node refs) of the drivable ways, read independently of the loader."""
+    root = etree.parse(str(MONACO)).getroot()
+    out = []
+    for w in root.iter("way"):
+        tags = {t.get("k"): t.get("v") for t in w.iter("tag")}
+        if tags.get("highway") in DRIVABLE_HIGHWAY_CLASSES:
+            out.append((tags, [nd.get("ref") for nd in w.iter("nd")]))
+    return out
+
+
+@needs_data
+def test_monaco_counts_match_the_data_readme(monaco):
+    e = monaco.edges
+    assert len(e["edge_id"]) == 3221                          # node-to-node segments
+    assert e["length_m"].sum() / 1000 == pytest.approx(60.7, abs=0.1)
+    assert e["length_m"][e["invisible"]].sum() / 1000 == pytest.approx(6.6, abs=0.1)
+    assert set(e["road_class"]) <= set(DRIVABLE_HIGHWAY_CLASSES)
+    assert "footway" not in set(e["road_class"]) and "steps" not in set(e["road_class"])
+    assert monaco.attribution == OSM_ATTRIBUTION
+    # No <bounds>: the origin is the centre of the road nodes, inside the README's box.
+    assert 43.72177 < monaco.origin.lat_deg < 43.75196
+    assert 7.40434 < monaco.origin.lon_deg < 7.43928
+    assert monaco.origin.height_m == 0.0
+    # Node names are OSM ids.
+    assert monaco.node_index(int(monaco.nodes["name"][17])) == 17
+
+
+@needs_data
+def test_monaco_tunnels_are_invisible_and_oneways_honoured(monaco, monaco_ways):
+    g = monaco.graph
+    e = monaco.edges
+    tunnel_ways = [refs for tags, refs in monaco_ways if tags.get("tunnel") == "yes"]
+    assert len(tunnel_ways) == 51
+    for refs in tunnel_ways:
+        for a, b in zip(refs[:-1], refs[1:]):
+            ia, ib = monaco.node_index(a), monaco.node_index(b)
+            eid = g.edges[ia, ib]["edge_id"] if g.has_edge(ia, ib) else g.edges[ib, ia]["edge_id"]
+            assert e["invisible"][eid]
+    two_way = set()
+    for tags, refs in monaco_ways:
+        if tags.get("oneway") not in ("yes", "-1") and tags.get("junction") != "roundabout":
+            two_way |= {frozenset(p) for p in zip(refs[:-1], refs[1:])}
+    checked = 0
+    for tags, refs in monaco_ways:
+        ow = tags.get("oneway")
+        if ow not in ("yes", "-1"):
+            continue
+        for a, b in zip(refs[:-1], refs[1:]):
+            if frozenset((a, b)) in two_way:
+                continue                                    # also part of a two-way road
+            if ow == "-1":
+                a, b = b, a
+            ia, ib = monaco.node_index(a), monaco.node_index(b)
+            assert g.has_edge(ia, ib) and not g.has_edge(ib, ia), (a, b)
+            checked += 1
+    assert checked > 500
+
+
+@needs_data
+def test_monaco_routes_and_random_fleet(monaco):
+    comp = monaco.largest_component()
+    assert 0.8 * monaco.n_nodes < len(comp) < monaco.n_nodes      # isolated bits are kept
+    a, b = comp[0], comp[len(comp) // 2]
+    r = shortest_route(monaco, int(monaco.nodes["name"][a]), str(monaco.nodes["name"][b]))
+    assert r.length_m > 0
+    fl = build_fleet(VehiclesConfig(random=RandomFleetSpec(count=25, random_stop_rate_per_s=0.01)),
+                     monaco, 2, 300.0, 1.0)
+    tt = fl.truth_table(np.arange(0.0, 300.0, 1.0))
+    assert np.all(np.isin(tt["edge_id"], monaco.edges["edge_id"]))
+    assert np.array_equal(tt["invisible"], monaco.edges["invisible"][tt["edge_id"]])
+
+
+@needs_data
+def test_monaco_routes_are_as_short_as_networkx_dijkstra(monaco):
+    import networkx as nx
+    comp = monaco.largest_component()
+    rng = np.random.default_rng(0)
+    for a, b in rng.choice(comp, size=(15, 2)):
+        if a == b:
+            continue
+        r = shortest_route(monaco, str(monaco.nodes["name"][a]), str(monaco.nodes["name"][b]))
+        want = nx.dijkstra_path_length(monaco.graph, int(a), int(b), weight="length_m")
+        assert r.length_m == pytest.approx(want, rel=1e-12)
+        for u, v, eid in zip(r.node_ids[:-1], r.node_ids[1:], r.edge_id):
+            assert monaco.graph.edges[u, v]["edge_id"] == eid       # only allowed directions
+
+
+@needs_data
+def test_bautzen_without_metadata_attributes():
+    rm = load_osm(BAUTZEN)
+    e = rm.edges
+    assert len(e["edge_id"]) == 228
+    assert not e["invisible"].any()
+    # <bounds> 51.1872-51.1919 N, 14.4079-14.4160 E: the origin is its centre.
+    assert rm.origin.lat_deg == pytest.approx(51.18955)
+    assert rm.origin.lon_deg == pytest.approx(14.41195)
+    # Motorways are oneway (tagged or implied); the cycleway and tracks are dropped.
+    assert np.all(e["oneway"][e["road_class"] == "motorway"])
+    assert not set(e["road_class"]) & {"cycleway", "track"}
+    lax = load_osm(BAUTZEN, RoadmapConfig(implied_oneway=False))
+    assert lax.edges["oneway"].sum() <= e["oneway"].sum()
+
+
+def test_maxspeed_parsing():
+    assert parse_maxspeed("50") == pytest.approx(50 / 3.6)
+    assert parse_maxspeed("30 mph") == pytest.approx(13.4112)
+    assert parse_maxspeed("80 km/h") == pytest.approx(80 / 3.6)
+    for bad in (None, "none", "signals", "RU:urban", "50;30", "-5", "0"):
+        assert np.isnan(parse_maxspeed(bad))
+
+
+def osm_text(body, header=""):
+    return f'<?xml version="1.0"?>{header}<osm version="0.6">{body}</osm>'
+
+
+NODES = ('<node id="1" lat="50.0" lon="7.0"/><node id="2" lat="50.001" lon="7.0"/>'
+         '<node id="3" lat="50.001" lon="7.001"/>')
+
+
+def write(tmp_path, text, name="map.osm"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_small_osm_tags(tmp_path):
+    body = NODES + (
+        '<way id="10"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/>'
+        '<tag k="oneway" v="-1"/><tag k="maxspeed" v="30 mph"/></way>'
+        '<way id="11"><nd ref="2"/><nd ref="3"/><tag k="highway" v="residential"/>'
+        '<tag k="tunnel" v="yes"/></way>'
+        '<way id="12"><nd ref="1"/><nd ref="3"/><tag k="highway" v="footway"/></way>')
+    rm = load_osm(write(tmp_path, osm_text(body)))
+    e = rm.edges
+    assert rm.nodes["name"].tolist() == ["1", "2", "3"]
+    assert len(e["edge_id"]) == 2                              # the footway is dropped
+    assert (e["from_node"][0], e["to_node"][0]) == (1, 0)      # oneway=-1: stored reversed
+    assert e["oneway"].tolist() == [True, False]
+    assert e["invisible"].tolist() == [False, True]
+    assert e["speed_limit_mps"][0] == pytest.approx(13.4112) and np.isnan(e["speed_limit_mps"][1])
+    assert rm.graph.has_edge(1, 0) and not rm.graph.has_edge(0, 1)
+    assert rm.nodes["y_m"][1] - rm.nodes["y_m"][0] == pytest.approx(111.2, abs=0.2)  # 0.001°
+
+
+@pytest.mark.parametrize("text, match", [
+    ("this is not xml", "not well-formed"),
+    ('<?xml version="1.0"?><gpx></gpx>', "expected <osm>"),
+    (osm_text(NODES), "no drivable highway"),
+    (osm_text(NODES + '<way id="7"><nd ref="1"/><nd ref="99"/><tag k="highway" v="primary"/>'
+                      '</way>'), "way 7 refers to node 99"),
+    (osm_text('<node id="1" lat="x" lon="7"/><node id="2" lat="50" lon="7"/><way id="7">'
+              '<nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way>'),
+     "node 1 .* no valid lat/lon"),
+    (osm_text(NODES + '<way id="7"><nd ref="1"/><tag k="highway" v="primary"/></way>'),
+     "no segments"),
+])
+def test_malformed_osm_raises_roadmap_error(tmp_path, text, match):
+    with pytest.raises(RoadMapError, match=match):
+        load_osm(write(tmp_path, text))
+
+
+def test_osm_parser_is_hardened(tmp_path):
+    secret = tmp_path / "secret.txt"
+    secret.write_text("TOPSECRET")
+    header = f'<!DOCTYPE osm [<!ENTITY leak SYSTEM "file://{secret}">]>'
+    body = NODES + ('<way id="7"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/>'
+                    '<tag k="name">&leak;</tag></way>')
+    path = write(tmp_path, osm_text(body, header))
+    naive = etree.parse(str(path), etree.XMLParser(resolve_entities=True, load_dtd=True))
+    assert "TOPSECRET" in etree.tostring(naive).decode()          # the attack works on a naive one
+    hard = etree.parse(str(path), hardened_parser())
+    assert "TOPSECRET" not in etree.tostring(hard).decode()
+    assert len(load_osm(path).edges["edge_id"]) == 1
+
+
+def test_osm_parser_refuses_entity_expansion_bombs(tmp_path):
+    lol = ('<!DOCTYPE osm [<!ENTITY a "aaaaaaaaaa">' + "".join(
+        f'<!ENTITY {c} "{("&" + p + ";") * 10}">' for p, c in zip("abcdefgh", "bcdefghi")) + "]>")
+    with pytest.raises(RoadMapError):
+        load_osm(write(tmp_path, osm_text(NODES + '<way id="7"><nd ref="1"/><nd ref="2"/>'
+                                          '<tag k="highway" v="&i;"/></way>', lol)))
+
+
+def test_missing_osm_file():
+    with pytest.raises(InputFileError, match="not found"):
+        load_osm("/nonexistent/map.osm")
+    with pytest.raises(InputFileError, match="path"):
+        load_roadmap(RoadmapConfig(kind=RoadmapKind.osm))
+
+
+# -- GeoJSON ------------------------------------------------------------------------------------
+def feature(coords, multi=False, **props):
+    return {"type": "Feature", "properties": props,
+            "geometry": {"type": "MultiLineString" if multi else "LineString",
+                         "coordinates": coords}}
+
+
+def test_geojson_lines_merge_at_shared_vertices(tmp_path):
+    doc = {"type": "FeatureCollection", "features": [
+        feature([[7.0, 50.0], [7.0, 50.001]], oneway="yes", maxspeed=50, highway="primary"),
+        feature([[7.0, 50.001], [7.001, 50.001]], tunnel=True),
+        feature([[[7.001, 50.001], [7.001, 50.0]], [[7.001, 50.0], [7.0, 50.0]]], multi=True,
+                oneway="-1", maxspeed="30 mph"),
+        feature([[7.0, 50.0], [7.002, 50.0]], highway="footway"),
+        {"type": "Feature", "properties": {}, "geometry": {"type": "Point",
+                                                           "coordinates": [7, 50]}},
+    ]}
+    rm = load_geojson(write(tmp_path, json.dumps(doc), "r.geojson"))
+    e = rm.edges
+    assert rm.n_nodes == 4 and len(e["edge_id"]) == 4           # a closed square, footway dropped
+    assert e["oneway"].tolist() == [True, False, True, True]
+    assert e["invisible"].tolist() == [False, True, False, False]
+    assert e["speed_limit_mps"][0] == pytest.approx(50 / 3.6)
+    assert e["speed_limit_mps"][2] == pytest.approx(13.4112)
+    # oneway=-1: the MultiLineString is travelled from its end to its start: gj0 -> gj3 -> gj2.
+    assert list(zip(e["from_node"][2:], e["to_node"][2:])) == [(3, 2), (0, 3)]
+    # gj0 -> gj1 and gj0 -> gj3 -> gj2 are oneway away from gj0: only gj1 <-> gj2 is strongly
+    # connected.
+    assert rm.largest_component().tolist() == [1, 2]
+    assert rm.origin.lat_deg == pytest.approx(50.0005) and rm.attribution == ""
+
+
+@pytest.mark.parametrize("text, match", [
+    ("{not json", "not valid JSON"),
+    (json.dumps([1, 2]), "not a GeoJSON object"),
+    (json.dumps({"type": "FeatureCollection", "features": []}), "no drivable LineString"),
+    (json.dumps({"type": "LineString", "coordinates": [[7, 50]]}), ">= 2 finite"),
+    (json.dumps({"type": "LineString", "coordinates": [[50, 97], [50, 98]]}), "out of range"),
+    (json.dumps({"type": "FeatureCollection", "features": [1]}), r"features\[0\]"),
+])
+def test_malformed_geojson(tmp_path, text, match):
+    with pytest.raises(RoadMapError, match=match):
+        load_geojson(write(tmp_path, text, "bad.geojson"))

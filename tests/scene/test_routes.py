@@ -1,0 +1,86 @@
+"""Routes: Dijkstra picks the shortest path, honours oneway, and reports unreachable goals."""
+import itertools
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from gmtiflow.errors import RoadMapError
+from gmtiflow.scene.roadmap import RoadmapConfig, load_roadmap
+from gmtiflow.scene.routes import off_road_route, shortest_route
+
+
+def brute_force_shortest(graph, a, b):
+    return min(sum(graph.edges[u, v]["length_m"] for u, v in zip(p[:-1], p[1:]))
+               for p in nx.all_simple_paths(graph, a, b))
+
+
+def test_route_is_the_shortest_of_all_simple_paths(square_map):
+    nodes = ["s0", "s1", "t1", "t0"]
+    for a, b in itertools.permutations(nodes, 2):
+        r = shortest_route(square_map, a, b)
+        ia, ib = square_map.node_index(a), square_map.node_index(b)
+        assert r.length_m == pytest.approx(brute_force_shortest(square_map.graph, ia, ib))
+        assert r.node_ids[0] == ia and r.node_ids[-1] == ib
+
+
+def test_shortest_on_the_default_scene_against_brute_force():
+    rm = load_roadmap(RoadmapConfig())
+    g = rm.graph
+    # All simple paths in the grid would be too many; compare with Bellman-Ford instead.
+    for a, b in [("g_0_0", "g_6_2"), ("hw_x-4000", "n_x4000"), ("c_5", "g_1_1")]:
+        r = shortest_route(rm, a, b)
+        want = nx.bellman_ford_path_length(g, rm.node_index(a), rm.node_index(b),
+                                           weight="length_m")
+        assert r.length_m == pytest.approx(want)
+
+
+def test_oneway_is_honoured(square_map):
+    # t1 -> t0 directly (oneway westwards) is 1000 m ...
+    assert shortest_route(square_map, "t1", "t0").length_m == pytest.approx(1000.0)
+    # ... but t0 -> t1 must go round: via s0 and the diagonal chain (1000 + 721.1 + 721.1).
+    r = shortest_route(square_map, "t0", "t1")
+    diag = np.hypot(400, 600) + np.hypot(600, 400)
+    assert r.length_m == pytest.approx(1000.0 + diag)
+    names = square_map.nodes["name"][r.node_ids].tolist()
+    assert names == ["t0", "s0", "s0~t1#1", "t1"]
+
+
+def test_polyline_columns(square_map):
+    r = shortest_route(square_map, "s1", "t0", stopovers=["t1"])
+    assert len(r.edge_id) == len(r.node_ids) - 1 == len(r.invisible)
+    assert r.s_m[0] == 0 and np.all(np.diff(r.s_m) > 0)
+    assert np.allclose(np.diff(r.s_m), square_map.edges["length_m"][r.edge_id])
+    assert np.allclose(r.position_at(r.s_m), r.xyz_m)
+    assert np.allclose(r.position_at(500.0), [1000.0, 500.0, 0.0])
+
+
+def test_stopovers_are_visited_in_order(square_map):
+    r = shortest_route(square_map, "s0", "s0", stopovers=["t1"])
+    names = square_map.nodes["name"][r.node_ids].tolist()
+    assert names[0] == "s0" and names[-1] == "s0" and "t1" in names
+    # Out over the diagonal chain and back the same way (cheaper than the oneway top edge).
+    assert r.length_m == pytest.approx(2 * (np.hypot(400, 600) + np.hypot(600, 400)))
+
+
+def test_unreachable_goal_names_vehicle_and_nodes(square_map):
+    with pytest.raises(RoadMapError, match=r"car-9: no route from node 's0' to node 'iso_a'"):
+        shortest_route(square_map, "s0", "iso_a", who="car-9")
+
+
+def test_unknown_node_names_vehicle(square_map):
+    with pytest.raises(RoadMapError, match=r"truck-2: .*unknown node 'x9'"):
+        shortest_route(square_map, "x9", "s0", who="truck-2")
+
+
+def test_same_start_and_end_is_an_error(square_map):
+    with pytest.raises(RoadMapError, match="same node"):
+        shortest_route(square_map, "s0", "s0", who="v")
+
+
+def test_off_road_route():
+    r = off_road_route([[0, 0], [30, 40], [30, 40], [30, 100, 5]])
+    assert r.length_m == pytest.approx(50 + np.hypot(60, 5))
+    assert np.all(r.edge_id == -1) and not r.invisible.any()
+    with pytest.raises(RoadMapError, match="two waypoints"):
+        off_road_route([[1, 2]])
