@@ -17,7 +17,7 @@ import numpy as np
 from gmtiflow import config as config_mod
 from gmtiflow.config import AppConfig
 from gmtiflow.scene.platform import Platform
-from gmtiflow.scene.roadmap import build_roadmap
+from gmtiflow.scene.roadmap import load_roadmap
 from gmtiflow.scene.vehicles import build_fleet
 from gmtiflow.store import RunWriter
 
@@ -36,7 +36,7 @@ class Runner:
         start = time.perf_counter()
         result = fn(*args, **kwargs)
         self.seconds[name] = time.perf_counter() - start
-        log.info("stage %-10s %7.3f s", name, self.seconds[name])
+        log.info("stage %-14s %8.3f s", name, self.seconds[name])
         return result
 
 
@@ -52,7 +52,7 @@ def run(cfg: AppConfig, out_dir) -> Path:
     out_dir = Path(out_dir)
     runner = Runner()
     scene = cfg.scene
-    roadmap = runner.stage("roads", build_roadmap, cfg.roadmap)
+    roadmap = runner.stage("roads", load_roadmap, cfg.roadmap)
     log.info("road map: %d nodes, %d road segments", len(roadmap.nodes["node_id"]),
              len(roadmap.edges["edge_id"]))
     fleet = runner.stage("truth", build_fleet, cfg.vehicles, roadmap, seed=cfg.seed,

@@ -15,6 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def gmtiflow(tmp_path, *overrides, cwd=None):
     """Run the CLI into tmp_path/run; returns the CompletedProcess."""
     env = dict(os.environ, HYDRA_FULL_ERROR="0")
+    tmp_path.mkdir(parents=True, exist_ok=True)
     cmd = [sys.executable, "-m", "gmtiflow.cli", f"hydra.run.dir={tmp_path / 'run'}", *overrides]
     return subprocess.run(cmd, cwd=cwd or tmp_path, capture_output=True, text=True, env=env,
                           timeout=300)
