@@ -1,5 +1,8 @@
 """Antenna frame and target angles in it (DESIGN §5 "Antenna frame").
 
+Vectors are 3-tuples of equal-shape arrays ``(east, north, up)`` (structure of arrays: fast
+column arithmetic over millions of pairs).
+
 Body frame, in world ENU, from the platform's heading ψ (clockwise from north), flight-path
 pitch θ (+ nose up) and bank φ (+ right wing down, STANAG 4607 D23):
 
@@ -25,34 +28,42 @@ from __future__ import annotations
 import numpy as np
 
 
+def dot(a, b):
+    """Dot product of two vectors given as 3-tuples of arrays."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def take(v, index):
+    """Rows ``index`` of each component of a vector."""
+    return (v[0][index], v[1][index], v[2][index])
+
+
 def antenna_axes(heading_rad, pitch_rad, bank_rad, mount_rad):
-    """Boresight ``b``, scan axis ``h`` and antenna up ``u`` as (..., 3) ENU unit vectors."""
-    psi = np.asarray(heading_rad, float)
-    theta = np.asarray(pitch_rad, float)
-    phi = np.asarray(bank_rad, float)
+    """Boresight ``b``, scan axis ``h`` and antenna up ``u`` (3-tuples of arrays, ENU)."""
+    psi, theta, phi = np.broadcast_arrays(np.asarray(heading_rad, float),
+                                          np.asarray(pitch_rad, float),
+                                          np.asarray(bank_rad, float))
     sp, cp = np.sin(psi), np.cos(psi)
     st, ct = np.sin(theta), np.cos(theta)
-    f = np.stack([sp * ct, cp * ct, st], axis=-1)
-    r = np.stack([cp, -sp, np.zeros_like(sp)], axis=-1)
-    u = np.cross(r, f)
-    sb, cb = np.sin(phi)[..., None], np.cos(phi)[..., None]
-    r1 = cb * r - sb * u
-    u1 = sb * r + cb * u
+    f = (sp * ct, cp * ct, st)
+    r = (cp, -sp, np.zeros_like(sp))
+    u = (r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0])
+    sb, cb = np.sin(phi), np.cos(phi)
+    r1 = tuple(cb * r[k] - sb * u[k] for k in range(3))
+    u1 = tuple(sb * r[k] + cb * u[k] for k in range(3))
     sm, cm = np.sin(mount_rad), np.cos(mount_rad)
-    b = cm * f + sm * r1
-    h = -sm * f + cm * r1
+    b = tuple(cm * f[k] + sm * r1[k] for k in range(3))
+    h = tuple(-sm * f[k] + cm * r1[k] for k in range(3))
     return b, h, u1
 
 
 def target_angles(los, b, h, u):
-    """Azimuth, elevation (rad) and sine-space azimuth of unit LOS vectors (..., 3).
+    """Azimuth, elevation (rad) and sine-space azimuth of unit LOS vectors.
 
     Returns ``(az, el, sin_az, cos_boresight)`` where ``sin_az = sin(az)`` (the beam's sine-space
     coordinate) and ``cos_boresight = ℓ·b`` (> 0: in front of the antenna).
     """
-    lb = np.einsum("...k,...k->...", los, b)
-    lh = np.einsum("...k,...k->...", los, h)
-    lu = np.einsum("...k,...k->...", los, u)
+    lb, lh, lu = dot(los, b), dot(los, h), dot(los, u)
     horiz = np.hypot(lb, lh)
     az = np.arctan2(lh, lb)
     el = np.arctan2(lu, horiz)
@@ -62,6 +73,6 @@ def target_angles(los, b, h, u):
 
 def direction(az_rad, el_rad, b, h, u):
     """Unit ENU vector at antenna azimuth/elevation (inverse of :func:`target_angles`)."""
-    az = np.asarray(az_rad, float)[..., None]
-    el = np.asarray(el_rad, float)[..., None]
-    return np.cos(el) * (np.cos(az) * b + np.sin(az) * h) + np.sin(el) * u
+    ce = np.cos(el_rad)
+    ca, sa, se = ce * np.cos(az_rad), ce * np.sin(az_rad), np.sin(el_rad)
+    return tuple(ca * b[k] + sa * h[k] + se * u[k] for k in range(3))

@@ -31,8 +31,10 @@ error_range_rate: a vehicle's draws do not depend on any other vehicle.
 from __future__ import annotations
 
 import math
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Callable, Dict, Iterable, Optional, Tuple
+from typing import Callable, Dict, Iterable, Iterator, Optional, Tuple
 
 import numpy as np
 
@@ -41,7 +43,7 @@ from gmtiflow.sensor import (antenna, detect, gain, geolocate, geometry, measure
                              snr, visibility)
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.outcome import Outcome
-from gmtiflow.sensor.rcs import RcsModels, aspect_rad
+from gmtiflow.sensor.rcs import RcsModels
 from gmtiflow.tables import Table
 
 DWELL_COLUMNS = {
@@ -83,9 +85,9 @@ class ChunkContext:
     terrain: object
     origin: frames.Origin
     dwells: Table                    # the chunk's /dwells rows
-    boresight: np.ndarray            # (n_dwells, 3) antenna axes per dwell, ENU
-    scan_axis: np.ndarray
-    antenna_up: np.ndarray
+    boresight: tuple                 # antenna axes per dwell of the chunk: 3-tuples of arrays
+    scan_axis: tuple
+    antenna_up: tuple
 
 
 Effect = Callable[[ChunkContext, Table, Table], Tuple[Table, Table]]
@@ -96,11 +98,11 @@ class _Poses:
     """Platform pose per dwell of a chunk (arrays of length n_dwells_in_chunk)."""
 
     time_s: np.ndarray
-    pos: np.ndarray      # (n, 3)
-    vel: np.ndarray      # (n, 3)
-    b: np.ndarray
-    h: np.ndarray
-    u: np.ndarray
+    pos: tuple           # 3-tuples of arrays, ENU
+    vel: tuple
+    b: tuple
+    h: tuple
+    u: tuple
     state: Table
 
 
@@ -110,18 +112,9 @@ def _poses(cfg: SensorConfig, platform, time_s: np.ndarray) -> _Poses:
     pitch = st.get("pitch_rad", np.zeros(n))
     b, h, u = antenna.antenna_axes(st["heading_rad"], pitch, st["bank_rad"],
                                    math.radians(cfg.mount_deg))
-    pos = np.stack([st["x_m"], st["y_m"], st["z_m"]], axis=-1).astype(float)
-    vel = np.stack([st["vx_mps"], st["vy_mps"], st["vz_mps"]], axis=-1).astype(float)
+    pos = tuple(np.asarray(st[k], float) for k in ("x_m", "y_m", "z_m"))
+    vel = tuple(np.asarray(st[k], float) for k in ("vx_mps", "vy_mps", "vz_mps"))
     return _Poses(np.asarray(time_s, float), pos, vel, b, h, u, st)
-
-
-def _xyz(state: Table, prefix: str = "", suffix: str = "_m") -> np.ndarray:
-    return np.stack([state[f"{prefix}x{suffix}"], state[f"{prefix}y{suffix}"],
-                     state[f"{prefix}z{suffix}"]], axis=-1).astype(float)
-
-
-def _vel(state: Table) -> np.ndarray:
-    return np.stack([state["vx_mps"], state["vy_mps"], state["vz_mps"]], axis=-1).astype(float)
 
 
 def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, origin) -> Table:
@@ -134,11 +127,11 @@ def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, o
     if all(k in st for k in ("lat_deg", "lon_deg", "height_m")):
         plat, plon, ph = (np.asarray(st[k], float) for k in ("lat_deg", "lon_deg", "height_m"))
     else:
-        plat, plon, ph = frames.enu_to_geodetic(origin, *poses.pos.T)
+        plat, plon, ph = frames.enu_to_geodetic(origin, *poses.pos)
     r_centre = np.full(n, 0.5 * (cfg.range_min_m + cfg.range_max_m))
     centre, _, _ = geolocate.geolocate(poses.pos, r_centre, beam, poses.b, poses.h, poses.u,
                                        terrain)
-    alat, alon, _ = frames.enu_to_geodetic(origin, *centre.T)
+    alat, alon, _ = frames.enu_to_geodetic(origin, *centre)
     return {
         "dwell_id": dwell_ids.astype(np.int64),
         "revisit_id": (dwell_ids // n_d).astype(np.int64),
@@ -147,11 +140,10 @@ def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, o
         "time_s": poses.time_s,
         "cpi_s": np.full(n, cfg.cpi_s),
         "beam_scan_rad": beam,
-        "beam_az_rad": frames.heading_rad(beam_dir[:, 0], beam_dir[:, 1]),
-        "platform_x_m": poses.pos[:, 0], "platform_y_m": poses.pos[:, 1],
-        "platform_z_m": poses.pos[:, 2],
-        "platform_vx_mps": poses.vel[:, 0], "platform_vy_mps": poses.vel[:, 1],
-        "platform_vz_mps": poses.vel[:, 2],
+        "beam_az_rad": frames.heading_rad(beam_dir[0], beam_dir[1]),
+        "platform_x_m": poses.pos[0], "platform_y_m": poses.pos[1], "platform_z_m": poses.pos[2],
+        "platform_vx_mps": poses.vel[0], "platform_vy_mps": poses.vel[1],
+        "platform_vz_mps": poses.vel[2],
         "platform_heading_rad": np.asarray(st["heading_rad"], float),
         "platform_pitch_rad": np.asarray(st.get("pitch_rad", np.zeros(n)), float),
         "platform_bank_rad": np.asarray(st["bank_rad"], float),
@@ -164,87 +156,197 @@ def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, o
     }
 
 
-def _angles(pos_t, pos_p, b, h, u):
-    rng_m, los = geometry.line_of_sight(pos_p, pos_t)
-    az, el, sin_az, lb = antenna.target_angles(los, b, h, u)
-    return rng_m, los, az, el, sin_az, lb
+def _azimuth(east, north):
+    """World azimuth clockwise from north in [0, 2π) (as frames.heading_rad, without np.mod)."""
+    a = np.arctan2(east, north)
+    a[a < 0] += 2.0 * np.pi
+    return a
 
 
-def _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, rev_local):
-    """Candidate (local dwell index, vehicle id) pairs of the chunk's revisits.
+def _xyz(state: Table):
+    return tuple(np.asarray(state[k], float) for k in ("x_m", "y_m", "z_m"))
 
-    Returns ``(dwell_local, vehicle_id, group)`` with ``group`` numbering (revisit, vehicle).
+
+def _vel(state: Table):
+    return tuple(np.asarray(state[k], float) for k in ("vx_mps", "vy_mps", "vz_mps"))
+
+
+def _sine_coordinate(az, sin_az, lb):
+    """Sine-space coordinate, pushed beyond every beam (±2) for targets behind the antenna."""
+    return np.where(lb > 0, sin_az, np.where(az >= 0, 2.0, -2.0))
+
+
+def _nearest_beam(u_beam, s):
+    """Index of the beam centre nearest to sine coordinates ``s`` (ties to the lower index)."""
+    n = len(u_beam)
+    if n == 1:
+        return np.zeros(len(s), np.int64)
+    right = np.clip(np.searchsorted(u_beam, s), 1, n - 1)
+    left_closer = np.abs(u_beam[right - 1] - s) <= np.abs(u_beam[right] - s)
+    return np.where(left_closer, right - 1, right)
+
+
+def _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev):
+    """Every vehicle at one reference dwell per revisit: the middle one (its time, its pose).
+
+    Returns the vehicles' state there, the reference dwells (chunk-local) and per (revisit,
+    vehicle) the sine coordinate, slant range, speed and activity.
     """
     n_d = sched.n_dwells
     n_v = len(vehicle_ids)
-    n_r = len(rev_local)
+    ref = np.arange(n_rev) * n_d + n_d // 2
+    d_rep = np.repeat(ref, n_v)
+    v_rep = np.tile(vehicle_ids, n_rev)
+    st = fleet.state_at(poses.time_s[d_rep], v_rep)
+    active = np.asarray(st["active"], bool)
+    pos = _xyz(st)
+    if not np.all(active):
+        pos = tuple(np.where(active, c, 0.0) for c in pos)
+    rng_m, los = geometry.line_of_sight(antenna.take(poses.pos, d_rep), pos)
+    az, _, sin_az, lb = antenna.target_angles(los, antenna.take(poses.b, d_rep),
+                                              antenna.take(poses.h, d_rep),
+                                              antenna.take(poses.u, d_rep))
+    return st, d_rep, v_rep, active, rng_m, az, _sine_coordinate(az, sin_az, lb)
+
+
+def _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
+    """Candidate (chunk-local dwell, vehicle) pairs, grouped by (revisit, vehicle), dwells
+    ascending within a group.  Returns ``(dwell_local, vehicle_id, group)``.
+
+    A vehicle's sine coordinate is taken at the scan's middle dwell; over the scan it moves by
+    at most (|v_p| + |v_t|)·Δt / R plus the antenna's rotation (turns), which widens the
+    window of candidate beams.  The exact footprint test runs later at each dwell's time.
+    """
+    n_d = sched.n_dwells
+    n_v = len(vehicle_ids)
     u_beam = np.sin(sched.beam_scan_rad)
     bw = cfg.beamwidth_sine
-    if cfg.dwell_mode == "instant_scan":
-        ends = [rev_local * n_d]
-    else:
-        ends = [rev_local * n_d, rev_local * n_d + n_d - 1]
-    sins, actives = [], []
-    for dl in ends:
-        d_rep = np.repeat(dl, n_v)
-        v_rep = np.tile(vehicle_ids, n_r)
-        st = fleet.state_at(poses.time_s[d_rep], v_rep)
-        active = np.asarray(st["active"], bool)
-        pos = _xyz(st)
-        pos[~active] = 0.0
-        _, _, az, _, sin_az, lb = _angles(pos, poses.pos[d_rep], poses.b[d_rep], poses.h[d_rep],
-                                          poses.u[d_rep])
-        # behind the antenna: beyond every beam, on the side it is turned to
-        sin_az = np.where(lb > 0, sin_az, np.where(az >= 0, 2.0, -2.0))
-        sins.append(sin_az)
-        actives.append(active)
-    if len(ends) == 1:
-        s_lo = s_hi = sins[0]
-        any_active = actives[0]
-    else:
-        a0, a1 = actives
-        s0 = np.where(a0, sins[0], sins[1])
-        s1 = np.where(a1, sins[1], sins[0])
-        s_lo, s_hi = np.minimum(s0, s1), np.maximum(s0, s1)
-        any_active = a0 | a1
-    rev_rep = np.repeat(np.arange(n_r), n_v)
-    veh_rep = np.tile(vehicle_ids, n_r)
-    s_lo, s_hi, rev_rep, veh_rep = (a[any_active] for a in (s_lo, s_hi, rev_rep, veh_rep))
-    nearest = np.clip(np.searchsorted(u_beam, 0.5 * (s_lo + s_hi)), 1, max(n_d - 1, 1))
+    st, d_ref, v_rep, active, rng_m, _, s = _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev)
+    # motion margin
+    dt = float(np.max(np.abs(sched.time_offset_s - sched.time_offset_s[n_d // 2])))
+    vp = np.sqrt(antenna.dot(poses.vel, poses.vel))
+    bx, by, bz = (c.reshape(n_rev, n_d) for c in poses.b)
+    mid = n_d // 2
+    cosang = bx * bx[:, mid:mid + 1] + by * by[:, mid:mid + 1] + bz * bz[:, mid:mid + 1]
+    rot = np.arccos(np.clip(cosang, -1.0, 1.0)).max(axis=1)          # per revisit
+    vt = np.hypot(np.hypot(np.nan_to_num(np.asarray(st["vx_mps"], float)),
+                           np.nan_to_num(np.asarray(st["vy_mps"], float))),
+                  np.nan_to_num(np.asarray(st["vz_mps"], float)))
+    move = (vp[d_ref] + vt) * dt
+    margin = move / np.maximum(rng_m - move, 1.0) + np.repeat(rot, n_v) + 0.02 * bw
+    w = cfg.footprint_beamwidths * bw + margin
+    rev = np.repeat(np.arange(n_rev), n_v)
+    if not np.all(active):
+        # a vehicle inactive at the middle may still be active at one end of the scan
+        keep = active | _active_at_ends(sched, poses, fleet, v_rep, rev)
+        s, w, rev, v_rep = s[keep], w[keep], rev[keep], v_rep[keep]
+        s = np.where(active[keep], s, 0.0)
+        w = np.where(active[keep], w, 2.0)     # unknown position: try every beam
+    # beams are uniform in sine space, u_i = u_0 + i Δ: index arithmetic instead of a search
+    # (a candidate window one beam too wide costs nothing: the exact test follows)
     if n_d > 1:
-        left_closer = np.abs(u_beam[nearest - 1] - 0.5 * (s_lo + s_hi)) <= \
-            np.abs(u_beam[np.minimum(nearest, n_d - 1)] - 0.5 * (s_lo + s_hi))
-        nearest = np.where(left_closer, nearest - 1, nearest)
+        step = u_beam[1] - u_beam[0]
+        lo = np.clip(np.ceil((s - w - u_beam[0]) / step - 1e-9), 0, n_d).astype(np.int64)
+        hi = np.clip(np.floor((s + w - u_beam[0]) / step + 1e-9) + 1, 0, n_d).astype(np.int64)
     else:
-        nearest = np.zeros_like(nearest)
-    if cfg.dwell_mode == "instant_scan":
-        lo, count = nearest, np.ones_like(nearest)
-    else:
-        w = cfg.footprint_beamwidths * bw + 0.5 * cfg.dwell_spacing_beamwidths * bw
-        lo = np.searchsorted(u_beam, s_lo - w, side="left")
-        hi = np.searchsorted(u_beam, s_hi + w, side="right")
-        none = hi <= lo
-        lo = np.where(none, nearest, lo)
-        count = np.where(none, 1, hi - lo)
+        lo = np.where(np.abs(s - u_beam[0]) <= w, 0, 1)
+        hi = np.ones_like(lo)
+    none = hi <= lo
+    lo = np.where(none, _nearest_beam(u_beam, s), lo)
+    count = np.where(none, 1, hi - lo)
     total = int(count.sum())
     group = np.repeat(np.arange(len(lo)), count)
     starts = np.cumsum(count) - count
     within = np.arange(total) - starts[group]
-    dwell_local = rev_rep[group] * n_d + lo[group] + within
-    return dwell_local, veh_rep[group], group
+    dwell_local = rev[group] * n_d + lo[group] + within
+    return dwell_local, v_rep[group], group
+
+
+def _active_at_ends(sched, poses, fleet, v_rep, rev):
+    n_d = sched.n_dwells
+    out = np.zeros(len(v_rep), bool)
+    for k in (0, n_d - 1):
+        st = fleet.state_at(poses.time_s[rev * n_d + k], v_rep)
+        out |= np.asarray(st["active"], bool)
+    return out
 
 
 def _first_in_group(group, mask):
     """Mask of the first True of ``mask`` in each (sorted, contiguous) group."""
     idx = np.flatnonzero(mask)
+    out = np.zeros(len(mask), bool)
     if idx.size == 0:
-        return np.zeros_like(mask)
+        return out
     g = group[idx]
     first = np.ones(idx.size, bool)
     first[1:] = g[1:] != g[:-1]
-    out = np.zeros_like(mask)
     out[idx[first]] = True
     return out
+
+
+def _pair_geometry(poses: _Poses, dl, st: Table) -> Dict[str, np.ndarray]:
+    """Geometry of (dwell, target) pairs: the pose of chunk-local dwell ``dl`` and the target
+    state ``st`` (inactive targets get a harmless position, never NaN)."""
+    active = np.asarray(st["active"], bool)
+    pos_t = _xyz(st)
+    vel_t = _vel(st)
+    if not np.all(active):
+        pos_t = tuple(np.where(active, c, 0.0) for c in pos_t)
+        vel_t = tuple(np.where(active, c, 0.0) for c in vel_t)
+    rng_m, los = geometry.line_of_sight(antenna.take(poses.pos, dl), pos_t)
+    az, el, sin_az, lb = antenna.target_angles(los, antenna.take(poses.b, dl),
+                                               antenna.take(poses.h, dl),
+                                               antenna.take(poses.u, dl))
+    own_rr = antenna.dot(vel_t, los)                                  # ṙ − ṙ_MLC
+    rr = own_rr + geometry.clutter_range_rate(antenna.take(poses.vel, dl), los)   # ṙ
+    return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],
+            "az": az, "el": el, "sin_az": sin_az, "lb": lb, "own_rr": own_rr,
+            "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2],
+            "heading_rad": np.asarray(st["heading_rad"], float),
+            "invisible": np.asarray(st["invisible"], bool)}
+
+
+def _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
+    """The looks of a chunk ordered by (dwell, vehicle): ``(dwell_local, vehicle, geometry)``,
+    and the number of (dwell, target) pairs evaluated."""
+    n_d = sched.n_dwells
+    u_beam_all = np.sin(sched.beam_scan_rad)
+    if cfg.dwell_mode == "instant_scan":
+        st, d_ref, veh, active, _, _, s = _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev)
+        dl = d_ref - n_d // 2 + _nearest_beam(u_beam_all, s)
+        sel = np.flatnonzero(active)
+        n_eval = len(dl)
+        # all dwells of an instant scan share one time and pose: the reference's geometry holds
+        geo = _pair_geometry(poses, d_ref[sel], {k: np.asarray(v)[sel] for k, v in st.items()})
+        dl, veh = dl[sel], veh[sel]
+        sel = np.arange(len(dl))
+    else:
+        dl, veh, group = _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev)
+        n_eval = len(dl)
+        geo = _pair_geometry(poses, dl, fleet.state_at(poses.time_s[dl], veh))
+        active = geo["active"]
+        dist = np.where((geo["lb"] > 0) & active, np.abs(geo["sin_az"] - u_beam_all[dl % n_d]),
+                        1e300)
+        in_fp = dist <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12)
+        # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps one
+        # row: its first candidate of least sine-space distance (the nearest dwell)
+        if group.size:
+            starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+            gidx = np.cumsum(np.r_[False, group[1:] != group[:-1]])
+            any_fp = np.logical_or.reduceat(in_fp, starts)
+            g_active = np.logical_or.reduceat(active, starts)
+            gmin = np.minimum.reduceat(dist, starts)
+            is_min = active & (dist <= gmin[gidx])
+            fallback = ~any_fp[gidx] & g_active[gidx] & _first_in_group(gidx, is_min)
+            sel = np.flatnonzero((in_fp & active) | fallback)
+        else:
+            sel = np.zeros(0, np.int64)
+    # candidates come grouped by (revisit, vehicle), dwells ascending: a stable sort on the
+    # dwell orders rows by (dwell, vehicle); int16 keys sort by radix
+    key = dl[sel]
+    key = key.astype(np.int16) if len(poses.time_s) < 32_000 else key
+    sel = sel[np.argsort(key, kind="stable")]
+    return dl[sel], veh[sel], {k: v[sel] for k, v in geo.items() if k != "active"}, n_eval
 
 
 def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_models, type_codes,
@@ -253,74 +355,48 @@ def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_mode
     dwell_ids = (rev_ids[:, None] * n_d + np.arange(n_d)[None, :]).ravel()
     poses = _poses(cfg, platform, sched.dwell_time_s(dwell_ids))
     dwells = _dwell_table(cfg, sched, dwell_ids, poses, terrain, origin)
-    rev_local = np.arange(len(rev_ids))
-    dl, veh, group = _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, rev_local)
-    n_pairs_evaluated = len(dl)
-    st = fleet.state_at(poses.time_s[dl], veh)
-    active = np.asarray(st["active"], bool)
-    pos_t = _xyz(st)
-    pos_t[~active] = 0.0
-    rng_m, los, az, el, sin_az, lb = _angles(pos_t, poses.pos[dl], poses.b[dl], poses.h[dl],
-                                             poses.u[dl])
-    beam = sched.beam_scan_rad[dl % n_d]
     instant = cfg.dwell_mode == "instant_scan"
-    if instant:
-        in_fp = lb > 0
-        keep = active
-    else:
-        dist = np.where((lb > 0) & active, np.abs(sin_az - np.sin(beam)), 1e300)
-        in_fp = dist <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12)
-        # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps one
-        # row: its first candidate of least sine-space distance (the nearest dwell)
-        starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]]) if group.size else group
-        any_fp = np.add.reduceat(in_fp.astype(np.int64), starts) > 0 if group.size else in_fp
-        gmin = np.minimum.reduceat(dist, starts) if group.size else dist
-        g_active = np.add.reduceat(active.astype(np.int64), starts) > 0 if group.size else active
-        is_min = active & (dist <= gmin[group])
-        fallback = ~any_fp[group] & g_active[group] & _first_in_group(group, is_min)
-        keep = (in_fp & active) | fallback
-    # one gather per needed column, rows ordered by (dwell, vehicle): candidates come grouped
-    # by (revisit, vehicle) with dwells ascending, so a stable sort on the dwell is enough
-    sel = np.flatnonzero(keep)
-    sel = sel[np.argsort(dl[sel], kind="stable")]
-    dl, veh, in_fp, rng_m, los, az, el, sin_az, beam = (
-        a[sel] for a in (dl, veh, in_fp, rng_m, los, az, el, sin_az, beam))
-    u_beam = np.sin(beam)
-    pos_t = pos_t[sel]
-    vel_t = _vel(st)[sel]
-    pos_p, vel_p = poses.pos[dl], poses.vel[dl]
-    invisible = np.asarray(st["invisible"], bool)[sel]
-    heading_t = np.asarray(st["heading_rad"], float)[sel]
 
+    dl, veh, geo, n_eval = _select_pairs(cfg, sched, poses, fleet, vehicle_ids, len(rev_ids))
     n = len(dl)
+    veh = veh.astype(np.int64)
+    rng_m, az, el, sin_az, lb = (geo[k] for k in ("range_m", "az", "el", "sin_az", "lb"))
+    own_rr, rr = geo["own_rr"], geo["rr"]
+    pos_t = (geo["x_m"], geo["y_m"], geo["z_m"])
+    beam = sched.beam_scan_rad[dl % n_d]
     dwell_id = dwell_ids[dl]
     time_s = poses.time_s[dl]
-    rr = geometry.range_rate(vel_t, vel_p, los)
-    own_rr = np.einsum("ij,ij->i", vel_t, los)  # ṙ − ṙ_MLC
-    true_az_world = frames.heading_rad(pos_t[:, 0] - pos_p[:, 0], pos_t[:, 1] - pos_p[:, 1])
+    true_az_world = _azimuth(geo["los_e"], geo["los_n"])
+    if instant:
+        in_fp = lb > 0
+    else:
+        in_fp = (lb > 0) & (np.abs(sin_az - np.sin(beam))
+                            <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12))
 
+    # --- visibility: field of view, invisible road, terrain -------------------------------
     outcome = np.full(n, Outcome.OUTSIDE_FOV, np.uint8)
     fov = in_fp & visibility.in_field_of_view(cfg, az, el, rng_m)
+    invisible = geo["invisible"]
     outcome[fov & invisible] = Outcome.INVISIBLE_ROAD
     cand = fov & ~invisible
     clear = np.zeros(n, bool)
     ci = np.flatnonzero(cand)
-    clear[ci] = visibility.terrain_clear(terrain, pos_p[ci], pos_t[ci], cfg.los_step_m)
+    clear[ci] = visibility.terrain_clear(terrain, antenna.take(poses.pos, dl[ci]),
+                                         antenna.take(pos_t, ci), cfg.los_step_m)
     outcome[cand & ~clear] = Outcome.TERRAIN
 
+    # --- SNR and the Swerling-I draw for the visible pairs -------------------------------
     vis = np.flatnonzero(cand & clear)
     snr_db_col = np.full(n, np.nan)
     pd_col = np.zeros(n)
     det_local = np.full(n, -1, np.int64)
-
-    # --- SNR and detection for the visible pairs -----------------------------------------
     scan_angle = az[vis] if instant else beam[vis]
-    f_mis = 1.0 if instant else gain.mismatch(sin_az[vis], u_beam[vis], cfg.beamwidth_sine)
+    f_mis = 1.0 if instant else gain.mismatch(sin_az[vis], np.sin(beam[vis]), cfg.beamwidth_sine)
     g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis)
     g_r = g_t * gain.stap_notch(own_rr[vis], cfg.mdv_mps, cfg.blind_speed_mps) if cfg.stap \
         else g_t
-    aspect = aspect_rad(heading_t[vis], los[vis])
-    rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], aspect)
+    rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo["heading_rad"][vis], geo["los_e"][vis],
+                                geo["los_n"][vis])
     s_db = snr.snr_db(cfg, rng_m[vis], g_t, g_r, rcs_v)
     s_lin = snr.db_to_linear(s_db)
     lpd = detect.log_pd(s_lin, cfg.pfa)
@@ -335,44 +411,46 @@ def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_mode
         blind = np.zeros(miss.size, bool)
     outcome[miss] = np.where(blind, Outcome.DOPPLER_BLIND, Outcome.PD_MISS)
 
-    # --- detections ----------------------------------------------------------------------
+    # --- detections: reported SNR, errors, geolocation ----------------------------------
     d = vis[hit]
+    k = d.size
     outcome[d] = Outcome.DETECTED
-    det_local[d] = np.arange(d.size)
+    det_local[d] = np.arange(k)
     snr_rep = detect.reported_snr(uni[hit], s_lin[hit])
     bw_rad = scan.broadened_beamwidth_rad(cfg, scan_angle[hit])
     s_r, s_az, s_rr = measurement.sigmas(cfg, snr_rep, bw_rad)
     e_r, e_az, e_rr = measurement.draw_errors(seed, dwell_id[d], veh[d], s_r, s_az, s_rr)
     r_meas = np.maximum(rng_m[d] + e_r, 0.0)
     az_meas = az[d] + e_az
-    rr_meas = rr[d] + e_rr
-    ground, _, _ = geolocate.geolocate(pos_p[d], r_meas, az_meas, poses.b[dl[d]],
-                                       poses.h[dl[d]], poses.u[dl[d]], terrain)
-    lat, lon, hgt = frames.enu_to_geodetic(origin, ground[:, 0], ground[:, 1], ground[:, 2])
-    k = d.size
+    dd = dl[d]
+    ppd = antenna.take(poses.pos, dd)
+    ground, _, _ = geolocate.geolocate(ppd, r_meas, az_meas, antenna.take(poses.b, dd),
+                                       antenna.take(poses.h, dd), antenna.take(poses.u, dd),
+                                       terrain)
+    lat, lon, hgt = frames.enu_to_geodetic(origin, *ground)
     detections = {
         "det_id": np.arange(k, dtype=np.int64),
         "dwell_id": dwell_id[d],
         "time_s": time_s[d],
         "range_m": r_meas,
-        "azimuth_rad": frames.heading_rad(ground[:, 0] - pos_p[d, 0], ground[:, 1] - pos_p[d, 1]),
-        "range_rate_mps": rr_meas,
+        "azimuth_rad": _azimuth(ground[0] - ppd[0], ground[1] - ppd[1]),
+        "range_rate_mps": rr[d] + e_rr,
         "true_range_m": rng_m[d],
         "true_azimuth_rad": true_az_world[d],
         "true_range_rate_mps": rr[d],
         "snr_db": 10.0 * np.log10(snr_rep),
         "sigma_range_m": s_r, "sigma_azimuth_rad": s_az, "sigma_range_rate_mps": s_rr,
-        "x_m": ground[:, 0], "y_m": ground[:, 1], "z_m": ground[:, 2],
+        "x_m": ground[0], "y_m": ground[1], "z_m": ground[2],
         "lat_deg": np.atleast_1d(lat), "lon_deg": np.atleast_1d(lon),
         "height_m": np.atleast_1d(hgt),
-        "truth_id": veh[d].astype(np.int64),
+        "truth_id": veh[d],
         "merged": np.zeros(k, bool), "range_folded": np.zeros(k, bool),
         "doppler_wrapped": np.zeros(k, bool), "implausible": np.zeros(k, bool),
         "rcs_dbsm": rcs_v[hit],
         "wrap_velocity_mps": np.full(k, cfg.wrap_velocity_mps),
     }
     looks = {
-        "dwell_id": dwell_id, "vehicle_id": veh.astype(np.int64), "time_s": time_s,
+        "dwell_id": dwell_id, "vehicle_id": veh, "time_s": time_s,
         "outcome": outcome, "snr_db": snr_db_col, "pd": pd_col, "range_m": rng_m,
         "azimuth_rad": true_az_world, "range_rate_mps": rr, "det_id": det_local,
     }
@@ -380,7 +458,7 @@ def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_mode
         ctx = ChunkContext(cfg, seed, terrain, origin, dwells, poses.b, poses.h, poses.u)
         for effect in effects:
             detections, looks = effect(ctx, detections, looks)
-    return dwells, detections, looks, n_pairs_evaluated
+    return dwells, detections, looks, n_eval
 
 
 def _renumber(detections: Table, looks: Table, offset: int) -> None:
@@ -398,21 +476,16 @@ def _renumber(detections: Table, looks: Table, offset: int) -> None:
         looks["det_id"][has] = new[order][pos]
 
 
-def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s: float,
-             origin: frames.Origin, *, effects: Iterable[Effect] = (),
-             chunk_pairs: int = 1_000_000, stats: Optional[dict] = None) -> Dict[str, Table]:
-    """Dwells, detections and looks of a run (docs/tables.md).
+def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s: float,
+                    origin: frames.Origin, *, effects: Iterable[Effect] = (),
+                    chunk_pairs: int = 300_000, workers: int = 1,
+                    stats: Optional[dict] = None) -> Iterator[Tuple[Table, Table, Table]]:
+    """Yield ``(dwells, detections, looks)`` per chunk of revisits, in time order, with run-wide
+    ``det_id`` values: the streaming form of :func:`simulate` (bounded memory for big scenes).
 
-    Parameters
-    ----------
-    cfg : SensorConfig
-    fleet, platform, terrain : objects with the interfaces of docs/architecture.md
-    seed : root seed (draws use ``counter_key(seed, "sensor", purpose)``)
-    duration_s : scene duration; revisits whose last dwell falls after it are not run
-    origin : the scene's geodetic origin (for lat/lon columns)
-    effects : post-processors per chunk of dwells (merge, clutter, ambiguity)
-    chunk_pairs : about how many (revisit, vehicle) pairs to hold in memory at once
-    stats : if a dict is given, ``pairs_evaluated`` and ``n_revisits`` are stored in it
+    ``workers`` > 1 computes that many chunks at once in threads (numpy releases the GIL); the
+    output is identical to ``workers=1`` because every draw is counter-based.  The fleet,
+    platform, terrain and effects must then be safe to call from several threads (read-only).
     """
     sched = scan.build_schedule(cfg, duration_s)
     rcs_models = RcsModels.from_config(cfg.rcs)
@@ -424,29 +497,82 @@ def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s:
     effects = tuple(effects)
     per_rev = max(1, len(vehicle_ids) * (1 if cfg.dwell_mode == "instant_scan" else 3))
     revs_per_chunk = max(1, chunk_pairs // per_rev)
-    out_d, out_det, out_look = [], [], []
-    n_det = 0
-    evaluated = 0
-    for r0 in range(0, sched.n_revisits, revs_per_chunk):
-        rev_ids = np.arange(r0, min(sched.n_revisits, r0 + revs_per_chunk))
+    chunks = [np.arange(r0, min(sched.n_revisits, r0 + revs_per_chunk))
+              for r0 in range(0, sched.n_revisits, revs_per_chunk)]
+
+    def run(rev_ids):
         if vehicle_ids.size == 0:
             n_d = sched.n_dwells
             dids = (rev_ids[:, None] * n_d + np.arange(n_d)[None, :]).ravel()
             poses = _poses(cfg, platform, sched.dwell_time_s(dids))
-            out_d.append(_dwell_table(cfg, sched, dids, poses, terrain, origin))
-            continue
-        dw, det, look, n_eval = _simulate_chunk(cfg, sched, fleet, platform, terrain, seed,
-                                                origin, rcs_models, type_codes, vehicle_ids,
-                                                rev_ids, effects)
-        _renumber(det, look, n_det)
-        n_det += len(det["det_id"])
-        evaluated += n_eval
+            return (_dwell_table(cfg, sched, dids, poses, terrain, origin),
+                    empty_table(DETECTION_COLUMNS), empty_table(LOOK_COLUMNS), 0)
+        return _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_models,
+                               type_codes, vehicle_ids, rev_ids, effects)
+
+    n_det = 0
+    evaluated = 0
+    if stats is not None:
+        stats.update(pairs_evaluated=0, n_revisits=sched.n_revisits, n_dwells=sched.n_total)
+    if workers > 1 and len(chunks) > 1:
+        pool = ThreadPoolExecutor(max_workers=workers)
+        pending = deque()
+        results = _ordered_results(pool, pending, run, chunks, workers)
+    else:
+        pool = None
+        results = map(run, chunks)
+    try:
+        for dw, det, look, n_eval in results:
+            _renumber(det, look, n_det)
+            n_det += len(det["det_id"])
+            evaluated += n_eval
+            if stats is not None:
+                stats["pairs_evaluated"] = evaluated
+            yield dw, det, look
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _ordered_results(pool, pending, fn, items, depth):
+    """Results of ``fn`` over ``items`` in order, at most ``depth`` computed ahead."""
+    it = iter(items)
+    for item in it:
+        pending.append(pool.submit(fn, item))
+        if len(pending) >= depth:
+            break
+    for item in it:
+        yield pending.popleft().result()
+        pending.append(pool.submit(fn, item))
+    while pending:
+        yield pending.popleft().result()
+
+
+def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s: float,
+             origin: frames.Origin, *, effects: Iterable[Effect] = (),
+             chunk_pairs: int = 300_000, workers: int = 1,
+             stats: Optional[dict] = None) -> Dict[str, Table]:
+    """Dwells, detections and looks of a run (docs/tables.md).
+
+    Parameters
+    ----------
+    cfg : SensorConfig
+    fleet, platform, terrain : objects with the interfaces of docs/architecture.md
+    seed : root seed (draws use ``counter_key(seed, "sensor", purpose)``)
+    duration_s : scene duration; revisits whose last dwell falls after it are not run
+    origin : the scene's geodetic origin (for lat/lon columns)
+    effects : post-processors per chunk of dwells (merge, clutter, ambiguity), see module doc
+    chunk_pairs : about how many (dwell, target) pairs a chunk holds (bounds working memory)
+    workers : chunks computed concurrently in threads (same output for any value)
+    stats : if a dict is given, ``pairs_evaluated``, ``n_revisits`` and ``n_dwells`` go in it
+    """
+    out_d, out_det, out_look = [], [], []
+    for dw, det, look in simulate_chunks(cfg, fleet, platform, terrain, seed, duration_s, origin,
+                                         effects=effects, chunk_pairs=chunk_pairs,
+                                         workers=workers, stats=stats):
         out_d.append(dw)
         out_det.append(det)
         out_look.append(look)
-    if stats is not None:
-        stats["pairs_evaluated"] = evaluated
-        stats["n_revisits"] = sched.n_revisits
     return {
         "dwells": _concat(out_d, DWELL_COLUMNS),
         "detections": _concat(out_det, DETECTION_COLUMNS),

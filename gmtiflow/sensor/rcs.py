@@ -96,10 +96,9 @@ def interpolate(aspect_rad, table_aspect_rad, table_rcs_dbsm):
                      period=2.0 * np.pi)
 
 
-def aspect_rad(vehicle_heading_rad, los):
-    """Aspect angle: vehicle heading − horizontal LOS azimuth, in [0, 2π)."""
-    los = np.asarray(los, float)
-    return np.mod(np.asarray(vehicle_heading_rad, float) - heading_rad(los[..., 0], los[..., 1]),
+def aspect_rad(vehicle_heading_rad, los_east, los_north):
+    """Aspect angle: vehicle heading − azimuth of the horizontal LOS, in [0, 2π)."""
+    return np.mod(np.asarray(vehicle_heading_rad, float) - heading_rad(los_east, los_north),
                   2.0 * np.pi)
 
 
@@ -132,14 +131,19 @@ class RcsModels:
             out[i] = code
         return out
 
-    def rcs_dbsm(self, type_code, aspect):
-        """RCS (dBsm) of each pair from its type code and aspect angle (rad)."""
+    def rcs_dbsm(self, type_code, vehicle_heading_rad, los_east, los_north):
+        """RCS (dBsm) of each pair from its type code, heading and line of sight.
+
+        The aspect angle is only computed for the pairs whose type has a table.
+        """
         type_code = np.asarray(type_code)
         out = self.constant_dbsm[type_code]
         for code, table in enumerate(self.tables):
             if table is None:
                 continue
-            sel = type_code == code
-            if np.any(sel):
-                out[sel] = interpolate(np.asarray(aspect)[sel], *table)
+            sel = np.flatnonzero(type_code == code)
+            if sel.size:
+                aspect = aspect_rad(np.asarray(vehicle_heading_rad)[sel],
+                                    np.asarray(los_east)[sel], np.asarray(los_north)[sel])
+                out[sel] = interpolate(aspect, *table)
         return out

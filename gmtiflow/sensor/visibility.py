@@ -31,8 +31,13 @@ def in_field_of_view(cfg: SensorConfig, az_rad, el_rad, range_m):
 
 
 def terrain_clear(terrain, platform_xyz, target_xyz, step_m: float):
-    """Line of sight from platform to target not blocked by terrain (all True when flat)."""
-    n = len(target_xyz)
+    """Line of sight from platform to target not blocked by terrain (all True when flat).
+
+    ``platform_xyz`` and ``target_xyz`` are 3-tuples of arrays; the terrain is called with
+    (n, 3) arrays, ``terrain.line_of_sight(from_xyz, to_xyz, step_m) -> bool[n]``.
+    """
+    n = len(target_xyz[0])
     if getattr(terrain, "flat", False) or n == 0:
         return np.ones(n, bool)
-    return np.asarray(terrain.line_of_sight(platform_xyz, target_xyz, step_m), bool)
+    return np.asarray(terrain.line_of_sight(np.column_stack(platform_xyz),
+                                            np.column_stack(target_xyz), step_m), bool)

@@ -45,27 +45,29 @@ class LineFleet:
             "route_length_m": np.full(n, 1e5),
             "off_road": np.zeros(n, bool),
         }
+        self._speed = np.hypot(self.v[:, 0], self.v[:, 1])
+        self._heading = frames.heading_rad(self.v[:, 0], self.v[:, 1])
 
     def state_at(self, time_s, vehicle_id):
         t, vid = np.broadcast_arrays(np.asarray(time_s, float), np.asarray(vehicle_id))
         t, vid = t.ravel(), vid.ravel().astype(np.int64)
         active = (t >= self.start[vid]) & (t <= self.end[vid])
-        dt = (t - self.start[vid])[:, None]
-        pos = self.p0[vid] + self.v[vid] * dt
-        vel = self.v[vid]
-        speed = np.linalg.norm(vel[:, :2], axis=1)
-        out = {
-            "time_s": t, "vehicle_id": vid, "convoy_id": np.full(t.size, -1, np.int64),
-            "x_m": pos[:, 0], "y_m": pos[:, 1], "z_m": pos[:, 2],
-            "vx_mps": vel[:, 0], "vy_mps": vel[:, 1], "vz_mps": vel[:, 2],
-            "ax_mps2": np.zeros(t.size), "ay_mps2": np.zeros(t.size), "az_mps2": np.zeros(t.size),
-            "speed_mps": speed, "heading_rad": frames.heading_rad(vel[:, 0], vel[:, 1]),
-            "route_s_m": speed * dt[:, 0], "edge_id": np.zeros(t.size, np.int64),
-            "mode": np.zeros(t.size, np.uint8), "invisible": self.inv[vid].copy(),
-            "active": active,
-        }
-        for k in ("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps"):
-            out[k] = np.where(active, out[k], np.nan)
+        dt = t - self.start[vid]
+        n = t.size
+        zeros = np.zeros(n)
+        out = {"time_s": t, "vehicle_id": vid, "convoy_id": np.full(n, -1, np.int64)}
+        for k, c in enumerate("xyz"):
+            out[f"{c}_m"] = self.p0[vid, k] + self.v[vid, k] * dt
+            out[f"v{c}_mps"] = self.v[vid, k]
+            out[f"a{c}_mps2"] = zeros
+        out.update({
+            "speed_mps": self._speed[vid], "heading_rad": self._heading[vid],
+            "route_s_m": self._speed[vid] * dt, "edge_id": np.zeros(n, np.int64),
+            "mode": np.zeros(n, np.uint8), "invisible": self.inv[vid], "active": active,
+        })
+        if not np.all(active):
+            for k in ("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps"):
+                out[k] = np.where(active, out[k], np.nan)
         return out
 
 
