@@ -27,7 +27,7 @@ SNR_FORMS = ("radar_equation", "reference")
 DWELL_MODES = ("dwell_resolved", "instant_scan")
 
 
-@dataclass(frozen=True)
+@dataclass
 class RcsConfig:
     """Radar cross-section model of one vehicle type.
 
@@ -58,23 +58,27 @@ def _default_rcs() -> Dict[str, RcsConfig]:
     }
 
 
-@dataclass(frozen=True)
+@dataclass
 class SensorConfig:
     """One airborne GMTI radar (paper Table 1 with DESIGN §5's corrections).
 
     Defaults are a plausible X-band side-looking airborne GMTI (the ``default`` preset).
+
+    Not ``frozen``: OmegaConf 2.3 marks frozen dataclass nodes read-only, and then a nested
+    override (``sensor.peak_power_w=...`` inside the app config, or any ``rcs.<type>`` entry)
+    fails at compose time.  Treat instances as immutable (use ``dataclasses.replace``).
     """
 
     # --- transmitter / receiver (radar equation, DESIGN §5.3) --------------------------------
     freq_hz: float = 10.0e9                 # carrier frequency ν (λ = c/ν)
-    peak_power_w: float = 2000.0            # P_S, peak transmit power
-    pulse_width_s: float = 10.0e-6          # τ, uncompressed pulse duration
+    peak_power_w: float = 500.0             # P_S, peak transmit power
+    pulse_width_s: float = 5.0e-6           # τ, uncompressed pulse duration
     pri_s: Optional[float] = 250.0e-6       # PRI; None = no ambiguity, no blind speeds
     cpi_s: float = 0.032                    # coherent processing interval (per dwell)
     bandwidth_hz: float = 50.0e6            # B, waveform bandwidth (range resolution c/2B)
     noise_figure_db: float = 4.0            # F
     system_temp_k: float = 290.0            # T_0
-    losses_db: float = 8.0                  # L, total system losses
+    losses_db: float = 12.0                 # L, total system and processing losses
     integration_gain_db: Optional[float] = None  # G_I; None = CPI/PRI (needs pri_s)
 
     # --- antenna (eq. 7-9) ------------------------------------------------------------------

@@ -150,3 +150,22 @@ def grid_fleet(n, *, speed=10.0, seed=0, extent=8_000.0):
     hd = g.uniform(0, 2 * np.pi, n)
     v = np.column_stack([np.sin(hd) * speed, np.cos(hd) * speed, np.zeros(n)])
     return LineFleet(p0, v)
+
+
+def run(cfg, fleet, platform=None, terrain=None, *, seed=7, duration_s=None, **kw):
+    """One sensor run over the fakes (one revisit by default)."""
+    from gmtiflow.sensor.model import simulate
+    from gmtiflow.sensor import scan
+
+    if duration_s is None:
+        duration_s = float(scan.build_schedule(cfg, 1e9).time_offset_s.max())
+    return simulate(cfg, fleet, platform or LevelPlatform(), terrain or FlatTerrain(), seed,
+                    duration_s, ORIGIN, **kw)
+
+
+def still(points, **kw):
+    """Stationary vehicles at the given (x, y[, z]) points."""
+    p = np.atleast_2d(np.asarray(points, float))
+    if p.shape[1] == 2:
+        p = np.column_stack([p, np.zeros(len(p))])
+    return LineFleet(p, np.zeros(3), **kw)
