@@ -113,7 +113,7 @@ class SensorConfig:
     gamma_az: float = 0.44                  # ≈ 1/(1.6 √2), monopulse
     gamma_r: float = 0.71                   # ≈ 1/√2
     gamma_rr: float = 0.71
-    kappa_az: float = 1.5                   # floor κ BW/10, κ typically 1..2
+    kappa_az: float = 1.0                   # floor κ BW/10, κ typically 1..2
     kappa_r: float = 1.0
     kappa_rr: float = 1.0
     range_resolution_factor: float = 1.0    # k in Δr = k c / 2B
