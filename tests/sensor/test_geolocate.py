@@ -1,0 +1,57 @@
+"""Geolocation: measured range and azimuth intersected with the terrain."""
+import math
+
+import numpy as np
+import pytest
+
+from gmtiflow.sensor import antenna, geolocate, geometry
+
+from sensor_fakes import FlatTerrain
+
+
+class SlopedTerrain:
+    flat = False
+
+    def height_at(self, x_m, y_m):
+        return 200.0 + 0.05 * np.asarray(y_m) + 0.02 * np.asarray(x_m)
+
+
+def setup(targets, bank_deg=0.0, pitch_deg=0.0):
+    n = len(targets)
+    plat = tuple(np.full(n, c) for c in (0.0, -30_000.0, 6_000.0))
+    b, h, u = antenna.antenna_axes(np.full(n, math.radians(270.0)),
+                                   np.full(n, math.radians(pitch_deg)),
+                                   np.full(n, math.radians(bank_deg)), math.radians(90.0))
+    tgt = tuple(np.asarray(targets, float)[:, k] for k in range(3))
+    rng_m, los = geometry.line_of_sight(plat, tgt)
+    az, el, *_ = antenna.target_angles(los, b, h, u)
+    return plat, tgt, rng_m, az, el, b, h, u
+
+
+@pytest.mark.parametrize("bank_deg, pitch_deg", [(0.0, 0.0), (20.0, 0.0), (-15.0, 3.0)])
+def test_true_range_and_azimuth_give_back_the_true_point_on_flat_ground(bank_deg, pitch_deg):
+    targets = [(0.0, 0.0, 0.0), (3000.0, 2000.0, 0.0), (-4000.0, -3000.0, 0.0)]
+    plat, tgt, rng_m, az, el, b, h, u = setup(targets, bank_deg, pitch_deg)
+    p, el_est, reached = geolocate.geolocate(plat, rng_m, az, b, h, u, FlatTerrain())
+    assert np.all(reached)
+    for k in range(3):
+        assert np.allclose(p[k], tgt[k], atol=1e-6)
+    assert np.allclose(el_est, el)
+
+
+def test_iterates_onto_sloped_terrain():
+    terrain = SlopedTerrain()
+    xy = np.array([(0.0, 0.0), (2500.0, 3000.0), (-3000.0, -2000.0)])
+    targets = np.column_stack([xy, terrain.height_at(xy[:, 0], xy[:, 1])])
+    plat, tgt, rng_m, az, *_, b, h, u = setup(targets)
+    p, _, reached = geolocate.geolocate(plat, rng_m, az, b, h, u, terrain)
+    assert np.all(reached)
+    for k in range(3):
+        assert np.allclose(p[k], tgt[k], atol=0.5)
+
+
+def test_range_too_short_to_reach_the_ground_is_flagged():
+    plat, _, _, az, *_, b, h, u = setup([(0.0, 0.0, 0.0)])
+    with np.errstate(all="raise"):
+        p, _, reached = geolocate.geolocate(plat, np.array([1000.0]), az, b, h, u, FlatTerrain())
+    assert not reached[0] and np.all(np.isfinite(p[2]))
