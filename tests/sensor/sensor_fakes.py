@@ -141,7 +141,7 @@ def run(cfg, fleet, platform=None, terrain=None, *, seed=7, duration_s=None, **k
     from gmtiflow.sensor import scan
 
     if duration_s is None:
-        duration_s = float(scan.build_schedule(cfg, 1e9).time_offset_s.max())
+        duration_s = scan.n_dwells(cfg) * cfg.cpi_s
     return simulate(cfg, fleet, platform or LevelPlatform(), terrain or FlatTerrain(), seed,
                     duration_s, ORIGIN, **kw)
 
