@@ -392,3 +392,20 @@ def test_effects_post_process_each_chunk_and_ids_are_renumbered():
     assert np.sum(lk["outcome"] == Outcome.MERGED) > 1
     hit = lk["det_id"] >= 0
     assert np.all(np.isin(lk["det_id"][hit], det["det_id"]))
+
+
+def test_look_range_rates_include_the_platform_motion():
+    """Flying west, a target east of broadside recedes: ṙ = (v_t − v_p)·ℓ > 0."""
+    fleet = LineFleet([(3_000.0, 0.0, 0.0), (-3_000.0, 0.0, 0.0)], (0.0, 5.0, 0.0))
+    out = run(NO_STAP, fleet)
+    lk, d = out["looks"], out["dwells"]
+    k = lk["dwell_id"]
+    st = fleet.state_at(lk["time_s"], lk["vehicle_id"])
+    dx = np.stack([st["x_m"] - d["platform_x_m"][k], st["y_m"] - d["platform_y_m"][k],
+                   st["z_m"] - d["platform_z_m"][k]])
+    los = dx / np.linalg.norm(dx, axis=0)
+    dv = np.stack([st["vx_mps"] - d["platform_vx_mps"][k], st["vy_mps"] - d["platform_vy_mps"][k],
+                   st["vz_mps"] - d["platform_vz_mps"][k]])
+    assert np.allclose(lk["range_rate_mps"], np.sum(dv * los, axis=0), atol=1e-9)
+    assert np.all(lk["range_rate_mps"][lk["vehicle_id"] == 0] > 15.0)
+    assert np.all(lk["range_rate_mps"][lk["vehicle_id"] == 1] < -10.0)
