@@ -171,11 +171,6 @@ def _vel(state: Table):
     return tuple(np.asarray(state[k], float) for k in ("vx_mps", "vy_mps", "vz_mps"))
 
 
-def _sine_coordinate(az, sin_az, lb):
-    """Sine-space coordinate, pushed beyond every beam (±2) for targets behind the antenna."""
-    return np.where(lb > 0, sin_az, np.where(az >= 0, 2.0, -2.0))
-
-
 def _nearest_beam(u_beam, s):
     """Index of the beam centre nearest to sine coordinates ``s`` (ties to the lower index)."""
     n = len(u_beam)
@@ -189,8 +184,10 @@ def _nearest_beam(u_beam, s):
 def _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     """Every vehicle at one reference dwell per revisit: the middle one (its time, its pose).
 
-    Returns the vehicles' state there, the reference dwells (chunk-local) and per (revisit,
-    vehicle) the sine coordinate, slant range, speed and activity.
+    Returns the vehicles' state there, the reference dwells (chunk-local), the vehicle ids,
+    activity, slant range and sine coordinate per (revisit, vehicle), revisit-major.  Only
+    what the candidate search needs is computed, broadcasting each revisit's pose over its
+    vehicles instead of gathering it.
     """
     n_d = sched.n_dwells
     n_v = len(vehicle_ids)
@@ -199,14 +196,21 @@ def _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     v_rep = np.tile(vehicle_ids, n_rev)
     st = fleet.state_at(poses.time_s[d_rep], v_rep)
     active = np.asarray(st["active"], bool)
-    pos = _xyz(st)
-    if not np.all(active):
-        pos = tuple(np.where(active, c, 0.0) for c in pos)
-    rng_m, los = geometry.line_of_sight(antenna.take(poses.pos, d_rep), pos)
-    az, _, sin_az, lb = antenna.target_angles(los, antenna.take(poses.b, d_rep),
-                                              antenna.take(poses.h, d_rep),
-                                              antenna.take(poses.u, d_rep))
-    return st, d_rep, v_rep, active, rng_m, az, _sine_coordinate(az, sin_az, lb)
+    d = []
+    for k, c in enumerate(_xyz(st)):
+        if not np.all(active):
+            c = np.where(active, c, 0.0)
+        d.append(c.reshape(n_rev, n_v) - poses.pos[k][ref][:, None])
+    b = [c[ref][:, None] for c in poses.b]
+    h = [c[ref][:, None] for c in poses.h]
+    lb = d[0] * b[0] + d[1] * b[1] + d[2] * b[2]
+    lh = d[0] * h[0] + d[1] * h[1] + d[2] * h[2]
+    rng_m = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).ravel()
+    horiz = np.hypot(lb, lh)
+    sin_az = np.divide(lh, horiz, out=np.zeros_like(lh), where=horiz > 0)
+    # behind the antenna: beyond every beam, on the side it is turned to
+    s = np.where(lb > 0, sin_az, np.where(lh >= 0, 2.0, -2.0)).ravel()
+    return st, d_rep, v_rep, active, rng_m, s
 
 
 def _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
@@ -221,7 +225,7 @@ def _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     n_v = len(vehicle_ids)
     u_beam = np.sin(sched.beam_scan_rad)
     bw = cfg.beamwidth_sine
-    st, d_ref, v_rep, active, rng_m, _, s = _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev)
+    st, d_ref, v_rep, active, rng_m, s = _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev)
     # motion margin
     dt = float(np.max(np.abs(sched.time_offset_s - sched.time_offset_s[n_d // 2])))
     vp = np.sqrt(antenna.dot(poses.vel, poses.vel))
@@ -251,9 +255,10 @@ def _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     else:
         lo = np.where(np.abs(s - u_beam[0]) <= w, 0, 1)
         hi = np.ones_like(lo)
-    none = hi <= lo
-    lo = np.where(none, _nearest_beam(u_beam, s), lo)
-    count = np.where(none, 1, hi - lo)
+    none = np.flatnonzero(hi <= lo)
+    lo[none] = _nearest_beam(u_beam, s[none])
+    count = hi - lo
+    count[none] = 1
     total = int(count.sum())
     group = np.repeat(np.arange(len(lo)), count)
     starts = np.cumsum(count) - count
@@ -312,7 +317,7 @@ def _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     n_d = sched.n_dwells
     u_beam_all = np.sin(sched.beam_scan_rad)
     if cfg.dwell_mode == "instant_scan":
-        st, d_ref, veh, active, _, _, s = _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev)
+        st, d_ref, veh, active, _, s = _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev)
         dl = d_ref - n_d // 2 + _nearest_beam(u_beam_all, s)
         sel = np.flatnonzero(active)
         n_eval = len(dl)
@@ -497,6 +502,8 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
     effects = tuple(effects)
     per_rev = max(1, len(vehicle_ids) * (1 if cfg.dwell_mode == "instant_scan" else 3))
     revs_per_chunk = max(1, chunk_pairs // per_rev)
+    if workers > 1:  # enough chunks to keep every worker busy
+        revs_per_chunk = max(1, min(revs_per_chunk, -(-sched.n_revisits // (2 * workers))))
     chunks = [np.arange(r0, min(sched.n_revisits, r0 + revs_per_chunk))
               for r0 in range(0, sched.n_revisits, revs_per_chunk)]
 
@@ -583,5 +590,8 @@ def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s:
 def _concat(tables, columns) -> Table:
     if not tables:
         return empty_table(columns)
+    if len(tables) == 1:
+        return {name: np.asarray(tables[0][name]).astype(dtype, copy=False)
+                for name, dtype in columns.items()}
     return {name: np.concatenate([np.asarray(t[name]) for t in tables]).astype(dtype, copy=False)
             for name, dtype in columns.items()}

@@ -122,14 +122,15 @@ class RcsModels:
     def type_codes(self, vehicle_types: Sequence[str]) -> np.ndarray:
         """Index of each vehicle's model; unknown types use 'default' or raise ConfigError."""
         index: Dict[str, int] = {n: i for i, n in enumerate(self.names)}
-        out = np.empty(len(vehicle_types), np.int64)
-        for i, t in enumerate(vehicle_types):
+        kinds, inverse = np.unique(np.asarray(vehicle_types, dtype=str), return_inverse=True)
+        kind_codes = np.empty(len(kinds), np.int64)
+        for i, t in enumerate(kinds):
             code = index.get(str(t), index.get("default"))
             if code is None:
                 raise ConfigError(f"sensor.rcs: no RCS model for vehicle type {t!r} and no "
                                   f"'default' entry; known types: {', '.join(self.names)}")
-            out[i] = code
-        return out
+            kind_codes[i] = code
+        return kind_codes[inverse.ravel()].astype(np.int64)
 
     def rcs_dbsm(self, type_code, vehicle_heading_rad, los_east, los_north):
         """RCS (dBsm) of each pair from its type code, heading and line of sight.
