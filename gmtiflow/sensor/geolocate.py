@@ -56,12 +56,14 @@ def geolocate(platform_xyz, range_m, az_rad, b, h, u, terrain, iterations: int =
     range_m = np.asarray(range_m, float)
     az_rad = np.asarray(az_rad, float)
     ca, sa = np.cos(az_rad), np.sin(az_rad)
-    ground = np.broadcast_to(np.asarray(terrain.height_at(platform_xyz[0], platform_xyz[1]),
-                                        float), range_m.shape)
+    # a terrain without data under the platform (NaN) starts from 0 m
+    ground = np.broadcast_to(np.nan_to_num(np.asarray(
+        terrain.height_at(platform_xyz[0], platform_xyz[1]), float)), range_m.shape)
     p, ce, se, reached = _intersect(platform_xyz, range_m, ca, sa, b, h, u, ground)
     if not getattr(terrain, "flat", False):
         for _ in range(iterations):
             new_ground = np.asarray(terrain.height_at(p[0], p[1]), float)
+            new_ground = np.where(np.isfinite(new_ground), new_ground, ground)  # off the DEM
             p, ce, se, reached = _intersect(platform_xyz, range_m, ca, sa, b, h, u, new_ground)
             if np.all(np.abs(new_ground - ground) < tol_m):
                 break
