@@ -55,3 +55,30 @@ def test_range_too_short_to_reach_the_ground_is_flagged():
     with np.errstate(all="raise"):
         p, _, reached = geolocate.geolocate(plat, np.array([1000.0]), az, b, h, u, FlatTerrain())
     assert not reached[0] and np.all(np.isfinite(p[2]))
+
+
+from hypothesis import assume, given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(heading=st.floats(0, 360), bank=st.floats(-30, 30), pitch=st.floats(-5, 5),
+       mount=st.sampled_from([90.0, -90.0, 60.0, 0.0]), x=st.floats(-20e3, 20e3),
+       y=st.floats(-20e3, 20e3), alt=st.floats(500, 12e3))
+def test_geolocation_inverts_the_antenna_angles_for_any_attitude(heading, bank, pitch, mount, x,
+                                                                  y, alt):
+    plat = (np.array([0.0]), np.array([0.0]), np.array([alt]))
+    b, h, u = antenna.antenna_axes(np.radians([heading]), np.radians([pitch]),
+                                   np.radians([bank]), math.radians(mount))
+    tgt = (np.array([x]), np.array([y]), np.array([0.0]))
+    rng_m, los = geometry.line_of_sight(plat, tgt)
+    az, el, _, lb = antenna.target_angles(los, b, h, u)
+    # GMTI geometry: in front of the antenna (|az| < ~78°), not near nadir
+    assume(lb[0] > 0.2 and math.hypot(x, y) > 0.3 * alt)
+    p, el_est, reached = geolocate.geolocate(plat, rng_m, az, b, h, u, FlatTerrain())
+    assert reached[0]
+    assert abs(p[2][0]) < 1e-6 * max(1.0, rng_m[0])
+    assert math.hypot(p[0][0] - plat[0][0], p[1][0] - plat[1][0]) == pytest.approx(
+        math.hypot(x, y), rel=1e-9, abs=1e-3)   # sqrt(1 - r²) is ill-conditioned at nadir
+    assert el_est[0] == pytest.approx(el[0], abs=1e-9)
+    assert p[0][0] == pytest.approx(x, abs=1e-6 * rng_m[0])
+    assert p[1][0] == pytest.approx(y, abs=1e-6 * rng_m[0])

@@ -409,3 +409,18 @@ def test_look_range_rates_include_the_platform_motion():
     assert np.allclose(lk["range_rate_mps"], np.sum(dv * los, axis=0), atol=1e-9)
     assert np.all(lk["range_rate_mps"][lk["vehicle_id"] == 0] > 15.0)
     assert np.all(lk["range_rate_mps"][lk["vehicle_id"] == 1] < -10.0)
+
+
+@pytest.mark.parametrize("change", [dict(az_min_deg=-45.0, az_max_deg=45.0, el_min_deg=-45.0,
+                                         el_max_deg=-1.0, range_min_m=8_000.0,
+                                         range_max_m=37_000.0, revisit_s=8.0),
+                                    dict(snr_form="reference"),
+                                    dict(dwell_mode="instant_scan", pri_s=None,
+                                         integration_gain_db=21.0)])
+def test_other_settings_run_end_to_end(change):
+    cfg = replace(SensorConfig(), **change)
+    assert cfg.problems() == []
+    out = run(cfg, grid_fleet(500, extent=30_000.0), duration_s=20.0)
+    oc = out["looks"]["outcome"]
+    assert np.any(oc == Outcome.DETECTED) and np.any(oc == Outcome.OUTSIDE_FOV)
+    assert np.all(np.isfinite(out["detections"]["x_m"]))
