@@ -355,14 +355,58 @@ def _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
 
 
 def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_models, type_codes,
-                    vehicle_ids, rev_ids, effects):
+                    vehicle_ids, rev_ids, effects, block_vehicles):
+    """One chunk of whole revisits; vehicles in blocks of ``block_vehicles`` (bounded working
+    memory for big fleets), merged back into (dwell, vehicle) order before the effects, which
+    need every detection of a dwell."""
     n_d = sched.n_dwells
     dwell_ids = (rev_ids[:, None] * n_d + np.arange(n_d)[None, :]).ravel()
     poses = _poses(cfg, platform, sched.dwell_time_s(dwell_ids))
     dwells = _dwell_table(cfg, sched, dwell_ids, poses, terrain, origin)
-    instant = cfg.dwell_mode == "instant_scan"
+    parts = [_evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_codes,
+                             vehicle_ids[v0:v0 + block_vehicles], len(rev_ids), poses,
+                             dwell_ids)
+             for v0 in range(0, len(vehicle_ids), block_vehicles)]
+    n_eval = sum(p[2] for p in parts)
+    if len(parts) == 1:
+        detections, looks = parts[0][0], parts[0][1]
+    else:
+        detections, looks = _merge_blocks([p[0] for p in parts], [p[1] for p in parts])
+    if effects:
+        ctx = ChunkContext(cfg, seed, terrain, origin, dwells, poses.b, poses.h, poses.u)
+        for effect in effects:
+            detections, looks = effect(ctx, detections, looks)
+    return dwells, detections, looks, n_eval
 
-    dl, veh, geo, n_eval = _select_pairs(cfg, sched, poses, fleet, vehicle_ids, len(rev_ids))
+
+def _merge_blocks(dets, looks):
+    """Concatenate vehicle blocks and restore (dwell, vehicle) order with consecutive ids."""
+    offset = 0
+    for d, lk in zip(dets, looks):
+        lk["det_id"] = np.where(lk["det_id"] >= 0, lk["det_id"] + offset, -1)
+        d["det_id"] = d["det_id"] + offset
+        offset += len(d["det_id"])
+    det = {k: np.concatenate([d[k] for d in dets]) for k in dets[0]}
+    lk = {k: np.concatenate([x[k] for x in looks]) for k in looks[0]}
+    # blocks are in vehicle order, so a stable sort on the dwell gives (dwell, vehicle)
+    order = np.argsort(lk["dwell_id"], kind="stable")
+    lk = {k: v[order] for k, v in lk.items()}
+    dorder = np.argsort(det["dwell_id"], kind="stable")
+    det = {k: v[dorder] for k, v in det.items()}
+    new_id = np.empty(offset, np.int64)
+    new_id[dorder] = np.arange(offset)
+    det["det_id"] = np.arange(offset, dtype=np.int64)
+    hit = lk["det_id"] >= 0
+    lk["det_id"][hit] = new_id[lk["det_id"][hit]]
+    return det, lk
+
+
+def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_codes,
+                    vehicle_ids, n_rev, poses, dwell_ids):
+    """Detections and looks of some vehicles over the chunk's revisits (chunk-local det ids)."""
+    n_d = sched.n_dwells
+    instant = cfg.dwell_mode == "instant_scan"
+    dl, veh, geo, n_eval = _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev)
     n = len(dl)
     veh = veh.astype(np.int64)
     rng_m, az, el, sin_az, lb = (geo[k] for k in ("range_m", "az", "el", "sin_az", "lb"))
@@ -459,11 +503,7 @@ def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_mode
         "outcome": outcome, "snr_db": snr_db_col, "pd": pd_col, "range_m": rng_m,
         "azimuth_rad": true_az_world, "range_rate_mps": rr, "det_id": det_local,
     }
-    if effects:
-        ctx = ChunkContext(cfg, seed, terrain, origin, dwells, poses.b, poses.h, poses.u)
-        for effect in effects:
-            detections, looks = effect(ctx, detections, looks)
-    return dwells, detections, looks, n_eval
+    return detections, looks, n_eval
 
 
 def _renumber(detections: Table, looks: Table, offset: int) -> None:
@@ -484,7 +524,8 @@ def _renumber(detections: Table, looks: Table, offset: int) -> None:
 def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s: float,
                     origin: frames.Origin, *, effects: Iterable[Effect] = (),
                     chunk_pairs: int = 300_000, workers: int = 1,
-                    stats: Optional[dict] = None) -> Iterator[Tuple[Table, Table, Table]]:
+                    stats: Optional[dict] = None, rcs_models: Optional[RcsModels] = None
+                    ) -> Iterator[Tuple[Table, Table, Table]]:
     """Yield ``(dwells, detections, looks)`` per chunk of revisits, in time order, with run-wide
     ``det_id`` values: the streaming form of :func:`simulate` (bounded memory for big scenes).
 
@@ -493,15 +534,18 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
     platform, terrain and effects must then be safe to call from several threads (read-only).
     """
     sched = scan.build_schedule(cfg, duration_s)
-    rcs_models = RcsModels.from_config(cfg.rcs)
+    if rcs_models is None:
+        rcs_models = RcsModels.from_config(cfg.rcs)
     vehicles = fleet.vehicles
     vehicle_ids = np.asarray(vehicles["vehicle_id"], np.int64)
     codes = rcs_models.type_codes(list(vehicles["vehicle_type"]))
     type_codes = np.zeros(int(vehicle_ids.max()) + 1 if vehicle_ids.size else 0, np.int64)
     type_codes[vehicle_ids] = codes
     effects = tuple(effects)
-    per_rev = max(1, len(vehicle_ids) * (1 if cfg.dwell_mode == "instant_scan" else 3))
+    per_vehicle = 1 if cfg.dwell_mode == "instant_scan" else 3    # pairs per vehicle-revisit
+    per_rev = max(1, len(vehicle_ids) * per_vehicle)
     revs_per_chunk = max(1, chunk_pairs // per_rev)
+    block_vehicles = max(1, chunk_pairs // per_vehicle)
     if workers > 1:  # enough chunks to keep every worker busy
         revs_per_chunk = max(1, min(revs_per_chunk, -(-sched.n_revisits // (2 * workers))))
     chunks = [np.arange(r0, min(sched.n_revisits, r0 + revs_per_chunk))
@@ -515,7 +559,7 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
             return (_dwell_table(cfg, sched, dids, poses, terrain, origin),
                     empty_table(DETECTION_COLUMNS), empty_table(LOOK_COLUMNS), 0)
         return _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_models,
-                               type_codes, vehicle_ids, rev_ids, effects)
+                               type_codes, vehicle_ids, rev_ids, effects, block_vehicles)
 
     n_det = 0
     evaluated = 0
@@ -558,7 +602,8 @@ def _ordered_results(pool, pending, fn, items, depth):
 def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s: float,
              origin: frames.Origin, *, effects: Iterable[Effect] = (),
              chunk_pairs: int = 300_000, workers: int = 1,
-             stats: Optional[dict] = None) -> Dict[str, Table]:
+             stats: Optional[dict] = None, rcs_models: Optional[RcsModels] = None
+             ) -> Dict[str, Table]:
     """Dwells, detections and looks of a run (docs/tables.md).
 
     Parameters
@@ -572,11 +617,14 @@ def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s:
     chunk_pairs : about how many (dwell, target) pairs a chunk holds (bounds working memory)
     workers : chunks computed concurrently in threads (same output for any value)
     stats : if a dict is given, ``pairs_evaluated``, ``n_revisits`` and ``n_dwells`` go in it
+    rcs_models : the RCS models, loaded beforehand (``RcsModels.from_config(cfg.rcs)``, which
+        reads the table files); loaded here when None
     """
     out_d, out_det, out_look = [], [], []
     for dw, det, look in simulate_chunks(cfg, fleet, platform, terrain, seed, duration_s, origin,
                                          effects=effects, chunk_pairs=chunk_pairs,
-                                         workers=workers, stats=stats):
+                                         workers=workers, stats=stats,
+                                         rcs_models=rcs_models):
         out_d.append(dw)
         out_det.append(det)
         out_look.append(look)
