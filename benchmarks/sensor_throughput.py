@@ -9,9 +9,10 @@ measures the sensor stage, not the truth model), flat terrain.
                                                          [--workers 1 2] [--repeat 5]
 
 Wall-clock and CPU times are the best of ``--repeat`` runs (CPU time sums all threads; it is
-the steadier figure on a shared machine).  "pairs" are the (dwell, target) pairs whose geometry is evaluated exactly (the candidates of
-the footprint search, ~2 per vehicle and revisit here); "looks" the /looks rows kept; the
-coarse once-per-revisit pass over every vehicle is included in the time but not counted.
+the steadier figure on a shared machine).  "pairs" are the (dwell, target) pairs whose
+geometry is evaluated exactly (the candidates of the footprint search, ~2 per vehicle and
+revisit here); "looks" the /looks rows kept; the coarse once-per-revisit pass over every
+vehicle is included in the time but not counted.
 """
 from __future__ import annotations
 

@@ -5,7 +5,8 @@ u = sin(azimuth off boresight):
 
 .. math::
 
-    f_\\mathrm{mismatch} = \\exp\\Big[-\\ln 2\\,\\Big(\\frac{u_t - u_b}{\\mathrm{BW}_0/2}\\Big)^2\\Big],
+    f_\\mathrm{mismatch} =
+        \\exp\\Big[-\\ln 2\\,\\Big(\\frac{u_t - u_b}{\\mathrm{BW}_0/2}\\Big)^2\\Big],
     \\qquad \\mathrm{BW}_0 = k\\lambda/d_a ,
 
 so the one-way gain is exactly ½ (−3 dB) where the target is half a beamwidth (BW₀/2 in sine

@@ -1,6 +1,4 @@
 """Scan schedule: beams tile the sector in sine space; dwells are back to back."""
-import math
-
 import numpy as np
 import pytest
 
