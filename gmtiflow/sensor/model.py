@@ -8,9 +8,9 @@ docs/tables.md.  Per chunk of revisits:
 2. **Pairs.**  ``dwell_resolved``: each active vehicle is paired with the dwells of its revisit
    whose beam centre is within ``footprint_beamwidths`` beamwidths of it in sine space
    (|sin az_t − sin az_b| ≤ footprint · kλ/d_a, target in front of the antenna), its truth
-   evaluated at each dwell's own time.  Candidate dwells come from the vehicle's azimuth at the
-   first and last dwell of the scan (plus a margin), then the exact test runs at each dwell's
-   time.  A vehicle in no footprint gets one look row against the nearest dwell (smallest
+   evaluated at each dwell's own time.  Candidate dwells come from every vehicle's position at
+   the scan's middle dwell, widened by the most it can move in sine space during the scan; the
+   exact test then runs at each candidate dwell's time.  A vehicle in no footprint gets one look row against the nearest dwell (smallest
    sine-space distance), outcome ``outside_fov``.  ``instant_scan``: one pair per active vehicle
    and revisit, at the scan's middle instant, beam centred on the target (no scalloping, no scan
    loss beyond cos^{3/2} of the target's own azimuth), booked against the nearest dwell.
@@ -289,6 +289,10 @@ def _first_in_group(group, mask):
     return out
 
 
+_STATE = ("active", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "heading_rad",
+          "invisible")   # the truth columns the sensor reads
+
+
 def _pair_geometry(poses: _Poses, dl, st: Table) -> Dict[str, np.ndarray]:
     """Geometry of (dwell, target) pairs: the pose of chunk-local dwell ``dl`` and the target
     state ``st`` (inactive targets get a harmless position, never NaN)."""
@@ -320,9 +324,9 @@ def _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
         st, d_ref, veh, active, _, s = _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev)
         dl = d_ref - n_d // 2 + _nearest_beam(u_beam_all, s)
         sel = np.flatnonzero(active)
-        n_eval = len(dl)
+        n_eval = len(sel)
         # all dwells of an instant scan share one time and pose: the reference's geometry holds
-        geo = _pair_geometry(poses, d_ref[sel], {k: np.asarray(v)[sel] for k, v in st.items()})
+        geo = _pair_geometry(poses, d_ref[sel], {k: np.asarray(st[k])[sel] for k in _STATE})
         dl, veh = dl[sel], veh[sel]
         sel = np.arange(len(dl))
     else:
