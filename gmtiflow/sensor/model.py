@@ -550,8 +550,10 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
     per_rev = max(1, len(vehicle_ids) * per_vehicle)
     revs_per_chunk = max(1, chunk_pairs // per_rev)
     block_vehicles = max(1, chunk_pairs // per_vehicle)
-    if workers > 1:  # enough chunks to keep every worker busy
-        revs_per_chunk = max(1, min(revs_per_chunk, -(-sched.n_revisits // (2 * workers))))
+    if workers > 1:  # enough chunks to keep every worker busy, none too small to pay off
+        smallest = max(1, -(-50_000 // per_rev))
+        revs_per_chunk = max(smallest, min(revs_per_chunk,
+                                           -(-sched.n_revisits // (2 * workers))))
     chunks = [np.arange(r0, min(sched.n_revisits, r0 + revs_per_chunk))
               for r0 in range(0, sched.n_revisits, revs_per_chunk)]
 

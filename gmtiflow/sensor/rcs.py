@@ -144,7 +144,8 @@ class RcsModels:
                 continue
             sel = np.flatnonzero(type_code == code)
             if sel.size:
-                aspect = aspect_rad(np.asarray(vehicle_heading_rad)[sel],
-                                    np.asarray(los_east)[sel], np.asarray(los_north)[sel])
-                out[sel] = interpolate(aspect, *table)
+                # np.interp with a period wraps the angle itself: no np.mod needed here
+                aspect = (np.asarray(vehicle_heading_rad)[sel]
+                          - np.arctan2(np.asarray(los_east)[sel], np.asarray(los_north)[sel]))
+                out[sel] = np.interp(aspect, table[0], table[1], period=2.0 * np.pi)
         return out
