@@ -224,7 +224,7 @@ class SensorConfig:
             p.append(Problem("revisit_s", f"must be >= the scan time n_dwells * cpi_s = "
                                           f"{n_dwells} * {self.cpi_s} = {scan_s:.4g} s, got "
                                           f"{self.revisit_s!r}"))
-        if "default" not in self.rcs and not self.rcs:
+        if not self.rcs:
             p.append(Problem("rcs", "needs at least one vehicle type (or 'default')"))
         for name, model in self.rcs.items():
             p += schema.prefixed(f"rcs.{name}", model.problems())
