@@ -327,6 +327,7 @@ def _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
         n_eval = len(sel)
         # all dwells of an instant scan share one time and pose: the reference's geometry holds
         geo = _pair_geometry(poses, d_ref[sel], {k: np.asarray(st[k])[sel] for k in _STATE})
+        geo["in_fp"] = geo["lb"] > 0        # the beam is on the target, if it is in front
         dl, veh = dl[sel], veh[sel]
         sel = np.arange(len(dl))
     else:
@@ -337,6 +338,7 @@ def _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
         dist = np.where((geo["lb"] > 0) & active, np.abs(geo["sin_az"] - u_beam_all[dl % n_d]),
                         1e300)
         in_fp = dist <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12)
+        geo["in_fp"] = in_fp
         # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps one
         # row: its first candidate of least sine-space distance (the nearest dwell)
         if group.size:
@@ -355,7 +357,25 @@ def _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     key = dl[sel]
     key = key.astype(np.int16) if len(poses.time_s) < 32_000 else key
     sel = sel[np.argsort(key, kind="stable")]
-    return dl[sel], veh[sel], {k: v[sel] for k, v in geo.items() if k != "active"}, n_eval
+    return dl[sel], veh[sel], _Rows(geo, sel), n_eval
+
+
+class _Rows:
+    """The selected rows of candidate-level columns, gathered only when (and where) used."""
+
+    def __init__(self, columns: Dict[str, np.ndarray], sel: np.ndarray):
+        self.columns, self.sel, self.cache = columns, sel, {}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self.cache:
+            self.cache[name] = self.columns[name][self.sel]
+        return self.cache[name]
+
+    def at(self, name: str, index: np.ndarray) -> np.ndarray:
+        """Column ``name`` at selected rows ``index`` (without gathering the others)."""
+        if name in self.cache:
+            return self.cache[name][index]
+        return self.columns[name][self.sel[index]]
 
 
 def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_models, type_codes,
@@ -413,18 +433,12 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     dl, veh, geo, n_eval = _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev)
     n = len(dl)
     veh = veh.astype(np.int64)
-    rng_m, az, el, sin_az, lb = (geo[k] for k in ("range_m", "az", "el", "sin_az", "lb"))
-    own_rr, rr = geo["own_rr"], geo["rr"]
-    pos_t = (geo["x_m"], geo["y_m"], geo["z_m"])
+    rng_m, az, el, rr = (geo[k] for k in ("range_m", "az", "el", "rr"))
     beam = sched.beam_scan_rad[dl % n_d]
     dwell_id = dwell_ids[dl]
     time_s = poses.time_s[dl]
     true_az_world = _azimuth(geo["los_e"], geo["los_n"])
-    if instant:
-        in_fp = lb > 0
-    else:
-        in_fp = (lb > 0) & (np.abs(sin_az - np.sin(beam))
-                            <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12))
+    in_fp = geo["in_fp"]
 
     # --- visibility: field of view, invisible road, terrain -------------------------------
     outcome = np.full(n, Outcome.OUTSIDE_FOV, np.uint8)
@@ -434,8 +448,12 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     cand = fov & ~invisible
     clear = np.zeros(n, bool)
     ci = np.flatnonzero(cand)
-    clear[ci] = visibility.terrain_clear(terrain, antenna.take(poses.pos, dl[ci]),
-                                         antenna.take(pos_t, ci), cfg.los_step_m)
+    if not getattr(terrain, "flat", False):
+        clear[ci] = visibility.terrain_clear(terrain, antenna.take(poses.pos, dl[ci]),
+                                             tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m")),
+                                             cfg.los_step_m)
+    else:
+        clear[ci] = True
     outcome[cand & ~clear] = Outcome.TERRAIN
 
     # --- SNR and the Swerling-I draw for the visible pairs -------------------------------
@@ -444,12 +462,13 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     pd_col = np.zeros(n)
     det_local = np.full(n, -1, np.int64)
     scan_angle = az[vis] if instant else beam[vis]
-    f_mis = 1.0 if instant else gain.mismatch(sin_az[vis], np.sin(beam[vis]), cfg.beamwidth_sine)
+    f_mis = 1.0 if instant else gain.mismatch(geo.at("sin_az", vis), np.sin(beam[vis]),
+                                              cfg.beamwidth_sine)
     g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis)
-    g_r = g_t * gain.stap_notch(own_rr[vis], cfg.mdv_mps, cfg.blind_speed_mps) if cfg.stap \
-        else g_t
-    rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo["heading_rad"][vis], geo["los_e"][vis],
-                                geo["los_n"][vis])
+    own_rr = geo.at("own_rr", vis) if cfg.stap else None              # ṙ − ṙ_MLC
+    g_r = g_t * gain.stap_notch(own_rr, cfg.mdv_mps, cfg.blind_speed_mps) if cfg.stap else g_t
+    rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo.at("heading_rad", vis),
+                                geo.at("los_e", vis), geo.at("los_n", vis))
     s_db = snr.snr_db(cfg, rng_m[vis], g_t, g_r, rcs_v)
     s_lin = snr.db_to_linear(s_db)
     lpd = detect.log_pd(s_lin, cfg.pfa)
@@ -459,7 +478,7 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     pd_col[vis] = np.exp(lpd)
     miss = vis[~hit]
     if cfg.stap:
-        blind = np.abs(gain.blind_offset(own_rr[miss], cfg.blind_speed_mps)) < cfg.mdv_mps
+        blind = np.abs(gain.blind_offset(own_rr[~hit], cfg.blind_speed_mps)) < cfg.mdv_mps
     else:
         blind = np.zeros(miss.size, bool)
     outcome[miss] = np.where(blind, Outcome.DOPPLER_BLIND, Outcome.PD_MISS)
