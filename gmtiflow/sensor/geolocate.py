@@ -69,3 +69,38 @@ def geolocate(platform_xyz, range_m, az_rad, b, h, u, terrain, iterations: int =
                 break
             ground = new_ground
     return p, np.arctan2(se, ce), reached
+
+
+def geolocate_world_azimuth(platform_xyz, range_m, azimuth_rad, terrain, iterations: int = 8,
+                            tol_m: float = 0.1):
+    """Ground points at slant range R and *world* azimuth A (clockwise from north) from the
+    platform: ``p = P + (g sin A, g cos A, h − P_z)``, g = √(R² − (P_z − h)²), iterated on
+    ``terrain.height_at`` like :func:`geolocate`.  The inverse of a detection's reported
+    ``range_m``/``azimuth_rad`` (for re-geolocating merged or range-folded reports).
+
+    Returns ``((x, y, z), reached)``; where R is shorter than the height above the ground the
+    point is put at nadir and ``reached`` is False.
+    """
+    px, py, pz = (np.asarray(c, float) for c in platform_xyz)
+    range_m = np.asarray(range_m, float)
+    sa, ca = np.sin(azimuth_rad), np.cos(azimuth_rad)
+    ground = np.broadcast_to(np.nan_to_num(np.asarray(terrain.height_at(px, py), float)),
+                             range_m.shape)
+
+    def step(h):
+        dz = pz - h
+        g2 = range_m * range_m - dz * dz
+        g = np.sqrt(np.maximum(g2, 0.0))
+        return (px + g * sa, py + g * ca, np.broadcast_to(h, range_m.shape).astype(float)), \
+            g2 >= 0
+
+    p, reached = step(ground)
+    if not getattr(terrain, "flat", False):
+        for _ in range(iterations):
+            new_ground = np.asarray(terrain.height_at(p[0], p[1]), float)
+            new_ground = np.where(np.isfinite(new_ground), new_ground, ground)
+            p, reached = step(new_ground)
+            if np.all(np.abs(new_ground - ground) < tol_m):
+                break
+            ground = new_ground
+    return p, reached

@@ -82,3 +82,20 @@ def test_geolocation_inverts_the_antenna_angles_for_any_attitude(heading, bank, 
     assert el_est[0] == pytest.approx(el[0], abs=1e-9)
     assert p[0][0] == pytest.approx(x, abs=1e-6 * rng_m[0])
     assert p[1][0] == pytest.approx(y, abs=1e-6 * rng_m[0])
+
+
+def test_world_azimuth_geolocation_on_sloped_terrain_and_too_short_ranges():
+    terrain = SlopedTerrain()
+    xy = np.array([(0.0, 0.0), (2500.0, 3000.0), (-3000.0, -2000.0)])
+    z = terrain.height_at(xy[:, 0], xy[:, 1])
+    plat = (np.zeros(3), np.full(3, -30_000.0), np.full(3, 6_000.0))
+    dx, dy, dz = xy[:, 0] - plat[0], xy[:, 1] - plat[1], z - plat[2]
+    rng_m = np.sqrt(dx * dx + dy * dy + dz * dz)
+    az = np.arctan2(dx, dy)
+    p, reached = geolocate.geolocate_world_azimuth(plat, rng_m, az, terrain)
+    assert np.all(reached)
+    assert np.allclose(p[0], xy[:, 0], atol=0.5) and np.allclose(p[1], xy[:, 1], atol=0.5)
+    with np.errstate(all="raise"):
+        p, reached = geolocate.geolocate_world_azimuth(plat, np.full(3, 100.0), az,
+                                                       FlatTerrain())
+    assert not np.any(reached) and np.allclose(p[0], 0.0)

@@ -424,3 +424,37 @@ def test_other_settings_run_end_to_end(change):
     oc = out["looks"]["outcome"]
     assert np.any(oc == Outcome.DETECTED) and np.any(oc == Outcome.OUTSIDE_FOV)
     assert np.all(np.isfinite(out["detections"]["x_m"]))
+
+
+def test_chunk_context_sees_the_scene_as_the_sensor_does():
+    """The effects' helpers: geolocation inverts the reported (range, azimuth), antenna angles
+    and FoV agree with the looks, the dwell cells tile the sector, ground range rates."""
+    cfg = SensorConfig()
+    seen = []
+
+    def check(ctx, det, looks):
+        x, y, z = ctx.geolocate(det["dwell_id"], det["range_m"], det["azimuth_rad"])[0]
+        assert np.allclose(x, det["x_m"], atol=1e-6) and np.allclose(y, det["y_m"], atol=1e-6)
+        assert np.allclose(z, det["z_m"], atol=1e-6)
+        rng_m, az, el = ctx.antenna_angles(det["dwell_id"], det["x_m"], det["y_m"], det["z_m"])
+        assert np.allclose(rng_m, det["range_m"], rtol=1e-12)
+        d = ctx.dwells["dwell_id"]
+        lo, hi = ctx.dwell_cell_rad(d)
+        n_d = scan.n_dwells(cfg)
+        assert lo[0] == pytest.approx(math.radians(cfg.az_min_deg))
+        assert hi[n_d - 1] == pytest.approx(math.radians(cfg.az_max_deg))
+        assert np.allclose(hi[:n_d - 1], lo[1:n_d])
+        # a stopped target moves with the ground: its true range rate is the clutter's
+        st = fleet.state_at(det["time_s"], det["truth_id"])
+        mlc = ctx.range_rate_of_ground(det["dwell_id"], st["x_m"], st["y_m"], st["z_m"])
+        assert np.allclose(mlc, det["true_range_rate_mps"], atol=1e-9)
+        assert np.all(ctx.in_fov(det["dwell_id"], st["x_m"], st["y_m"], st["z_m"]))
+        assert np.all(ctx.in_fov(det["dwell_id"], st["x_m"], st["y_m"]))
+        far = ctx.in_fov(d, ctx.dwells["platform_x_m"], ctx.dwells["platform_y_m"] + 50_000.0)
+        assert not np.any(far)
+        seen.append(len(det["det_id"]))
+        return det, looks
+
+    fleet = grid_fleet(200, speed=0.0)
+    run(NO_STAP, fleet, duration_s=11.0, effects=[check])
+    assert sum(seen) > 0
