@@ -12,7 +12,7 @@ Range and cross-field rules live in :meth:`SensorConfig.problems` (DESIGN's conf
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Dict, List, Optional
 
 from gmtiflow import schema
@@ -48,6 +48,11 @@ class RcsConfig:
             out.append(Problem("rcs_dbsm", f"must be a finite number in [-60, 80] dBsm, got "
                                            f"{self.rcs_dbsm!r}"))
         return out
+
+
+def _value(x):
+    """The value of an Enum member, anything else unchanged."""
+    return getattr(x, "value", x)
 
 
 def _default_rcs() -> Dict[str, RcsConfig]:
@@ -161,6 +166,11 @@ class SensorConfig:
             return 1.0
         return self.cpi_s / self.pri_s
 
+    def normalised(self) -> "SensorConfig":
+        """A copy with ``dwell_mode``/``snr_form`` as plain strings (an Enum, e.g. the fidelity
+        group's ``DwellMode``, is accepted and converted by its value)."""
+        return replace(self, dwell_mode=_value(self.dwell_mode), snr_form=_value(self.snr_form))
+
     # --- validation -------------------------------------------------------------------------
     def problems(self) -> List[Problem]:
         """Range and cross-field checks (keys relative to the sensor group)."""
@@ -188,10 +198,10 @@ class SensorConfig:
         p += schema.ordered(self, "az_min_deg", "az_max_deg", strict=False)
         p += schema.ordered(self, "el_min_deg", "el_max_deg")
         p += schema.ordered(self, "range_min_m", "range_max_m")
-        if self.snr_form not in SNR_FORMS:
+        if _value(self.snr_form) not in SNR_FORMS:
             p.append(Problem("snr_form", f"must be one of {', '.join(SNR_FORMS)}, got "
                                          f"{self.snr_form!r}"))
-        if self.dwell_mode not in DWELL_MODES:
+        if _value(self.dwell_mode) not in DWELL_MODES:
             p.append(Problem("dwell_mode", f"must be one of {', '.join(DWELL_MODES)}, got "
                                            f"{self.dwell_mode!r}"))
         if p:  # the cross-field checks below need sane numbers

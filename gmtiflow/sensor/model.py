@@ -612,6 +612,7 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
     output is identical to ``workers=1`` because every draw is counter-based.  The fleet,
     platform, terrain and effects must then be safe to call from several threads (read-only).
     """
+    cfg = cfg.normalised()
     sched = scan.build_schedule(cfg, duration_s)
     if rcs_models is None:
         rcs_models = RcsModels.from_config(cfg.rcs)

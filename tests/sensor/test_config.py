@@ -72,3 +72,15 @@ def test_derived_quantities():
     assert cfg.range_resolution_m == pytest.approx(299792458 / 1e8)
     assert cfg.integration_gain == pytest.approx(128.0)
     assert cfg.blind_speed_mps == pytest.approx(cfg.wavelength_m * 4000 / 2)
+
+
+def test_enum_modes_from_the_fidelity_group_are_accepted():
+    import enum
+
+    class DwellMode(enum.Enum):
+        dwell_resolved = "dwell_resolved"
+        instant_scan = "instant_scan"
+
+    cfg = SensorConfig(dwell_mode=DwellMode.instant_scan)
+    assert cfg.problems() == []
+    assert cfg.normalised().dwell_mode == "instant_scan"

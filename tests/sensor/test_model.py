@@ -458,3 +458,13 @@ def test_chunk_context_sees_the_scene_as_the_sensor_does():
     fleet = grid_fleet(200, speed=0.0)
     run(NO_STAP, fleet, duration_s=11.0, effects=[check])
     assert sum(seen) > 0
+
+
+def test_an_enum_dwell_mode_selects_the_instant_scan():
+    import enum
+
+    class DwellMode(enum.Enum):
+        instant_scan = "instant_scan"
+
+    lk = run(replace(SensorConfig(), dwell_mode=DwellMode.instant_scan), grid_fleet(50))["looks"]
+    assert len(lk["vehicle_id"]) == 50
