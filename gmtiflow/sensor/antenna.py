@@ -1,0 +1,78 @@
+"""Antenna frame and target angles in it (DESIGN §5 "Antenna frame").
+
+Vectors are 3-tuples of equal-shape arrays ``(east, north, up)`` (structure of arrays: fast
+column arithmetic over millions of pairs).
+
+Body frame, in world ENU, from the platform's heading ψ (clockwise from north), flight-path
+pitch θ (+ nose up) and bank φ (+ right wing down, STANAG 4607 D23):
+
+* forward  f = (sin ψ cos θ, cos ψ cos θ, sin θ)
+* right    r = (cos ψ, −sin ψ, 0)                     (level, before the roll)
+* up       u = r × f
+
+Roll by φ about ``f`` (right wing down tilts ``r`` below the horizon and ``u`` towards the right):
+``r' = cos φ r − sin φ u``, ``u' = sin φ r + cos φ u``.  Then turn by the mounting angle φ_d
+(``mount_deg``, clockwise seen from above, in the rolled f–r' plane):
+
+* boresight  b = cos φ_d f + sin φ_d r'    (φ_d = 90°: right side-looking)
+* scan axis  h = −sin φ_d f + cos φ_d r'   (+ scan angles turn clockwise seen from above)
+* antenna up u'
+
+For a unit line of sight ℓ the target's **azimuth** (scan angle off boresight) is
+``atan2(ℓ·h, ℓ·b)`` and its **elevation** ``atan2(ℓ·u', |(ℓ·b, ℓ·h)|)`` (+ up).  Banking towards
+the antenna side raises a target's elevation in this frame by the bank angle (the beam points
+further down), so fixed elevation limits move the covered ground strip towards the platform.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def dot(a, b):
+    """Dot product of two vectors given as 3-tuples of arrays."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def take(v, index):
+    """Rows ``index`` of each component of a vector."""
+    return (v[0][index], v[1][index], v[2][index])
+
+
+def antenna_axes(heading_rad, pitch_rad, bank_rad, mount_rad):
+    """Boresight ``b``, scan axis ``h`` and antenna up ``u`` (3-tuples of arrays, ENU)."""
+    psi, theta, phi = np.broadcast_arrays(np.asarray(heading_rad, float),
+                                          np.asarray(pitch_rad, float),
+                                          np.asarray(bank_rad, float))
+    sp, cp = np.sin(psi), np.cos(psi)
+    st, ct = np.sin(theta), np.cos(theta)
+    f = (sp * ct, cp * ct, st)
+    r = (cp, -sp, np.zeros_like(sp))
+    u = (r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0])
+    sb, cb = np.sin(phi), np.cos(phi)
+    r1 = tuple(cb * r[k] - sb * u[k] for k in range(3))
+    u1 = tuple(sb * r[k] + cb * u[k] for k in range(3))
+    sm, cm = np.sin(mount_rad), np.cos(mount_rad)
+    b = tuple(cm * f[k] + sm * r1[k] for k in range(3))
+    h = tuple(-sm * f[k] + cm * r1[k] for k in range(3))
+    return b, h, u1
+
+
+def target_angles(los, b, h, u):
+    """Azimuth, elevation (rad) and sine-space azimuth of unit LOS vectors.
+
+    Returns ``(az, el, sin_az, cos_boresight)`` where ``sin_az = sin(az)`` (the beam's sine-space
+    coordinate) and ``cos_boresight = ℓ·b`` (> 0: in front of the antenna).
+    """
+    lb, lh, lu = dot(los, b), dot(los, h), dot(los, u)
+    horiz = np.hypot(lb, lh)
+    az = np.arctan2(lh, lb)
+    el = np.arctan2(lu, horiz)
+    sin_az = np.divide(lh, horiz, out=np.zeros_like(lh), where=horiz > 0)
+    return az, el, sin_az, lb
+
+
+def direction(az_rad, el_rad, b, h, u):
+    """Unit ENU vector at antenna azimuth/elevation (inverse of :func:`target_angles`)."""
+    ce = np.cos(el_rad)
+    ca, sa, se = ce * np.cos(az_rad), ce * np.sin(az_rad), np.sin(el_rad)
+    return tuple(ca * b[k] + sa * h[k] + se * u[k] for k in range(3))

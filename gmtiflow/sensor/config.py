@@ -1,0 +1,241 @@
+"""Configuration schema of the GMTI sensor model (paper Table 1, DESIGN §5).
+
+Every parameter of the paper's Table 1 is a field here, with its unit in the name.  Angles are
+degrees in the config (radians in code).  Sensor angles are in the antenna frame
+(:mod:`gmtiflow.sensor.antenna`): azimuth = scan angle off boresight, + clockwise seen from above;
+elevation + up, measured in the rolled antenna frame (so a target below the horizon of a level
+antenna has a negative elevation).
+
+Range and cross-field rules live in :meth:`SensorConfig.problems` (DESIGN's config conventions);
+:func:`gmtiflow.config.validate` turns them into one :class:`~gmtiflow.errors.ConfigError`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Dict, List, Optional
+
+from gmtiflow import schema
+from gmtiflow.schema import Problem
+
+#: Speed of light in vacuum (m/s).
+C_MPS = 299_792_458.0
+#: Boltzmann constant (J/K).
+K_BOLTZMANN = 1.380649e-23
+
+SNR_FORMS = ("radar_equation", "reference")
+DWELL_MODES = ("dwell_resolved", "instant_scan")
+
+
+@dataclass
+class RcsConfig:
+    """Radar cross-section model of one vehicle type.
+
+    Either a constant ``rcs_dbsm`` or, when ``table`` is set, an aspect-angle table: a CSV file
+    with the header ``aspect_deg,rcs_dbsm`` and one row per angle in [0, 360), strictly
+    increasing, interpolated linearly and periodically (:mod:`gmtiflow.sensor.rcs`).  A relative
+    ``table`` path is looked up first from the working directory, then inside the packaged
+    ``conf/`` directory (e.g. ``sensor/rcs/truck.csv``).
+    """
+
+    rcs_dbsm: float = 10.0
+    table: Optional[str] = None
+
+    def problems(self) -> List[Problem]:
+        out = []
+        if not (isinstance(self.rcs_dbsm, (int, float)) and math.isfinite(self.rcs_dbsm)
+                and -60.0 <= self.rcs_dbsm <= 80.0):
+            out.append(Problem("rcs_dbsm", f"must be a finite number in [-60, 80] dBsm, got "
+                                           f"{self.rcs_dbsm!r}"))
+        return out
+
+
+def _value(x):
+    """The value of an Enum member, anything else unchanged."""
+    return getattr(x, "value", x)
+
+
+def _default_rcs() -> Dict[str, RcsConfig]:
+    return {
+        "default": RcsConfig(rcs_dbsm=10.0),
+        "car": RcsConfig(rcs_dbsm=10.0),
+        "truck": RcsConfig(rcs_dbsm=20.0, table="sensor/rcs/truck.csv"),
+    }
+
+
+@dataclass
+class SensorConfig:
+    """One airborne GMTI radar (paper Table 1 with DESIGN §5's corrections).
+
+    Defaults are a plausible X-band side-looking airborne GMTI (the ``default`` preset).
+
+    Not ``frozen``: OmegaConf 2.3 marks frozen dataclass nodes read-only, and then a nested
+    override (``sensor.peak_power_w=...`` inside the app config, or any ``rcs.<type>`` entry)
+    fails at compose time.  Treat instances as immutable (use ``dataclasses.replace``).
+    """
+
+    # --- transmitter / receiver (radar equation, DESIGN §5.3) --------------------------------
+    freq_hz: float = 10.0e9                 # carrier frequency ν (λ = c/ν)
+    peak_power_w: float = 500.0             # P_S, peak transmit power
+    pulse_width_s: float = 5.0e-6           # τ, uncompressed pulse duration
+    pri_s: Optional[float] = 250.0e-6       # PRI; None = no ambiguity, no blind speeds
+    cpi_s: float = 0.032                    # coherent processing interval (per dwell)
+    bandwidth_hz: float = 50.0e6            # B, waveform bandwidth (range resolution c/2B)
+    noise_figure_db: float = 4.0            # F
+    system_temp_k: float = 290.0            # T_0
+    losses_db: float = 12.0                 # L, total system and processing losses
+    integration_gain_db: Optional[float] = None  # G_I; None = CPI/PRI (needs pri_s)
+
+    # --- antenna (eq. 7-9) ------------------------------------------------------------------
+    n_elements: int = 1000                  # N, array elements
+    aperture_m: float = 1.2                 # d_a, horizontal aperture
+    beamwidth_factor: float = 1.0           # k in BW = k λ / d_a
+    mount_deg: float = 90.0                 # φ_d, boresight vs flight direction; 90 = right
+    stap: bool = True                       # apply the STAP clutter notch (eq. 10)
+    mdv_mps: float = 2.0                    # v_MDV, minimum detectable (radial) velocity
+
+    # --- field of view (antenna frame) and scan ---------------------------------------------
+    az_min_deg: float = -10.0               # scan sector, + clockwise from boresight
+    az_max_deg: float = 10.0
+    el_min_deg: float = -30.0               # elevation limits in the rolled antenna frame
+    el_max_deg: float = -3.0
+    range_min_m: float = 20_000.0           # slant range limits
+    range_max_m: float = 36_000.0
+    revisit_s: float = 5.0                  # time between scan starts
+    dwell_spacing_beamwidths: float = 1.0   # beam-centre spacing, in (sine-space) beamwidths
+    dwell_mode: str = "dwell_resolved"      # dwell_resolved | instant_scan
+    footprint_beamwidths: float = 1.0       # pair a target with beams this close (sine space)
+    los_step_m: float = 30.0                # terrain line-of-sight ray step
+
+    # --- detection (eq. 6, 11) --------------------------------------------------------------
+    pfa: float = 1.0e-6                     # false-alarm probability per resolution cell
+    snr_form: str = "radar_equation"        # radar_equation | reference
+    snr0_db: float = 20.0                   # reference form: SNR_0 at R_0 for σ_0
+    r0_m: float = 30_000.0
+    rcs0_dbsm: float = 10.0
+
+    # --- measurement errors (eq. 12-17, DESIGN §5.5 floors) ----------------------------------
+    gamma_az: float = 0.44                  # ≈ 1/(1.6 √2), monopulse
+    gamma_r: float = 0.71                   # ≈ 1/√2
+    gamma_rr: float = 0.71
+    kappa_az: float = 1.0                   # floor κ BW/10, κ typically 1..2
+    kappa_r: float = 1.0
+    kappa_rr: float = 1.0
+    range_resolution_factor: float = 1.0    # k in Δr = k c / 2B
+    k_d: float = 1.0                        # k_D in Δf_D = k_D / CPI
+
+    # --- radar cross sections ---------------------------------------------------------------
+    rcs: Dict[str, RcsConfig] = field(default_factory=_default_rcs)
+
+    # --- derived quantities -----------------------------------------------------------------
+    @property
+    def wavelength_m(self) -> float:
+        return C_MPS / self.freq_hz
+
+    @property
+    def beamwidth_sine(self) -> float:
+        """Broadside 3-dB beamwidth k λ / d_a, in sine space (= radians at broadside)."""
+        return self.beamwidth_factor * self.wavelength_m / self.aperture_m
+
+    @property
+    def range_resolution_m(self) -> float:
+        """Δr = k c / (2B)."""
+        return self.range_resolution_factor * C_MPS / (2.0 * self.bandwidth_hz)
+
+    @property
+    def doppler_cell_hz(self) -> float:
+        """Δf_D = k_D / CPI."""
+        return self.k_d / self.cpi_s
+
+    @property
+    def blind_speed_mps(self) -> Optional[float]:
+        """First blind speed λ·PRF/2 (the notch repeats with this period); None without PRI."""
+        return None if self.pri_s is None else self.wavelength_m / (2.0 * self.pri_s)
+
+    @property
+    def wrap_velocity_mps(self) -> float:
+        """Unambiguous range-rate half-interval λ·PRF/4; NaN without PRI."""
+        return math.nan if self.pri_s is None else self.wavelength_m / (4.0 * self.pri_s)
+
+    @property
+    def integration_gain(self) -> float:
+        """G_I (linear): the configured value, else CPI/PRI (number of pulses)."""
+        if self.integration_gain_db is not None:
+            return 10.0 ** (self.integration_gain_db / 10.0)
+        if self.pri_s is None:
+            return 1.0
+        return self.cpi_s / self.pri_s
+
+    def normalised(self) -> "SensorConfig":
+        """A copy with ``dwell_mode``/``snr_form`` as plain strings (an Enum, e.g. the fidelity
+        group's ``DwellMode``, is accepted and converted by its value)."""
+        return replace(self, dwell_mode=_value(self.dwell_mode), snr_form=_value(self.snr_form))
+
+    # --- validation -------------------------------------------------------------------------
+    def problems(self) -> List[Problem]:
+        """Range and cross-field checks (keys relative to the sensor group)."""
+        p: List[Problem] = []
+        p += schema.positive(self, "freq_hz", "peak_power_w", "pulse_width_s", "pri_s", "cpi_s",
+                             "bandwidth_hz", "system_temp_k", "aperture_m", "beamwidth_factor",
+                             "revisit_s", "dwell_spacing_beamwidths", "footprint_beamwidths",
+                             "los_step_m", "r0_m", "gamma_az", "gamma_r", "gamma_rr",
+                             "kappa_az", "kappa_r", "kappa_rr", "range_resolution_factor", "k_d")
+        p += schema.non_negative(self, "noise_figure_db", "losses_db", "mdv_mps", "range_min_m")
+        p += schema.positive(self, "range_max_m")
+        if not (isinstance(self.n_elements, int) and not isinstance(self.n_elements, bool)
+                and self.n_elements >= 1):
+            p.append(Problem("n_elements", f"must be an integer >= 1, got {self.n_elements!r}"))
+        for name in ("integration_gain_db", "snr0_db", "rcs0_dbsm", "mount_deg"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)):
+                p.append(Problem(name, f"must be a finite number, got {value!r}"))
+        p += schema.in_range(self, "mount_deg", -180.0, 180.0)
+        p += schema.in_range(self, "az_min_deg", -89.0, 89.0)
+        p += schema.in_range(self, "az_max_deg", -89.0, 89.0)
+        p += schema.in_range(self, "el_min_deg", -90.0, 90.0)
+        p += schema.in_range(self, "el_max_deg", -90.0, 90.0)
+        p += schema.in_range(self, "pfa", 0.0, 1.0, lo_open=True, hi_open=True)
+        p += schema.ordered(self, "az_min_deg", "az_max_deg", strict=False)
+        p += schema.ordered(self, "el_min_deg", "el_max_deg")
+        p += schema.ordered(self, "range_min_m", "range_max_m")
+        if _value(self.snr_form) not in SNR_FORMS:
+            p.append(Problem("snr_form", f"must be one of {', '.join(SNR_FORMS)}, got "
+                                         f"{self.snr_form!r}"))
+        if _value(self.dwell_mode) not in DWELL_MODES:
+            p.append(Problem("dwell_mode", f"must be one of {', '.join(DWELL_MODES)}, got "
+                                           f"{self.dwell_mode!r}"))
+        if p:  # the cross-field checks below need sane numbers
+            return p
+        if self.pri_s is not None:
+            if self.pri_s <= self.pulse_width_s:
+                p.append(Problem("pri_s", f"must be > pulse_width_s ({self.pulse_width_s!r}), "
+                                          f"got {self.pri_s!r}"))
+            if self.cpi_s < self.pri_s:
+                p.append(Problem("cpi_s", f"must hold at least one PRI ({self.pri_s!r} s), got "
+                                          f"{self.cpi_s!r}"))
+        if self.pulse_width_s * self.bandwidth_hz < 1.0:
+            p.append(Problem("bandwidth_hz", f"time-bandwidth product pulse_width_s * "
+                                             f"bandwidth_hz must be >= 1, got "
+                                             f"{self.pulse_width_s * self.bandwidth_hz!r}"))
+        if self.beamwidth_sine >= 1.0:
+            p.append(Problem("aperture_m", f"beamwidth k*lambda/d_a = {self.beamwidth_sine:.3g} "
+                                           "must be < 1 (aperture too small for the wavelength)"))
+        if self.stap and self.mdv_mps <= 0:
+            p.append(Problem("mdv_mps", f"must be > 0 when stap is true, got {self.mdv_mps!r}"))
+        if self.stap and self.blind_speed_mps is not None and \
+                self.mdv_mps >= self.blind_speed_mps / 2.0:
+            p.append(Problem("mdv_mps", f"must be < half the blind speed lambda*PRF/2 "
+                                        f"({self.blind_speed_mps / 2.0:.4g} m/s), got "
+                                        f"{self.mdv_mps!r}"))
+        from gmtiflow.sensor import scan  # local import: scan imports this module
+        n_dwells = scan.n_dwells(self)
+        scan_s = n_dwells * self.cpi_s
+        if self.revisit_s < scan_s:
+            p.append(Problem("revisit_s", f"must be >= the scan time n_dwells * cpi_s = "
+                                          f"{n_dwells} * {self.cpi_s} = {scan_s:.4g} s, got "
+                                          f"{self.revisit_s!r}"))
+        if not self.rcs:
+            p.append(Problem("rcs", "needs at least one vehicle type (or 'default')"))
+        for name, model in self.rcs.items():
+            p += schema.prefixed(f"rcs.{name}", model.problems())
+        return p
