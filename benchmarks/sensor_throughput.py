@@ -91,7 +91,6 @@ def main() -> None:
 
     cfg = OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(SensorConfig),
                                               OmegaConf.load(CONF)))
-    cfg.dwell_mode = args.mode
     origin = frames.Origin(48.0, 11.0, 0.0)
     platform = StraightPlatform(args.duration)
     print(f"sensor preset default ({args.mode}), {args.duration:g} s scene, "
@@ -106,7 +105,7 @@ def main() -> None:
                 stats = {}
                 t0, c0 = time.perf_counter(), time.process_time()
                 out = simulate(cfg, fleet, platform, FlatTerrain(), 1, args.duration, origin,
-                               workers=w, stats=stats)
+                               workers=w, stats=stats, dwell_mode=args.mode)
                 best = min(best, time.perf_counter() - t0)
                 cpu = min(cpu, time.process_time() - c0)
             pairs = stats["pairs_evaluated"]

@@ -24,7 +24,6 @@ C_MPS = 299_792_458.0
 K_BOLTZMANN = 1.380649e-23
 
 SNR_FORMS = ("radar_equation", "reference")
-DWELL_MODES = ("dwell_resolved", "instant_scan")
 
 
 @dataclass
@@ -103,9 +102,7 @@ class SensorConfig:
     range_max_m: float = 36_000.0
     revisit_s: float = 5.0                  # time between scan starts
     dwell_spacing_beamwidths: float = 1.0   # beam-centre spacing, in (sine-space) beamwidths
-    dwell_mode: str = "dwell_resolved"      # dwell_resolved | instant_scan
     footprint_beamwidths: float = 1.0       # pair a target with beams this close (sine space)
-    los_step_m: float = 30.0                # terrain line-of-sight ray step
 
     # --- detection (eq. 6, 11) --------------------------------------------------------------
     pfa: float = 1.0e-6                     # false-alarm probability per resolution cell
@@ -167,9 +164,8 @@ class SensorConfig:
         return self.cpi_s / self.pri_s
 
     def normalised(self) -> "SensorConfig":
-        """A copy with ``dwell_mode``/``snr_form`` as plain strings (an Enum, e.g. the fidelity
-        group's ``DwellMode``, is accepted and converted by its value)."""
-        return replace(self, dwell_mode=_value(self.dwell_mode), snr_form=_value(self.snr_form))
+        """A copy with ``snr_form`` as a plain string (an Enum is accepted by its value)."""
+        return replace(self, snr_form=_value(self.snr_form))
 
     # --- validation -------------------------------------------------------------------------
     def problems(self) -> List[Problem]:
@@ -178,7 +174,7 @@ class SensorConfig:
         p += schema.positive(self, "freq_hz", "peak_power_w", "pulse_width_s", "pri_s", "cpi_s",
                              "bandwidth_hz", "system_temp_k", "aperture_m", "beamwidth_factor",
                              "revisit_s", "dwell_spacing_beamwidths", "footprint_beamwidths",
-                             "los_step_m", "r0_m", "gamma_az", "gamma_r", "gamma_rr",
+                             "r0_m", "gamma_az", "gamma_r", "gamma_rr",
                              "kappa_az", "kappa_r", "kappa_rr", "range_resolution_factor", "k_d")
         p += schema.non_negative(self, "noise_figure_db", "losses_db", "mdv_mps", "range_min_m")
         p += schema.positive(self, "range_max_m")
@@ -201,9 +197,6 @@ class SensorConfig:
         if _value(self.snr_form) not in SNR_FORMS:
             p.append(Problem("snr_form", f"must be one of {', '.join(SNR_FORMS)}, got "
                                          f"{self.snr_form!r}"))
-        if _value(self.dwell_mode) not in DWELL_MODES:
-            p.append(Problem("dwell_mode", f"must be one of {', '.join(DWELL_MODES)}, got "
-                                           f"{self.dwell_mode!r}"))
         if p:  # the cross-field checks below need sane numbers
             return p
         if self.pri_s is not None:

@@ -376,7 +376,7 @@ def _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     and the number of (dwell, target) pairs evaluated."""
     n_d = sched.n_dwells
     u_beam_all = np.sin(sched.beam_scan_rad)
-    if cfg.dwell_mode == "instant_scan":
+    if sched.instant:
         st, d_ref, veh, active, _, s = _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev)
         dl = d_ref - n_d // 2 + _nearest_beam(u_beam_all, s)
         sel = np.flatnonzero(active)
@@ -435,7 +435,7 @@ class _Rows:
 
 
 def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_models, type_codes,
-                    vehicle_ids, rev_ids, effects, block_vehicles):
+                    vehicle_ids, rev_ids, effects, block_vehicles, los_step_m):
     """One chunk of whole revisits; vehicles in blocks of ``block_vehicles`` (bounded working
     memory for big fleets), merged back into (dwell, vehicle) order before the effects, which
     need every detection of a dwell."""
@@ -445,7 +445,7 @@ def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_mode
     dwells = _dwell_table(cfg, sched, dwell_ids, poses, terrain, origin)
     parts = [_evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_codes,
                              vehicle_ids[v0:v0 + block_vehicles], len(rev_ids), poses,
-                             dwell_ids)
+                             dwell_ids, los_step_m)
              for v0 in range(0, len(vehicle_ids), block_vehicles)]
     n_eval = sum(p[2] for p in parts)
     if len(parts) == 1:
@@ -482,10 +482,10 @@ def _merge_blocks(dets, looks):
 
 
 def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_codes,
-                    vehicle_ids, n_rev, poses, dwell_ids):
+                    vehicle_ids, n_rev, poses, dwell_ids, los_step_m):
     """Detections and looks of some vehicles over the chunk's revisits (chunk-local det ids)."""
     n_d = sched.n_dwells
-    instant = cfg.dwell_mode == "instant_scan"
+    instant = sched.instant
     dl, veh, geo, n_eval = _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev)
     n = len(dl)
     veh = veh.astype(np.int64)
@@ -507,7 +507,7 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     if not getattr(terrain, "flat", False):
         clear[ci] = visibility.terrain_clear(terrain, antenna.take(poses.pos, dl[ci]),
                                              tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m")),
-                                             cfg.los_step_m)
+                                             los_step_m)
     else:
         clear[ci] = True
     outcome[cand & ~clear] = Outcome.TERRAIN
@@ -602,6 +602,7 @@ def _renumber(detections: Table, looks: Table, offset: int) -> None:
 
 def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s: float,
                     origin: frames.Origin, *, effects: Iterable[Effect] = (),
+                    dwell_mode="dwell_resolved", los_step_m: float = 30.0,
                     chunk_pairs: int = 300_000, workers: int = 1,
                     stats: Optional[dict] = None, rcs_models: Optional[RcsModels] = None
                     ) -> Iterator[Tuple[Table, Table, Table]]:
@@ -613,7 +614,7 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
     platform, terrain and effects must then be safe to call from several threads (read-only).
     """
     cfg = cfg.normalised()
-    sched = scan.build_schedule(cfg, duration_s)
+    sched = scan.build_schedule(cfg, duration_s, dwell_mode)
     if rcs_models is None:
         rcs_models = RcsModels.from_config(cfg.rcs)
     vehicles = fleet.vehicles
@@ -622,7 +623,7 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
     type_codes = np.zeros(int(vehicle_ids.max()) + 1 if vehicle_ids.size else 0, np.int64)
     type_codes[vehicle_ids] = codes
     effects = tuple(effects)
-    per_vehicle = 1 if cfg.dwell_mode == "instant_scan" else 3    # pairs per vehicle-revisit
+    per_vehicle = 1 if sched.instant else 3    # pairs per vehicle-revisit
     per_rev = max(1, len(vehicle_ids) * per_vehicle)
     revs_per_chunk = max(1, chunk_pairs // per_rev)
     block_vehicles = max(1, chunk_pairs // per_vehicle)
@@ -641,7 +642,8 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
             return (_dwell_table(cfg, sched, dids, poses, terrain, origin),
                     empty_table(DETECTION_COLUMNS), empty_table(LOOK_COLUMNS), 0)
         return _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_models,
-                               type_codes, vehicle_ids, rev_ids, effects, block_vehicles)
+                               type_codes, vehicle_ids, rev_ids, effects, block_vehicles,
+                               los_step_m)
 
     n_det = 0
     evaluated = 0
@@ -683,6 +685,7 @@ def _ordered_results(pool, pending, fn, items, depth):
 
 def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s: float,
              origin: frames.Origin, *, effects: Iterable[Effect] = (),
+             dwell_mode="dwell_resolved", los_step_m: float = 30.0,
              chunk_pairs: int = 300_000, workers: int = 1,
              stats: Optional[dict] = None, rcs_models: Optional[RcsModels] = None
              ) -> Dict[str, Table]:
@@ -696,6 +699,10 @@ def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s:
     duration_s : scene duration; revisits whose last dwell falls after it are not run
     origin : the scene's geodetic origin (for lat/lon columns)
     effects : post-processors per chunk of dwells (merge, clutter, ambiguity), see module doc
+    dwell_mode : ``dwell_resolved`` or ``instant_scan`` (an Enum by its value); the fidelity
+        preset chooses it (``FidelityConfig.dwell_mode``)
+    los_step_m : terrain line-of-sight ray step (``FidelityConfig.terrain_step_m``); unused on
+        flat terrain
     chunk_pairs : about how many (dwell, target) pairs a chunk holds (bounds working memory)
     workers : chunks computed concurrently in threads (same output for any value)
     stats : if a dict is given, ``pairs_evaluated``, ``n_revisits`` and ``n_dwells`` go in it
@@ -704,7 +711,8 @@ def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s:
     """
     out_d, out_det, out_look = [], [], []
     for dw, det, look in simulate_chunks(cfg, fleet, platform, terrain, seed, duration_s, origin,
-                                         effects=effects, chunk_pairs=chunk_pairs,
+                                         effects=effects, dwell_mode=dwell_mode,
+                                         los_step_m=los_step_m, chunk_pairs=chunk_pairs,
                                          workers=workers, stats=stats,
                                          rcs_models=rcs_models):
         out_d.append(dw)

@@ -23,6 +23,8 @@ import numpy as np
 
 from gmtiflow.sensor.config import SensorConfig
 
+DWELL_MODES = ("dwell_resolved", "instant_scan")
+
 
 def n_dwells(cfg: SensorConfig) -> int:
     """Number of beam positions (dwells) in one scan."""
@@ -55,6 +57,7 @@ class Schedule:
     beam_scan_rad: np.ndarray     # (n_dwells,) beam centres, antenna frame
     time_offset_s: np.ndarray     # (n_dwells,) dwell time relative to the revisit start
     revisit_start_s: np.ndarray   # (n_revisits,)
+    instant: bool = False         # instant_scan: the whole scan at one instant
 
     @property
     def n_total(self) -> int:
@@ -66,11 +69,19 @@ class Schedule:
                 + self.time_offset_s[dwell_id % self.n_dwells])
 
 
-def build_schedule(cfg: SensorConfig, duration_s: float) -> Schedule:
-    """All revisits whose last dwell time is within ``[0, duration_s]``."""
+def build_schedule(cfg: SensorConfig, duration_s: float, dwell_mode=DWELL_MODES[0]) -> Schedule:
+    """All revisits whose last dwell time is within ``[0, duration_s]``.
+
+    ``dwell_mode`` (chosen by the fidelity preset): ``dwell_resolved`` gives each dwell its own
+    time; ``instant_scan`` puts every dwell of a scan at the scan's middle instant.
+    """
+    dwell_mode = getattr(dwell_mode, "value", dwell_mode)
+    if dwell_mode not in DWELL_MODES:
+        raise ValueError(f"dwell_mode must be one of {DWELL_MODES}, got {dwell_mode!r}")
+    instant = dwell_mode == "instant_scan"
     n = n_dwells(cfg)
     scan = beam_centres_rad(cfg)
-    if cfg.dwell_mode == "instant_scan":
+    if instant:
         offsets = np.full(n, 0.5 * n * cfg.cpi_s)
     else:
         offsets = (np.arange(n) + 0.5) * cfg.cpi_s
@@ -80,4 +91,4 @@ def build_schedule(cfg: SensorConfig, duration_s: float) -> Schedule:
     else:
         n_rev = int(math.floor((duration_s - last) / cfg.revisit_s + 1e-9)) + 1
     starts = np.arange(n_rev) * cfg.revisit_s
-    return Schedule(n_rev, n, scan, offsets, starts)
+    return Schedule(n_rev, n, scan, offsets, starts, instant)

@@ -5,6 +5,7 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
+from gmtiflow.sensor import scan
 from gmtiflow.sensor.config import RcsConfig, SensorConfig
 
 CONF = Path(__file__).resolve().parents[2] / "conf" / "sensor"
@@ -47,7 +48,6 @@ def keys(cfg):
     (dict(pfa=0.0), "pfa"),
     (dict(pfa=1.0), "pfa"),
     (dict(snr_form="magic"), "snr_form"),
-    (dict(dwell_mode="fast"), "dwell_mode"),
     (dict(az_max_deg=90.0), "az_max_deg"),
     (dict(n_elements=0), "n_elements"),
     (dict(mdv_mps=40.0), "mdv_mps"),
@@ -74,13 +74,6 @@ def test_derived_quantities():
     assert cfg.blind_speed_mps == pytest.approx(cfg.wavelength_m * 4000 / 2)
 
 
-def test_enum_modes_from_the_fidelity_group_are_accepted():
-    import enum
-
-    class DwellMode(enum.Enum):
-        dwell_resolved = "dwell_resolved"
-        instant_scan = "instant_scan"
-
-    cfg = SensorConfig(dwell_mode=DwellMode.instant_scan)
-    assert cfg.problems() == []
-    assert cfg.normalised().dwell_mode == "instant_scan"
+def test_an_unknown_dwell_mode_is_refused_by_the_schedule():
+    with pytest.raises(ValueError, match="dwell_mode"):
+        scan.build_schedule(SensorConfig(), 10.0, "fast")

@@ -35,8 +35,9 @@ def test_schedule_times_and_revisits():
 
 
 def test_instant_scan_puts_every_dwell_of_a_revisit_at_one_time():
-    cfg = SensorConfig(dwell_mode="instant_scan")
-    s = scan.build_schedule(cfg, 20.0)
+    cfg = SensorConfig()
+    s = scan.build_schedule(cfg, 20.0, "instant_scan")
+    assert s.instant
     t = s.dwell_time_s(np.arange(s.n_dwells))
     assert np.all(t == t[0])
     assert t[0] == pytest.approx(0.5 * s.n_dwells * cfg.cpi_s)
