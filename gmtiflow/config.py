@@ -20,10 +20,14 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from gmtiflow.errors import ConfigError
+from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.scene.platform import PlatformConfig
 from gmtiflow.scene.roadmap import RoadmapConfig
+from gmtiflow.scene.terrain import TerrainConfig
 from gmtiflow.scene.vehicles import VehiclesConfig
 from gmtiflow.schema import Problem, positive
+from gmtiflow.sensor.clutter import ClutterConfig
+from gmtiflow.sensor.config import SensorConfig
 
 
 @dataclass
@@ -86,6 +90,11 @@ class AppConfig:
     roadmap: RoadmapConfig = MISSING
     vehicles: VehiclesConfig = MISSING
     platform: PlatformConfig = MISSING
+    terrain: TerrainConfig = MISSING
+    sensor: SensorConfig = MISSING
+    clutter: ClutterConfig = MISSING
+    tracker: TrackerConfig = MISSING
+    metrics: MetricsConfig = field(default_factory=MetricsConfig)
     fidelity: FidelityConfig = MISSING
 
     def problems(self) -> List[Problem]:

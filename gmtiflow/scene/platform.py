@@ -40,10 +40,13 @@ class PlatformConfig:
     """Platform orbit.  ``waypoints_m``: list of ``[x_m, y_m, altitude_m]`` in scene ENU."""
 
     waypoints_m: List[List[float]] = field(default_factory=lambda: [
-        [45000.0, -30000.0, 6000.0], [-45000.0, -30000.0, 6000.0],
-        [-45000.0, -40000.0, 6000.0], [45000.0, -40000.0, 6000.0]])
+        [12426.4, -30000.0, 6000.0], [-12426.4, -30000.0, 6000.0],
+        [-30000.0, -12426.4, 6000.0], [-30000.0, 12426.4, 6000.0],
+        [-12426.4, 30000.0, 6000.0], [12426.4, 30000.0, 6000.0],
+        [30000.0, 12426.4, 6000.0], [30000.0, -12426.4, 6000.0]])
+    """The default orbit: a clockwise 30 km circle around the scene (conf/platform/default.yaml)."""
     speed_mps: float = 150.0
-    turn_lead_s: float = 20.0
+    turn_lead_s: float = 82.84
     """``t`` of paper eq. 5: the turn starts ``speed_mps * turn_lead_s`` before each corner."""
 
     def problems(self) -> List[Problem]:
@@ -72,7 +75,8 @@ class PlatformConfig:
         if 2.0 * lead_m > shortest:
             out.append(Problem("turn_lead_s",
                                f"turns start speed_mps*turn_lead_s = {lead_m:g} m before each corner,"
-                               f" which must be at most half the shortest leg ({shortest:g} m)"))
+                               f" which must be at most half the shortest leg ({shortest:g} m / 2 = "
+                               f"{shortest / 2:g} m)"))
         return out
 
 

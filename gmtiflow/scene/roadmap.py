@@ -208,6 +208,16 @@ class RoadMap:
         }
         return cls(origin, nodes, edges, attribution=attribution, source=source)
 
+    def with_node_heights(self, z_m) -> "RoadMap":
+        """The same road map with its nodes at heights ``z_m`` (e.g. draped on a DEM); edge
+        lengths and geodetic columns follow."""
+        n, e = self.nodes, self.edges
+        xyz = np.column_stack([n["x_m"], n["y_m"], np.asarray(z_m, float)])
+        return RoadMap.from_lists(self.origin, list(n["name"]), xyz, e["from_node"], e["to_node"],
+                                  e["oneway"], e["speed_limit_mps"], e["invisible"],
+                                  list(e["road_class"]), attribution=self.attribution,
+                                  source=self.source)
+
     # -- queries ------------------------------------------------------------------------------
     @property
     def n_nodes(self) -> int:

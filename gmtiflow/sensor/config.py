@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from enum import Enum
 from typing import Dict, List, Optional
 
 from gmtiflow import schema
@@ -60,6 +61,38 @@ def _default_rcs() -> Dict[str, RcsConfig]:
         "car": RcsConfig(rcs_dbsm=10.0),
         "truck": RcsConfig(rcs_dbsm=20.0, table="sensor/rcs/truck.csv"),
     }
+
+
+class MergeMode(str, Enum):
+    """How eq. 18's merge probability P_u decides a merge."""
+
+    draw = "draw"              # one uniform draw per pair: merge with probability P_u
+    threshold = "threshold"    # merge when P_u >= threshold
+
+
+class Centroid(str, Enum):
+    """Where a merged report sits: the plain or the power-weighted centroid of its ancestors."""
+
+    plain = "plain"
+    power = "power"
+
+
+@dataclass
+class MergeConfig:
+    """Merging of close targets in one dwell (paper eq. 18, DESIGN §5.6).
+
+    P_u = exp(-1/2 d^T R_u^-1 d), R_u = A / (2 ln 2), A = diag(cell^2): P_u = 1/2 one resolution
+    cell apart (range cell Δr, azimuth cell = the dwell's beamwidth, range-rate cell λΔf_D/2).
+    """
+
+    enabled: bool = True
+    mode: MergeMode = MergeMode.draw
+    threshold: float = 0.5
+    use_range_rate: bool = False       # include range rate in d (targets separable in Doppler)
+    centroid: Centroid = Centroid.plain
+
+    def problems(self) -> List[Problem]:
+        return schema.in_range(self, "threshold", 0.0, 1.0, lo_open=True)
 
 
 @dataclass
@@ -123,6 +156,9 @@ class SensorConfig:
 
     # --- radar cross sections ---------------------------------------------------------------
     rcs: Dict[str, RcsConfig] = field(default_factory=_default_rcs)
+
+    # --- merging of close targets (eq. 18; gmtiflow.sensor.effects.Merging) ------------------
+    merge: MergeConfig = field(default_factory=MergeConfig)
 
     # --- derived quantities -----------------------------------------------------------------
     @property

@@ -38,6 +38,8 @@ from typing import Callable, Dict, Iterable, Iterator, Optional, Tuple
 
 import numpy as np
 
+from tqdm import tqdm
+
 from gmtiflow import frames, rng
 from gmtiflow.sensor import (antenna, detect, gain, geolocate, geometry, measurement, scan,
                              snr, visibility)
@@ -687,8 +689,8 @@ def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s:
              origin: frames.Origin, *, effects: Iterable[Effect] = (),
              dwell_mode="dwell_resolved", los_step_m: float = 30.0,
              chunk_pairs: int = 300_000, workers: int = 1,
-             stats: Optional[dict] = None, rcs_models: Optional[RcsModels] = None
-             ) -> Dict[str, Table]:
+             stats: Optional[dict] = None, rcs_models: Optional[RcsModels] = None,
+             progress: bool = False) -> Dict[str, Table]:
     """Dwells, detections and looks of a run (docs/tables.md).
 
     Parameters
@@ -708,13 +710,15 @@ def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s:
     stats : if a dict is given, ``pairs_evaluated``, ``n_revisits`` and ``n_dwells`` go in it
     rcs_models : the RCS models, loaded beforehand (``RcsModels.from_config(cfg.rcs)``, which
         reads the table files); loaded here when None
+    progress : show a tqdm bar over the chunks (on a terminal only)
     """
     out_d, out_det, out_look = [], [], []
-    for dw, det, look in simulate_chunks(cfg, fleet, platform, terrain, seed, duration_s, origin,
-                                         effects=effects, dwell_mode=dwell_mode,
-                                         los_step_m=los_step_m, chunk_pairs=chunk_pairs,
-                                         workers=workers, stats=stats,
-                                         rcs_models=rcs_models):
+    chunks = simulate_chunks(cfg, fleet, platform, terrain, seed, duration_s, origin,
+                             effects=effects, dwell_mode=dwell_mode, los_step_m=los_step_m,
+                             chunk_pairs=chunk_pairs, workers=workers, stats=stats,
+                             rcs_models=rcs_models)
+    for dw, det, look in tqdm(chunks, desc="sensor", unit="chunk", leave=False,
+                              disable=None if progress else True):
         out_d.append(dw)
         out_det.append(det)
         out_look.append(look)

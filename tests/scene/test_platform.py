@@ -38,7 +38,8 @@ def test_bank_matches_corrected_eq5_and_eq3():
 def test_right_turns_bank_right_and_left_turns_left():
     right = Platform(square(), ORIGIN)   # clockwise square: right turns
     assert np.all(right.orbit.bank_rad[right.orbit.turn_sign != 0] > 0)
-    left = Platform(PlatformConfig(waypoints_m=list(reversed(square().waypoints_m))), ORIGIN)
+    left = Platform(PlatformConfig(waypoints_m=list(reversed(square().waypoints_m)),
+                                   turn_lead_s=20.0), ORIGIN)
     assert np.all(left.orbit.bank_rad[left.orbit.turn_sign != 0] < 0)
 
 
@@ -116,3 +117,16 @@ def test_bad_platform_config_names_the_key(change, key):
         setattr(cfg, k, v)
     with pytest.raises(ConfigError, match=f"platform.{key}"):
         Platform(cfg, ORIGIN)
+
+
+def test_default_orbit_is_a_30_km_circle_around_the_scene():
+    """Turns that start half a leg early join into one circle (eq. 4 with s = half a leg)."""
+    p = Platform(PlatformConfig(), ORIGIN)
+    state, _ = sample(p, 4001)
+    radius = np.hypot(state["x_m"], state["y_m"])
+    assert np.allclose(radius, 30000.0, rtol=1e-4)
+    expected = math.atan(150.0 ** 2 / (30000.0 * G_MPS2))
+    # clockwise: right wing down, except on the 0.4 m straight bits the rounded lead leaves
+    assert np.mean(np.isclose(state["bank_rad"], expected, rtol=1e-3)) > 0.99
+    assert state["x_m"][0] == pytest.approx(0.0, abs=1.0) and state["y_m"][0] < 0
+    assert state["heading_rad"][0] == pytest.approx(1.5 * math.pi, abs=1e-3)   # west

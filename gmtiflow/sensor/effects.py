@@ -1,0 +1,254 @@
+"""GMTI effects applied per chunk of dwells, through the sensor stage's seam (DESIGN §5.6-5.8).
+
+Each effect is a callable ``(ctx, detections, looks) -> (detections, looks)`` called by
+:func:`gmtiflow.sensor.model.simulate` once per chunk of whole revisits, in DESIGN order:
+
+1. :class:`Merging` (eq. 18): target reports of one dwell closer than about a resolution cell
+   merge into one report at their centroid with their summed power; its ``truth_id`` is the
+   strongest ancestor's and ``merged`` is set; the other ancestors' looks become ``merged``
+   (outcome 6) and point at the merged report, which is how ``/detection_ancestors`` is built.
+   The merged report keeps the strongest ancestor's σ's and true values.
+2. :class:`FalseAlarms` (§5.4): Poisson false alarms over each dwell's ground cell (the
+   annular sector between the near and far ground ranges and the dwell's beam cell), from the
+   constant FoV density and the clutter regions, thinned by the sensor's exact field of view.
+   A false alarm's position is the drawn point itself (a uniform point plus a Gaussian error is
+   still uniform), its range rate is the ground's (``−v_p·ℓ``) plus the region's own radial
+   speed, its σ's follow from its SNR like a target's, ``truth_id = −1``.
+3. :class:`Ambiguities` (§5.5), only with a PRF: slant range folded modulo ``c·PRI/2``; the
+   range rate *relative to the clutter* (what a STAP/clutter-centred processor measures, and
+   what STANAG 4607 D32.7 reports with its wrap velocity D32.8) wrapped into ``±λ·PRF/4``; the
+   report geolocated at the folded range as a processor would, flagged ``implausible`` (and its
+   ground position NaN) when that range cannot reach the ground or lies beyond the horizon.
+
+An effect that has nothing to model is not constructed at all (no clutter regions and no FoV
+density, no PRF, merging off), so a plain scene pays nothing for them.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from gmtiflow import frames
+from gmtiflow.sensor import ambiguity, clutter, measurement, merge, scan
+from gmtiflow.sensor.config import SensorConfig
+from gmtiflow.sensor.outcome import Outcome
+from gmtiflow.tables import Table, take
+
+
+def _world_azimuth(dx, dy):
+    return np.mod(np.arctan2(dx, dy), 2.0 * np.pi)
+
+
+def _local_rows(ctx, dwell_id):
+    return np.asarray(dwell_id, np.int64) - int(ctx.dwells["dwell_id"][0])
+
+
+def _set_ground(ctx, out: Table, rows: np.ndarray, dwell_id, range_m, azimuth_rad) -> np.ndarray:
+    """Geolocate ``rows`` of ``out`` from (range, world azimuth); returns where the range
+    reached the ground."""
+    (x, y, z), reached = ctx.geolocate(dwell_id, range_m, azimuth_rad)
+    lat, lon, h = frames.enu_to_geodetic(ctx.origin, x, y, z)
+    for name, value in (("x_m", x), ("y_m", y), ("z_m", z), ("lat_deg", lat), ("lon_deg", lon),
+                        ("height_m", h)):
+        out[name][rows] = value
+    return np.asarray(reached, bool)
+
+
+def reindex(detections: Table, looks: Table) -> tuple:
+    """Order detections by dwell (stable) and number them 0..n-1, remapping the looks."""
+    det = dict(detections)
+    order = np.argsort(det["dwell_id"], kind="stable")
+    det = take(det, order)
+    old = det["det_id"]
+    det["det_id"] = np.arange(old.size, dtype=np.int64)
+    looks = dict(looks)
+    ld = np.asarray(looks["det_id"], np.int64)
+    has = ld >= 0
+    if np.any(has):
+        sorter = np.argsort(old, kind="stable")
+        new_ld = ld.copy()
+        new_ld[has] = det["det_id"][sorter[np.searchsorted(old, ld[has], sorter=sorter)]]
+        looks["det_id"] = new_ld
+    return det, looks
+
+
+class Merging:
+    """Merge close target reports of a dwell (paper eq. 18, DESIGN §5.6)."""
+
+    def __init__(self, cfg: SensorConfig, seed: int, iterate: bool):
+        self.cfg = cfg
+        self.seed = seed
+        self.iterate = iterate
+
+    def __call__(self, ctx, detections: Table, looks: Table):
+        n = len(detections["det_id"])
+        if n < 2:
+            return detections, looks
+        cfg, mcfg = self.cfg, self.cfg.merge
+        k = _local_rows(ctx, detections["dwell_id"])
+        beam_cell = scan.broadened_beamwidth_rad(cfg, ctx.dwells["beam_scan_rad"][k])
+        use_rr = mcfg.use_range_rate
+        rr_cell = cfg.doppler_cell_hz * cfg.wavelength_m / 2.0
+        res = merge.merge_reports(
+            detections["dwell_id"], detections["range_m"], detections["azimuth_rad"],
+            10.0 ** (detections["snr_db"] / 10.0), detections["truth_id"],
+            range_cell_m=cfg.range_resolution_m, azimuth_cell_rad=beam_cell,
+            range_rate_mps=detections["range_rate_mps"] if use_rr else None,
+            range_rate_cell_mps=rr_cell if use_rr else None,
+            mode=mcfg.mode.value, threshold=mcfg.threshold, seed=self.seed, iterate=self.iterate,
+            centroid=mcfg.centroid.value)
+        if not np.any(res.n_ancestors > 1):
+            return detections, looks
+        out = take(detections, res.strongest)
+        merged = res.n_ancestors > 1
+        out["range_m"] = res.range_m
+        out["azimuth_rad"] = res.azimuth_rad
+        if use_rr:
+            out["range_rate_mps"] = res.range_rate_mps
+        out["snr_db"] = 10.0 * np.log10(res.snr)
+        out["truth_id"] = res.truth_id
+        out["merged"] = merged
+        rows = np.flatnonzero(merged)
+        _set_ground(ctx, out, rows, out["dwell_id"][rows], out["range_m"][rows],
+                    out["azimuth_rad"][rows])
+        # Looks: an ancestor that is not the strongest is now "merged" into the group's report.
+        new_id_of_input = out["det_id"][res.group]
+        absorbed = res.strongest[res.group] != np.arange(n)
+        looks = dict(looks)
+        ld = np.asarray(looks["det_id"], np.int64)
+        has = ld >= 0
+        sorter = np.argsort(detections["det_id"], kind="stable")
+        pos = sorter[np.searchsorted(detections["det_id"], ld[has], sorter=sorter)]
+        new_ld = ld.copy()
+        new_ld[has] = new_id_of_input[pos]
+        outcome = np.asarray(looks["outcome"]).copy()
+        outcome[np.flatnonzero(has)[absorbed[pos]]] = Outcome.MERGED
+        looks["det_id"] = new_ld
+        looks["outcome"] = outcome
+        return reindex(out, looks)
+
+
+class FalseAlarms:
+    """False alarms over the dwells' ground cells (paper §5.4, DESIGN §5.7)."""
+
+    def __init__(self, cfg: SensorConfig, clutter_cfg: clutter.ClutterConfig, seed: int):
+        self.cfg = cfg
+        self.clutter = clutter_cfg
+        self.seed = seed
+
+    def footprints(self, ctx) -> list:
+        """Per dwell of the chunk: the ground annular sector of its beam cell."""
+        d = ctx.dwells
+        lo, hi = ctx.dwell_cell_rad(d["dwell_id"])
+        to_world = d["beam_az_rad"] - d["beam_scan_rad"]
+        h_agl = d["platform_z_m"] - np.nan_to_num(
+            np.asarray(ctx.terrain.height_at(d["platform_x_m"], d["platform_y_m"]), float))
+        # The polygon only bounds the draws (in_cell thins them exactly), so it must contain
+        # the cell: pad the ground ranges for terrain relief and the azimuths for the way a
+        # bank turns antenna-frame angles against world azimuths.
+        g_min = 0.97 * np.sqrt(np.maximum(self.cfg.range_min_m ** 2 - h_agl ** 2, 0.0))
+        g_max = 1.03 * np.sqrt(np.maximum(self.cfg.range_max_m ** 2 - h_agl ** 2, 0.0)) + 500.0
+        pad = 0.5 * (hi - lo) + np.abs(d["platform_bank_rad"]) + 1e-3
+        return [clutter.annular_sector_polygon((d["platform_x_m"][i], d["platform_y_m"][i]),
+                                               g_min[i], g_max[i], to_world[i] + lo[i] - pad[i],
+                                               to_world[i] + hi[i] + pad[i])
+                for i in range(len(lo))]
+
+    def __call__(self, ctx, detections: Table, looks: Table):
+        d = ctx.dwells
+        lo, hi = ctx.dwell_cell_rad(d["dwell_id"])
+
+        def in_cell(dwell_id, x, y):
+            z = np.nan_to_num(np.asarray(ctx.terrain.height_at(x, y), float))
+            _, az, _ = ctx.antenna_angles(dwell_id, x, y, z)
+            k = _local_rows(ctx, dwell_id)
+            return ctx.in_fov(dwell_id, x, y, z) & (az >= lo[k]) & (az < hi[k])
+
+        fa = clutter.false_alarms(self.clutter, self.seed, d["dwell_id"], self.footprints(ctx),
+                                  in_fov=in_cell)
+        m = len(fa["dwell_id"])
+        if m == 0:
+            return detections, looks
+        cfg = self.cfg
+        dwell_id = fa["dwell_id"]
+        k = _local_rows(ctx, dwell_id)
+        x, y = fa["x_m"], fa["y_m"]
+        z = np.nan_to_num(np.asarray(ctx.terrain.height_at(x, y), float))
+        rng_m, _, _ = ctx.antenna_angles(dwell_id, x, y, z)
+        az = _world_azimuth(x - d["platform_x_m"][k], y - d["platform_y_m"][k])
+        rr = ctx.range_rate_of_ground(dwell_id, x, y, z) + fa["clutter_range_rate_mps"]
+        bw = scan.broadened_beamwidth_rad(cfg, d["beam_scan_rad"][k])
+        s_r, s_az, s_rr = measurement.sigmas(cfg, fa["snr"], bw)
+        lat, lon, h = frames.enu_to_geodetic(ctx.origin, x, y, z)
+        start = int(detections["det_id"].max()) + 1 if len(detections["det_id"]) else 0
+        false = np.zeros(m, bool)
+        rows = {
+            "det_id": start + np.arange(m, dtype=np.int64), "dwell_id": dwell_id,
+            "time_s": d["time_s"][k], "range_m": rng_m, "azimuth_rad": az,
+            "range_rate_mps": rr, "true_range_m": rng_m, "true_azimuth_rad": az,
+            "true_range_rate_mps": rr, "snr_db": fa["snr_db"], "sigma_range_m": s_r,
+            "sigma_azimuth_rad": s_az, "sigma_range_rate_mps": s_rr, "x_m": x, "y_m": y,
+            "z_m": z, "lat_deg": np.atleast_1d(lat), "lon_deg": np.atleast_1d(lon),
+            "height_m": np.atleast_1d(h), "truth_id": np.full(m, -1, np.int64),
+            "merged": false, "range_folded": false.copy(), "doppler_wrapped": false.copy(),
+            "implausible": false.copy(), "rcs_dbsm": np.full(m, np.nan),
+            "wrap_velocity_mps": np.full(m, cfg.wrap_velocity_mps),
+        }
+        combined = {name: np.concatenate([np.asarray(detections[name]),
+                                          np.asarray(rows[name]).astype(
+                                              np.asarray(detections[name]).dtype, copy=False)])
+                    for name in detections}
+        return reindex(combined, looks)
+
+
+class Ambiguities:
+    """Range folding and range-rate wrapping of a pulsed radar (paper §5.5, DESIGN §5.8)."""
+
+    def __init__(self, cfg: SensorConfig):
+        if cfg.pri_s is None:
+            raise ValueError("ambiguities need a PRI (sensor.pri_s)")
+        self.cfg = cfg
+        self.prf_hz = 1.0 / cfg.pri_s
+
+    def __call__(self, ctx, detections: Table, looks: Table):
+        n = len(detections["det_id"])
+        if n == 0:
+            return detections, looks
+        cfg = self.cfg
+        d = ctx.dwells
+        k = _local_rows(ctx, detections["dwell_id"])
+        out = {name: np.array(col, copy=True) for name, col in detections.items()}
+        ground_rr = ctx.range_rate_of_ground(detections["dwell_id"], out["x_m"], out["y_m"],
+                                             out["z_m"])
+        own_rr = out["range_rate_mps"] - ground_rr
+        h_agl = d["platform_z_m"][k] - np.nan_to_num(
+            np.asarray(ctx.terrain.height_at(d["platform_x_m"][k], d["platform_y_m"][k]), float))
+        amb = ambiguity.apply_ambiguities(out["range_m"], own_rr, cfg.wavelength_m, self.prf_hz,
+                                          height_agl_m=h_agl)
+        out["range_rate_mps"] = amb["range_rate_mps"] + ground_rr
+        out["doppler_wrapped"] = amb["doppler_wrapped"]
+        out["wrap_velocity_mps"] = amb["wrap_velocity_mps"]
+        folded = amb["range_folded"]
+        out["range_folded"] = folded
+        out["implausible"] = amb["implausible"]
+        if np.any(folded):
+            rows = np.flatnonzero(folded)
+            out["range_m"][rows] = amb["range_m"][rows]
+            reached = _set_ground(ctx, out, rows, out["dwell_id"][rows], out["range_m"][rows],
+                                  out["azimuth_rad"][rows])
+            out["implausible"][rows] |= ~reached
+            bad = np.flatnonzero(out["implausible"])
+            for name in ("x_m", "y_m", "z_m", "lat_deg", "lon_deg", "height_m"):
+                out[name][bad] = np.nan
+        return out, looks
+
+
+def build_effects(cfg: SensorConfig, clutter_cfg, seed: int, merge_iterate: bool) -> list:
+    """The effects a scene models, in DESIGN order; those with nothing to do are left out."""
+    effects = []
+    if cfg.merge.enabled:
+        effects.append(Merging(cfg, seed, merge_iterate))
+    if clutter_cfg is not None and clutter.is_active(clutter_cfg):
+        effects.append(FalseAlarms(cfg, clutter_cfg, seed))
+    if cfg.pri_s is not None:
+        effects.append(Ambiguities(cfg))
+    return effects
