@@ -388,3 +388,42 @@ def test_road_errors_name_the_vehicle(square_map):
         fleet_of(square_map, VehicleSpec(name="far", start="s0", end="iso_b"))
     with pytest.raises(RoadMapError, match=r"vehicle 'sp'.*'iso_a' is not on the vehicle's route"):
         fleet_of(square_map, VehicleSpec(name="sp", start="s0", end="t1", stop_points=["iso_a"]))
+
+
+# -- property test of the kernel ------------------------------------------------------------------
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=20, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(dt=st.sampled_from([0.1, 0.5, 1.0, 2.0, 3.3]), cruise=st.floats(1.0, 40.0),
+       sigma=st.floats(0.0, 3.0), amax=st.floats(0.3, 5.0), dmax=st.floats(0.5, 8.0),
+       limit=st.floats(3.0, 30.0), seed=st.integers(0, 2**31))
+def test_kernel_invariants(make_map, dt, cruise, sigma, amax, dmax, limit, seed):
+    """Whatever the parameters: s never runs backwards, v >= 0, s(t) is continuous across step
+    boundaries, and without random stops every stop (mode stopped) is exactly at a stop point.
+    (Speed noise alone may touch v = 0 in cruise: it is clipped at zero, never negative.)"""
+    from gmtiflow.scene.roadmap import RoadSpec
+    rm = make_map({"a": [0, 0, 0], "b": [400, 0, 0], "c": [400, 700, 5], "d": [1500, 700, 5]},
+                  [RoadSpec("a", "b"), RoadSpec("b", "c", speed_limit_mps=limit),
+                   RoadSpec("c", "d")])
+    spec = VehicleSpec(name="h", start="a", end="d", cruise_speed_mps=cruise,
+                       speed_noise_mps=sigma, max_accel_mps2=amax, max_decel_mps2=dmax,
+                       stop_points=["b", "c"], mean_wait_s=3.0, max_wait_s=6.0)
+    fl = fleet_of(rm, spec, seed=seed, duration_s=400.0, dt_s=dt)
+    t = np.linspace(0.0, 400.0, 8_001)
+    s = fl.state_at(t, 0)
+    act = s["active"]
+    assert np.all(np.diff(s["route_s_m"][act]) >= -1e-9)
+    assert np.all(s["speed_mps"][act] >= 0.0)
+    rest = act & (s["mode"] == motion.MODE_STOPPED)
+    assert np.all(s["speed_mps"][rest] == 0.0)
+    stop_s = fl.routes[0].s_m[[1, 2]]
+    d = np.min(np.abs(s["route_s_m"][rest][:, None] - stop_s[None, :]), axis=1)
+    assert np.all(d <= 1e-9)
+    k = np.arange(1, fl.profiles.n_steps)
+    left = fl.state_at(k * dt - 1e-9, 0)["route_s_m"]
+    right = fl.state_at(k * dt, 0)["route_s_m"]
+    ok = np.isfinite(left) & np.isfinite(right)
+    assert np.all(np.abs(left[ok] - right[ok]) <= 1e-9 * 50 + 1e-9)
