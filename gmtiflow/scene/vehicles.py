@@ -438,7 +438,8 @@ class Fleet:
         # Flat route arrays for vectorised look-ups: key = s + route * span is sorted.
         self._span = float(2.0 ** np.ceil(np.log2(max([r.length_m for r in routes] + [1.0])
                                                   * 2.0 + 2.0)))
-        self._vx_off = np.concatenate([[0], np.cumsum([len(r.s_m) for r in routes])])
+        self._vx_off = np.concatenate([[0], np.cumsum([len(r.s_m) for r in routes],
+                                                      dtype=np.int64)]).astype(np.int64)
         self._vx_xyz = np.concatenate([r.xyz_m for r in routes]) if routes else np.zeros((0, 3))
         self._vx_s = np.concatenate([r.s_m for r in routes]) if routes else np.zeros(0)
         pad = lambda a, fill: np.concatenate([a, [fill]])  # noqa: E731
@@ -539,7 +540,7 @@ class Fleet:
             st = self.state_at(tt[:, None], ids[None, :])
             mask = st.pop("active").ravel()
             parts.append({k: c.ravel()[mask] for k, c in st.items()})
-        if not parts:
+        if not parts or n == 0:
             st = self.state_at(np.zeros(0), np.zeros(0, np.int64))
             st.pop("active")
             return st

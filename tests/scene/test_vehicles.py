@@ -302,6 +302,16 @@ def test_truth_table_columns_and_order(default_map):
     assert fl.state_at(150.0, [-1, 99])["active"].tolist() == [False, False]
 
 
+def test_empty_fleet_and_empty_times(default_map):
+    empty = build_fleet(VehiclesConfig(), default_map, 1, 100.0, 1.0)
+    tt = empty.truth_table(np.arange(10.0))
+    assert list(tt) == list(TRUTH_COLUMNS) and len(tt["time_s"]) == 0
+    assert len(empty.vehicles["vehicle_id"]) == 0
+    fl = build_fleet(load_vehicles("default"), default_map, 1, 100.0, 1.0)
+    tt = fl.truth_table([])
+    assert list(tt) == list(TRUTH_COLUMNS) and len(tt["time_s"]) == 0
+
+
 # -- reproducibility ------------------------------------------------------------------------------
 def _equal(a, b):
     return all(np.array_equal(a[k], b[k], equal_nan=a[k].dtype.kind == "f") for k in a)
