@@ -126,7 +126,9 @@ class RoadmapConfig:
         out += schema.in_range(self, "merge_decimals", 0, 12)
         kind = RoadmapKind(self.kind)
         if kind in (RoadmapKind.osm, RoadmapKind.geojson) and not schema.optional_path(self.path):
-            out.append(schema.Problem("path", f"a {kind.value} road map needs a file path"))
+            label = "an OSM" if kind == RoadmapKind.osm else "a GeoJSON"
+            out.append(schema.Problem("path", f"{label} road map needs a file path, e.g. "
+                                              f"roadmap.path=/data/map.{kind.value}"))
         if kind == RoadmapKind.inline:
             if not self.nodes or not self.roads:
                 out.append(schema.Problem("roads", "an inline road map needs at least one node "
