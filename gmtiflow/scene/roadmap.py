@@ -210,6 +210,25 @@ class RoadMap:
         }
         return cls(origin, nodes, edges, attribution=attribution, source=source)
 
+    def draped(self, height_at, offset_m: float = 0.0) -> "RoadMap":
+        """A copy with every node's z set to ``height_at(x_m, y_m) + offset_m`` (ENU metres).
+
+        ``height_at`` is e.g. ``Terrain.height_at``; edge lengths, geodetic columns and the graph
+        are recomputed. Tunnel nodes are draped too (their roads stay invisible).
+        """
+        n = self.nodes
+        z = np.asarray(height_at(n["x_m"], n["y_m"]), dtype=float) + float(offset_m)
+        if z.shape != n["x_m"].shape or not np.all(np.isfinite(z)):
+            raise RoadMapError(f"{self.source}: height_at returned no finite height for every "
+                               f"road node")
+        e = self.edges
+        xyz = np.column_stack([n["x_m"], n["y_m"], z])
+        out = RoadMap.from_lists(self.origin, n["name"].tolist(), xyz, e["from_node"],
+                                 e["to_node"], e["oneway"], e["speed_limit_mps"].tolist(),
+                                 e["invisible"], e["road_class"].tolist(),
+                                 attribution=self.attribution, source=self.source)
+        return out
+
     # -- queries ------------------------------------------------------------------------------
     @property
     def n_nodes(self) -> int:
