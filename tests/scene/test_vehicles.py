@@ -7,12 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as hst
 from omegaconf import OmegaConf
 from scipy import stats
 
 from gmtiflow.errors import ConfigError, RoadMapError
 from gmtiflow.scene import motion
-from gmtiflow.scene.roadmap import RoadmapConfig, load_roadmap
+from gmtiflow.scene.roadmap import RoadmapConfig, RoadSpec, load_roadmap
 from gmtiflow.scene.vehicles import (TRUTH_COLUMNS, ConvoySpec, RandomFleetSpec, SpeedChangeSpec,
                                      VehiclesConfig, VehicleSpec, build_fleet)
 
@@ -401,20 +403,15 @@ def test_road_errors_name_the_vehicle(square_map):
 
 
 # -- property test of the kernel ------------------------------------------------------------------
-from hypothesis import HealthCheck, given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
-
 @settings(max_examples=20, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(dt=st.sampled_from([0.1, 0.5, 1.0, 2.0, 3.3]), cruise=st.floats(1.0, 40.0),
-       sigma=st.floats(0.0, 3.0), amax=st.floats(0.3, 5.0), dmax=st.floats(0.5, 8.0),
-       limit=st.floats(3.0, 30.0), seed=st.integers(0, 2**31))
+@given(dt=hst.sampled_from([0.1, 0.5, 1.0, 2.0, 3.3]), cruise=hst.floats(1.0, 40.0),
+       sigma=hst.floats(0.0, 3.0), amax=hst.floats(0.3, 5.0), dmax=hst.floats(0.5, 8.0),
+       limit=hst.floats(3.0, 30.0), seed=hst.integers(0, 2**31))
 def test_kernel_invariants(make_map, dt, cruise, sigma, amax, dmax, limit, seed):
     """Whatever the parameters: s never runs backwards, v >= 0, s(t) is continuous across step
     boundaries, and without random stops every stop (mode stopped) is exactly at a stop point.
     (Speed noise alone may touch v = 0 in cruise: it is clipped at zero, never negative.)"""
-    from gmtiflow.scene.roadmap import RoadSpec
     rm = make_map({"a": [0, 0, 0], "b": [400, 0, 0], "c": [400, 700, 5], "d": [1500, 700, 5]},
                   [RoadSpec("a", "b"), RoadSpec("b", "c", speed_limit_mps=limit),
                    RoadSpec("c", "d")])
