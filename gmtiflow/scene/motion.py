@@ -19,12 +19,15 @@ One time loop runs over the steps; every operation inside is numpy over all prof
 per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 2, DESIGN §3):
 
 * ``TRACK`` (modes 0 cruise / 1 decelerate / 3 accelerate): the speed heads for the target
-  :math:`v^* = \max(0, \min(c(s) + \sigma n_k, v_{cap}))` at the end of the step, where
+  :math:`v^* = \max(0, \min(c(s) + \sigma \xi_k, v_{cap}))` at the end of the step, where
   :math:`c(s)` is the cruise speed of the road segment at the current position (vehicle cruise,
-  changed permanently at speed-change points, capped by the road's speed limit), :math:`n_k` a
-  standard normal (the paper's per-step speed noise), and :math:`v_{cap}` the braking curve
-  (at 0.9 max_decel) towards any lower cruise speed further along the route, so a vehicle slows
-  down *before* a lower limit or a speed-change point. The acceleration
+  changed permanently at speed-change points, capped by the road's speed limit), :math:`\xi_k` a
+  stationary standard Gauss–Markov (AR(1)) sequence,
+  :math:`\xi_k = \rho \xi_{k-1} + \sqrt{1-\rho^2}\, n_k`, :math:`\rho = e^{-\Delta t/T_c}`
+  (:math:`T_c` = speed_noise_corr_s; :math:`T_c = 0` gives the paper's independent per-step
+  noise, with :math:`\sigma` the standard deviation either way), and :math:`v_{cap}` the
+  braking curve (at 0.9 max_decel) towards any lower cruise speed further along the route, so a
+  vehicle slows down *before* a lower limit or a speed-change point. The acceleration
   :math:`(v^*-v_k)/\Delta t` is clipped to
   :math:`[-d_{max}, a_{max}]`; the label is cruise when unclipped, accelerate/decelerate when
   clipped. Restarting from rest is therefore "accelerate at max_accel back to cruise".
@@ -75,6 +78,7 @@ class ProfileInputs:
     max_accel_mps2: np.ndarray
     max_decel_mps2: np.ndarray
     speed_noise_mps: np.ndarray
+    noise_rho: np.ndarray         # per-step correlation exp(-dt / corr) of the speed noise
     p_stop: np.ndarray            # per-step random stop probability
     q_wait: np.ndarray            # per-step release probability of the geometric wait
     max_wait_steps: np.ndarray    # int
@@ -159,6 +163,9 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
 
     amax, dmax = inp.max_accel_mps2, inp.max_decel_mps2
     sigma = inp.speed_noise_mps
+    rho = inp.noise_rho
+    rho_c = np.sqrt(1.0 - rho * rho)
+    xi = np.zeros(P)
     # Segment lookup over all profiles at once: key = s + p * span keeps the flat array sorted.
     span = float(2.0 ** np.ceil(np.log2(max(float(np.max(inp.length_m)), 1.0) * 2.0 + 2.0)))
     seg_prof = np.repeat(np.arange(P), np.diff(inp.seg_offset))
@@ -233,7 +240,11 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
         with np.errstate(invalid="ignore"):
             ahead = np.maximum(cap_s[j] - (s + v * dt), 0.0)
         cap = np.sqrt(cap_t[j] ** 2 + 2.0 * d_cap * ahead)
-        v_des = np.maximum(np.minimum(target + sigma * inp.normal[k], cap), 0.0)
+        if k == 0:
+            xi = inp.normal[0].copy()
+        else:
+            xi = rho * xi + rho_c * inp.normal[k]
+        v_des = np.maximum(np.minimum(target + sigma * xi, cap), 0.0)
         raw = (v_des - v) / dt
         a_tr = np.clip(raw, -dmax, amax)
         a = np.where(tr, a_tr, a)

@@ -91,6 +91,7 @@ class VehicleSpec:
     start_speed_mps: Optional[float] = None
     obey_speed_limits: bool = True
     speed_noise_mps: float = 0.0
+    speed_noise_corr_s: float = 0.0
     position_noise_m: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     max_accel_mps2: float = 2.0
     max_decel_mps2: float = 4.0
@@ -107,7 +108,8 @@ class VehicleSpec:
         if not self.name or self.name == "???":
             out.append(schema.Problem("name", "every vehicle needs a name"))
         out += schema.non_negative(self, "start_time_s", "speed_noise_mps",
-                                   "random_stop_rate_per_s", "start_speed_mps")
+                                   "speed_noise_corr_s", "random_stop_rate_per_s",
+                                   "start_speed_mps")
         out += schema.positive(self, "cruise_speed_mps", "max_accel_mps2", "max_decel_mps2",
                                "mean_wait_s", "max_wait_s")
         out += schema.ordered(self, "mean_wait_s", "max_wait_s", strict=False)
@@ -149,6 +151,7 @@ class RandomFleetSpec:
     start_time_min_s: float = 0.0
     start_time_max_s: float = 0.0
     speed_noise_mps: float = 0.3
+    speed_noise_corr_s: float = 5.0
     position_noise_m: List[float] = field(default_factory=lambda: [0.5, 0.5, 0.05])
     max_accel_mps2: float = 2.0
     max_decel_mps2: float = 4.0
@@ -162,7 +165,8 @@ class RandomFleetSpec:
         out += schema.positive(self, "cruise_speed_min_mps", "cruise_speed_max_mps",
                                "max_accel_mps2", "max_decel_mps2", "mean_wait_s", "max_wait_s")
         out += schema.non_negative(self, "start_time_min_s", "start_time_max_s",
-                                   "speed_noise_mps", "random_stop_rate_per_s", "min_route_m")
+                                   "speed_noise_mps", "speed_noise_corr_s",
+                                   "random_stop_rate_per_s", "min_route_m")
         out += schema.ordered(self, "cruise_speed_min_mps", "cruise_speed_max_mps", strict=False)
         out += schema.ordered(self, "start_time_min_s", "start_time_max_s", strict=False)
         out += schema.ordered(self, "mean_wait_s", "max_wait_s", strict=False)
@@ -333,7 +337,8 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
             end=str(roadmap.nodes["name"][nodes[b]]),
             start_time_s=float(g.uniform(spec.start_time_min_s, spec.start_time_max_s)),
             cruise_speed_mps=float(g.uniform(spec.cruise_speed_min_mps, spec.cruise_speed_max_mps)),
-            speed_noise_mps=spec.speed_noise_mps, position_noise_m=list(spec.position_noise_m),
+            speed_noise_mps=spec.speed_noise_mps, speed_noise_corr_s=spec.speed_noise_corr_s,
+            position_noise_m=list(spec.position_noise_m),
             max_accel_mps2=spec.max_accel_mps2, max_decel_mps2=spec.max_decel_mps2,
             random_stop_rate_per_s=spec.random_stop_rate_per_s, mean_wait_s=spec.mean_wait_s,
             max_wait_s=spec.max_wait_s))
@@ -392,6 +397,7 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
         max_accel_mps2=arr(lambda s: s.max_accel_mps2),
         max_decel_mps2=arr(lambda s: s.max_decel_mps2),
         speed_noise_mps=arr(lambda s: s.speed_noise_mps),
+        noise_rho=np.exp(-dt / np.maximum(arr(lambda s: s.speed_noise_corr_s), 1e-300)),
         p_stop=-np.expm1(-arr(lambda s: s.random_stop_rate_per_s) * dt),
         q_wait=np.minimum(1.0, dt / arr(lambda s: s.mean_wait_s)),
         max_wait_steps=np.asarray([int(math.floor(s.max_wait_s / dt + 1e-9)) for s in specs],

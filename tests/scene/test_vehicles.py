@@ -148,6 +148,29 @@ def test_speed_noise_has_the_configured_sigma(straight_map):
     assert abs(v.mean() - cruise) < 4.5 * sigma / np.sqrt(n)
 
 
+@pytest.mark.parametrize("dt_s", [0.25, 2.0])
+def test_correlated_speed_noise_keeps_sigma_and_correlation_time_at_any_dt(straight_map, dt_s):
+    sigma, cruise, corr = 0.5, 20.0, 4.0
+    specs = [VehicleSpec(name=f"v{i}", start="a", end="b", cruise_speed_mps=cruise,
+                         speed_noise_mps=sigma, speed_noise_corr_s=corr, max_accel_mps2=4.0,
+                         max_decel_mps2=4.0) for i in range(40)]
+    fl = fleet_of(straight_map, *specs, duration_s=800.0, dt_s=dt_s, seed=4)
+    v = fl.profiles.v_mps[1:]                          # (K, 40) end-of-step speeds
+    # Samples 40 s = 10 correlation times apart are independent: chi-square on their spread.
+    every = int(round(40.0 / dt_s))
+    x = (v[::every] - cruise) / sigma
+    n = x.size
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], n)
+    assert n >= 760 and lo < np.sum(x**2) < hi
+    # Lag-1 s correlation exp(-1/4); its standard error is about (1 - rho^2) / sqrt(n_eff).
+    lag = int(round(1.0 / dt_s)) or 1
+    z = (v - cruise) / sigma
+    r = np.sum(z[:-lag] * z[lag:]) / np.sqrt(np.sum(z[:-lag] ** 2) * np.sum(z[lag:] ** 2))
+    rho = np.exp(-lag * dt_s / corr)
+    n_eff = v.size * dt_s / (2 * corr)
+    assert abs(r - rho) < 4.5 * (1 - rho**2) / np.sqrt(n_eff) + 0.01
+
+
 def _runs(labels, value):
     """Lengths of complete runs of ``value`` in a 1-D label array (runs touching an end dropped)."""
     x = np.concatenate([[False], labels == value, [False]]).astype(np.int8)
