@@ -17,7 +17,8 @@ Choices (documented in docs/scene.md):
   stops) at fixed gaps ``spacing_m`` behind it (or ``spacing_s`` times the leader's start speed);
   member i enters the route when the leader is ``i * gap`` down it and stops behind the leader
   at stop points, like a queue. Each member has its own position noise from its own stream.
-* Position noise (σ along, across, up) is drawn on the profile's time grid and interpolated
+* Position noise (σ along, across, up) is drawn on the profile's time grid (independent per
+  step as in the paper, or Gauss-Markov with ``position_noise_corr_s``) and interpolated
   linearly in time, so ``state_at`` is reproducible at any t. Velocity and acceleration are along
   the road (tangential acceleration only; corners are sharp as in the paper).
 * The random fleet draws its start/end nodes, type, cruise speed and start time from
@@ -30,6 +31,7 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
 import numpy as np
+from scipy.signal import lfilter
 from scipy.special import ndtri
 
 from gmtiflow import frames, rng, schema
@@ -93,6 +95,7 @@ class VehicleSpec:
     speed_noise_mps: float = 0.0
     speed_noise_corr_s: float = 0.0
     position_noise_m: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    position_noise_corr_s: float = 0.0
     max_accel_mps2: float = 2.0
     max_decel_mps2: float = 4.0
     stop_points: List[Any] = field(default_factory=list)
@@ -109,7 +112,7 @@ class VehicleSpec:
             out.append(schema.Problem("name", "every vehicle needs a name"))
         out += schema.non_negative(self, "start_time_s", "speed_noise_mps",
                                    "speed_noise_corr_s", "random_stop_rate_per_s",
-                                   "start_speed_mps")
+                                   "start_speed_mps", "position_noise_corr_s")
         out += schema.positive(self, "cruise_speed_mps", "max_accel_mps2", "max_decel_mps2",
                                "mean_wait_s", "max_wait_s")
         out += schema.ordered(self, "mean_wait_s", "max_wait_s", strict=False)
@@ -153,6 +156,7 @@ class RandomFleetSpec:
     speed_noise_mps: float = 0.3
     speed_noise_corr_s: float = 5.0
     position_noise_m: List[float] = field(default_factory=lambda: [0.5, 0.5, 0.05])
+    position_noise_corr_s: float = 5.0
     max_accel_mps2: float = 2.0
     max_decel_mps2: float = 4.0
     random_stop_rate_per_s: float = 0.0
@@ -166,7 +170,8 @@ class RandomFleetSpec:
                                "max_accel_mps2", "max_decel_mps2", "mean_wait_s", "max_wait_s")
         out += schema.non_negative(self, "start_time_min_s", "start_time_max_s",
                                    "speed_noise_mps", "speed_noise_corr_s",
-                                   "random_stop_rate_per_s", "min_route_m")
+                                   "position_noise_corr_s", "random_stop_rate_per_s",
+                                   "min_route_m")
         out += schema.ordered(self, "cruise_speed_min_mps", "cruise_speed_max_mps", strict=False)
         out += schema.ordered(self, "start_time_min_s", "start_time_max_s", strict=False)
         out += schema.ordered(self, "mean_wait_s", "max_wait_s", strict=False)
@@ -210,6 +215,7 @@ class _Vehicle:
     offset_m: float
     off_road: bool
     sigma_pos: np.ndarray
+    pos_corr_s: float
 
 
 @dataclass
@@ -301,7 +307,8 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
         for name, off in members:
             vehicles.append(_Vehicle(name=name, type=str(spec.type), convoy_id=convoy_id,
                                      profile=p, route=r, offset_m=off,
-                                     off_road=bool(spec.off_road), sigma_pos=sig))
+                                     off_road=bool(spec.off_road), sigma_pos=sig,
+                                     pos_corr_s=float(spec.position_noise_corr_s)))
     names = [v.name for v in vehicles]
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
@@ -339,6 +346,7 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
             cruise_speed_mps=float(g.uniform(spec.cruise_speed_min_mps, spec.cruise_speed_max_mps)),
             speed_noise_mps=spec.speed_noise_mps, speed_noise_corr_s=spec.speed_noise_corr_s,
             position_noise_m=list(spec.position_noise_m),
+            position_noise_corr_s=spec.position_noise_corr_s,
             max_accel_mps2=spec.max_accel_mps2, max_decel_mps2=spec.max_decel_mps2,
             random_stop_rate_per_s=spec.random_stop_rate_per_s, mean_wait_s=spec.mean_wait_s,
             max_wait_s=spec.max_wait_s))
@@ -373,7 +381,14 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
             u_stop[:, p] = u[:K, 1]
             u_wait[:, p] = u[:K, 2]
         if np.any(veh.sigma_pos > 0):
-            pos_noise[:, vi, :] = ndtri(u[:, 3:6]) * veh.sigma_pos
+            z = ndtri(u[:, 3:6])
+            if veh.pos_corr_s > 0:
+                # Stationary Gauss-Markov on the grid: x_k = rho x_{k-1} + sqrt(1-rho^2) n_k.
+                rho = math.exp(-dt / veh.pos_corr_s)
+                c = math.sqrt(1.0 - rho * rho)
+                z[0] /= c if c > 0 else 1.0
+                z = lfilter([c], [1.0, -rho], z, axis=0) if c > 0 else np.repeat(z[:1], K + 1, 0)
+            pos_noise[:, vi, :] = z * veh.sigma_pos
 
     seg_start, seg_target, seg_off = [], [], [0]
     stop_m, stop_off = [], [0]

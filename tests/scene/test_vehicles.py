@@ -134,6 +134,27 @@ def test_position_noise_has_the_configured_sigma(straight_map):
     assert np.array_equal(again["y_m"], fl.state_at(t + 0.37, 0)["y_m"])
 
 
+def test_correlated_position_noise_keeps_sigma_and_correlation(straight_map):
+    sig, corr, dt = np.array([1.0, 0.5, 0.05]), 3.0, 0.5
+    specs = [VehicleSpec(name=f"p{i}", start="a", end="b", cruise_speed_mps=10.0,
+                         position_noise_m=sig.tolist(), position_noise_corr_s=corr)
+             for i in range(30)]
+    fl = fleet_of(straight_map, *specs, duration_s=900.0, dt_s=dt, seed=8)
+    t = np.arange(0.0, 900.0, 30.0)                   # 10 correlation times apart: independent
+    st = fl.state_at(t[:, None], np.arange(30)[None, :])
+    d = np.stack([st["x_m"] - st["route_s_m"], st["y_m"], st["z_m"]], axis=-1).reshape(-1, 3)
+    n = len(d)
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], n)
+    for col in range(3):
+        assert lo < np.sum((d[:, col] / sig[col]) ** 2) < hi, col
+    # Lag-1 s correlation of the across-road noise: exp(-1/3).
+    t = np.arange(0.0, 900.0, 1.0)
+    y = fl.state_at(t[:, None], np.arange(30)[None, :])["y_m"] / sig[1]
+    r = np.sum(y[:-1] * y[1:]) / np.sqrt(np.sum(y[:-1] ** 2) * np.sum(y[1:] ** 2))
+    rho = np.exp(-1.0 / corr)
+    assert abs(r - rho) < 4.5 * (1 - rho**2) / np.sqrt(y.size / (2 * corr)) + 0.01
+
+
 # -- speed noise, random stops, waiting times -----------------------------------------------------
 def test_speed_noise_has_the_configured_sigma(straight_map):
     sigma, cruise = 0.4, 20.0
