@@ -264,7 +264,14 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
         if spec.off_road:
             route = off_road_route(spec.off_road, who=who)
         else:
-            route = shortest_route(roadmap, spec.start, spec.end, spec.stopovers, who=who)
+            try:
+                route = shortest_route(roadmap, spec.start, spec.end, spec.stopovers, who=who)
+            except RoadMapError as exc:
+                if "unknown node" in str(exc) and roadmap.source != "default scene":
+                    raise RoadMapError(f"{exc}. Note: the vehicles=default preset names nodes "
+                                       f"of roadmap=default; vehicles=random works on any "
+                                       f"map") from None
+                raise
         r = len(routes)
         routes.append(route)
         nseg = len(route.edge_id)

@@ -440,6 +440,8 @@ def test_config_problems_name_vehicle_and_key(straight_map):
 def test_road_errors_name_the_vehicle(square_map):
     with pytest.raises(RoadMapError, match=r"vehicle 'lost'.*unknown node 'mars'"):
         fleet_of(square_map, VehicleSpec(name="lost", start="s0", end="mars"))
+    with pytest.raises(RoadMapError, match=r"vehicles=random works on any map"):
+        build_fleet(load_vehicles("default"), square_map, 1, 60.0, 1.0)
     with pytest.raises(RoadMapError, match=r"vehicle 'far'.*no route from node 's0'"):
         fleet_of(square_map, VehicleSpec(name="far", start="s0", end="iso_b"))
     with pytest.raises(RoadMapError, match=r"vehicle 'sp'.*'iso_a' is not on the vehicle's route"):
