@@ -40,6 +40,9 @@ per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 
   reaches it, brake with :math:`a = v^2 / (2 d)`, :math:`d = s_{stop}-s`, recomputed each step (so
   rounding does not accumulate). The stop happens at :math:`\tau' = 2d/v` inside the step and is
   stored as :math:`s_{k+1} = s_{stop}` exactly.
+  A vehicle at rest within that look-ahead (it stopped at random just short of the point, at
+  most :math:`\tfrac12 a_{max}\Delta t^2 + (a_{max}\Delta t)^2/(2 d_{max})`, 1.5 m at the
+  defaults and dt = 1 s) counts the stop as made and drives on.
 * ``STOPPED``: after the step in which it came to rest, the vehicle waits :math:`W` whole steps,
   :math:`W` geometric on {1, 2, …} with success probability :math:`q = \min(1, \Delta t/\bar w)`
   (mean :math:`\bar w` = mean_wait_s), drawn by inversion, capped at
@@ -231,6 +234,15 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
         b_rand = v * v / (2.0 * dmax)
         to_point = (moving & (state != BRAKE_POINT) & reach & (dist > 0)
                     & ~((state == BRAKE_RANDOM) & (b_rand < dist)))
+        # At rest within the start-up look-ahead of a stop point (it came to rest just short
+        # of it, e.g. by a random stop): that stop counts as made, it drives on.
+        served = to_point & (v <= 0.0)
+        if served.any():
+            stop_ptr[served] += 1
+            to_point &= ~served
+            next_stop = np.where(stop_ptr < stop_end,
+                                 stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)], np.inf)
+            dist = next_stop - s
         state[to_point] = BRAKE_POINT
         # -- kinematics of the step
         a = np.zeros(P)
@@ -253,13 +265,16 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
         bp = state == BRAKE_POINT
         br = state == BRAKE_RANDOM
         with np.errstate(divide="ignore", invalid="ignore"):
-            a_bp = -v * v / (2.0 * dist)
-            t_bp = 2.0 * dist / v
-            t_br = v / dmax
+            a_bp = np.where(dist > 0, -v * v / (2.0 * dist), 0.0)
+            t_bp = np.where(v > 0, 2.0 * dist / v, np.inf)
+        t_br = v / dmax
         a = np.where(bp, a_bp, np.where(br, -dmax, a))
         t_stop = np.where(bp, t_bp, np.where(br, t_br, np.inf))
-        stops = (bp | br) & (t_stop <= dt)
-        tau = np.where(stops, t_stop, tau)
+        # A stop point reached up to rounding (the last braking step may leave ~1e-13 m/s and
+        # ~1e-12 m) counts as reached in this step.
+        stops = (bp | br) & (t_stop <= dt * (1.0 + 1e-9))
+        stops |= bp & (dist <= 1e-9)
+        tau = np.where(stops, np.minimum(t_stop, dt), tau)
         label = np.where(bp | br, MODE_DECEL, label)
         v_end = np.where(stops, 0.0, np.maximum(v + a * tau, 0.0))
         s_end = s + v * tau + 0.5 * a * tau * tau + v_end * (dt - tau)
