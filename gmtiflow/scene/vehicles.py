@@ -17,6 +17,9 @@ Choices (documented in docs/scene.md):
   stops) at fixed gaps ``spacing_m`` behind it (or ``spacing_s`` times the leader's start speed);
   member i enters the route when the leader is ``i * gap`` down it and stops behind the leader
   at stop points, like a queue. Each member has its own position noise from its own stream.
+* Speed noise: σ about the cruise speed, independent per step as in the paper
+  (``speed_noise_corr_s = 0``) or Gauss-Markov with that correlation time, which makes the
+  speed wander and the accelerations it implies independent of dt.
 * Position noise (σ along, across, up) is drawn on the profile's time grid (independent per
   step as in the paper, or Gauss-Markov with ``position_noise_corr_s``) and interpolated
   linearly in time, so ``state_at`` is reproducible at any t. Velocity and acceleration are along
@@ -81,6 +84,14 @@ class VehicleSpec:
     Node references (start, end, stopovers, stop_points, speed_changes[].at) may be a node name,
     an OSM id, or [x, y] metres (nearest node). ``off_road``: waypoints [x, y(, z)] in metres; when
     given, the vehicle drives them without the road graph and start/end are ignored.
+
+    Fields (units in the suffix): ``type`` key into the sensor's RCS models; ``start_speed_mps``
+    None = cruise speed of the first road; ``obey_speed_limits`` caps cruise by road limits;
+    ``speed_noise_mps`` σ of the speed, ``speed_noise_corr_s`` its correlation time (0 =
+    independent per step); ``position_noise_m`` σ [along, across, up], ``position_noise_corr_s``
+    likewise; ``stop_points`` nodes where it stops exactly; ``random_stop_rate_per_s`` Poisson
+    rate of random stops while driving; ``mean_wait_s``/``max_wait_s`` the geometric wait;
+    ``speed_changes`` permanent new cruise speeds from a node on; ``convoy`` count and gap.
     """
 
     name: str = "???"
