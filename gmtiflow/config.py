@@ -145,7 +145,8 @@ def problems_of(obj, prefix: str = "") -> List[Problem]:
 
 def validate(obj: AppConfig) -> None:
     """Raise one ConfigError listing every invalid value by its full key path."""
-    found = problems_of(obj)
+    # A group's problems() may already report its nested items; list each problem once.
+    found = list(dict.fromkeys(problems_of(obj)))
     if found:
         lines = [f"{p.key}: {p.message}" for p in found]
         raise ConfigError("invalid config: " + "; ".join(lines))

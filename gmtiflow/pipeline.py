@@ -62,7 +62,7 @@ def drape_roads(roadmap: RoadMap, terrain: Terrain) -> RoadMap:
         return roadmap
     x, y = roadmap.nodes["x_m"], roadmap.nodes["y_m"]
     terrain.check_covers(float(x.min()), float(x.max()), float(y.min()), float(y.max()))
-    return roadmap.with_node_heights(terrain.drape(x, y))
+    return roadmap.draped(terrain.drape)
 
 
 def detection_ancestors(detections: Table, looks: Table) -> Table:

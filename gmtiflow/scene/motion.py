@@ -19,12 +19,15 @@ One time loop runs over the steps; every operation inside is numpy over all prof
 per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 2, DESIGN §3):
 
 * ``TRACK`` (modes 0 cruise / 1 decelerate / 3 accelerate): the speed heads for the target
-  :math:`v^* = \max(0, \min(c(s) + \sigma n_k, v_{cap}))` at the end of the step, where
+  :math:`v^* = \max(0, \min(c(s) + \sigma \xi_k, v_{cap}))` at the end of the step, where
   :math:`c(s)` is the cruise speed of the road segment at the current position (vehicle cruise,
-  changed permanently at speed-change points, capped by the road's speed limit), :math:`n_k` a
-  standard normal (the paper's per-step speed noise), and :math:`v_{cap}` the braking curve
-  (at 0.9 max_decel) towards any lower cruise speed further along the route, so a vehicle slows
-  down *before* a lower limit or a speed-change point. The acceleration
+  changed permanently at speed-change points, capped by the road's speed limit), :math:`\xi_k` a
+  stationary standard Gauss–Markov (AR(1)) sequence,
+  :math:`\xi_k = \rho \xi_{k-1} + \sqrt{1-\rho^2}\, n_k`, :math:`\rho = e^{-\Delta t/T_c}`
+  (:math:`T_c` = speed_noise_corr_s; :math:`T_c = 0` gives the paper's independent per-step
+  noise, with :math:`\sigma` the standard deviation either way), and :math:`v_{cap}` the
+  braking curve (at 0.9 max_decel) towards any lower cruise speed further along the route, so a
+  vehicle slows down *before* a lower limit or a speed-change point. The acceleration
   :math:`(v^*-v_k)/\Delta t` is clipped to
   :math:`[-d_{max}, a_{max}]`; the label is cruise when unclipped, accelerate/decelerate when
   clipped. Restarting from rest is therefore "accelerate at max_accel back to cruise".
@@ -37,6 +40,9 @@ per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 
   reaches it, brake with :math:`a = v^2 / (2 d)`, :math:`d = s_{stop}-s`, recomputed each step (so
   rounding does not accumulate). The stop happens at :math:`\tau' = 2d/v` inside the step and is
   stored as :math:`s_{k+1} = s_{stop}` exactly.
+  A vehicle at rest within that look-ahead (it stopped at random just short of the point, at
+  most :math:`\tfrac12 a_{max}\Delta t^2 + (a_{max}\Delta t)^2/(2 d_{max})`, 1.5 m at the
+  defaults and dt = 1 s) counts the stop as made and drives on.
 * ``STOPPED``: after the step in which it came to rest, the vehicle waits :math:`W` whole steps,
   :math:`W` geometric on {1, 2, …} with success probability :math:`q = \min(1, \Delta t/\bar w)`
   (mean :math:`\bar w` = mean_wait_s), drawn by inversion, capped at
@@ -75,6 +81,7 @@ class ProfileInputs:
     max_accel_mps2: np.ndarray
     max_decel_mps2: np.ndarray
     speed_noise_mps: np.ndarray
+    noise_rho: np.ndarray         # per-step correlation exp(-dt / corr) of the speed noise
     p_stop: np.ndarray            # per-step random stop probability
     q_wait: np.ndarray            # per-step release probability of the geometric wait
     max_wait_steps: np.ndarray    # int
@@ -159,6 +166,9 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
 
     amax, dmax = inp.max_accel_mps2, inp.max_decel_mps2
     sigma = inp.speed_noise_mps
+    rho = inp.noise_rho
+    rho_c = np.sqrt(1.0 - rho * rho)
+    xi = np.zeros(P)
     # Segment lookup over all profiles at once: key = s + p * span keeps the flat array sorted.
     span = float(2.0 ** np.ceil(np.log2(max(float(np.max(inp.length_m)), 1.0) * 2.0 + 2.0)))
     seg_prof = np.repeat(np.arange(P), np.diff(inp.seg_offset))
@@ -224,6 +234,15 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
         b_rand = v * v / (2.0 * dmax)
         to_point = (moving & (state != BRAKE_POINT) & reach & (dist > 0)
                     & ~((state == BRAKE_RANDOM) & (b_rand < dist)))
+        # At rest within the start-up look-ahead of a stop point (it came to rest just short
+        # of it, e.g. by a random stop): that stop counts as made, it drives on.
+        served = to_point & (v <= 0.0)
+        if served.any():
+            stop_ptr[served] += 1
+            to_point &= ~served
+            next_stop = np.where(stop_ptr < stop_end,
+                                 stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)], np.inf)
+            dist = next_stop - s
         state[to_point] = BRAKE_POINT
         # -- kinematics of the step
         a = np.zeros(P)
@@ -233,7 +252,11 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
         with np.errstate(invalid="ignore"):
             ahead = np.maximum(cap_s[j] - (s + v * dt), 0.0)
         cap = np.sqrt(cap_t[j] ** 2 + 2.0 * d_cap * ahead)
-        v_des = np.maximum(np.minimum(target + sigma * inp.normal[k], cap), 0.0)
+        if k == 0:
+            xi = inp.normal[0].copy()
+        else:
+            xi = rho * xi + rho_c * inp.normal[k]
+        v_des = np.maximum(np.minimum(target + sigma * xi, cap), 0.0)
         raw = (v_des - v) / dt
         a_tr = np.clip(raw, -dmax, amax)
         a = np.where(tr, a_tr, a)
@@ -242,13 +265,16 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
         bp = state == BRAKE_POINT
         br = state == BRAKE_RANDOM
         with np.errstate(divide="ignore", invalid="ignore"):
-            a_bp = -v * v / (2.0 * dist)
-            t_bp = 2.0 * dist / v
-            t_br = v / dmax
+            a_bp = np.where(dist > 0, -v * v / (2.0 * dist), 0.0)
+            t_bp = np.where(v > 0, 2.0 * dist / v, np.inf)
+        t_br = v / dmax
         a = np.where(bp, a_bp, np.where(br, -dmax, a))
         t_stop = np.where(bp, t_bp, np.where(br, t_br, np.inf))
-        stops = (bp | br) & (t_stop <= dt)
-        tau = np.where(stops, t_stop, tau)
+        # A stop point reached up to rounding (the last braking step may leave ~1e-13 m/s and
+        # ~1e-12 m) counts as reached in this step.
+        stops = (bp | br) & (t_stop <= dt * (1.0 + 1e-9))
+        stops |= bp & (dist <= 1e-9)
+        tau = np.where(stops, np.minimum(t_stop, dt), tau)
         label = np.where(bp | br, MODE_DECEL, label)
         v_end = np.where(stops, 0.0, np.maximum(v + a * tau, 0.0))
         s_end = s + v * tau + 0.5 * a * tau * tau + v_end * (dt - tau)

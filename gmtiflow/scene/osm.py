@@ -17,7 +17,8 @@
 * Origin: the centre of ``<bounds>``, else of the drivable road nodes, at height 0 (override
   with ``origin_*``); node heights are the origin's (OSM carries no elevation), so z is 0
   up to the curvature of the earth (-0.3 m at 2 km).
-* No metadata attributes (version, timestamp, user) are required.
+* No metadata attributes (version, timestamp, user) are required; elements marked
+  ``action="delete"`` or ``visible="false"`` (JOSM files) are ignored.
 * Isolated pieces of road are kept; routes are only possible within connected parts.
 """
 from __future__ import annotations
@@ -49,6 +50,11 @@ def parse_maxspeed(value: Optional[str]) -> float:
     return speed if speed > 0 else float("nan")
 
 
+def _deleted(element) -> bool:
+    """JOSM/osmChange leftovers: ``action="delete"`` or ``visible="false"``."""
+    return element.get("action") == "delete" or element.get("visible") == "false"
+
+
 def hardened_parser() -> etree.XMLParser:
     """An XML parser that resolves no entities, loads no DTD and never touches the network."""
     return etree.XMLParser(resolve_entities=False, load_dtd=False, no_network=True,
@@ -73,6 +79,8 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
     drivable = set(cfg.drivable_classes)
     ways = []
     for way in root.iterfind("way"):
+        if _deleted(way):
+            continue
         tags = {t.get("k"): t.get("v") for t in way.iterfind("tag")}
         hw = tags.get("highway")
         if hw is None or hw not in drivable:
@@ -86,7 +94,7 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
     coords: Dict[str, tuple] = {}
     for node in root.iterfind("node"):
         nid = node.get("id")
-        if nid in needed:
+        if nid in needed and not _deleted(node):
             try:
                 coords[nid] = (float(node.get("lat")), float(node.get("lon")))
             except (TypeError, ValueError):

@@ -126,7 +126,9 @@ class RoadmapConfig:
         out += schema.in_range(self, "merge_decimals", 0, 12)
         kind = RoadmapKind(self.kind)
         if kind in (RoadmapKind.osm, RoadmapKind.geojson) and not schema.optional_path(self.path):
-            out.append(schema.Problem("path", f"a {kind.value} road map needs a file path"))
+            label = "an OSM" if kind == RoadmapKind.osm else "a GeoJSON"
+            out.append(schema.Problem("path", f"{label} road map needs a file path, e.g. "
+                                              f"roadmap.path=/data/map.{kind.value}"))
         if kind == RoadmapKind.inline:
             if not self.nodes or not self.roads:
                 out.append(schema.Problem("roads", "an inline road map needs at least one node "
@@ -208,15 +210,24 @@ class RoadMap:
         }
         return cls(origin, nodes, edges, attribution=attribution, source=source)
 
-    def with_node_heights(self, z_m) -> "RoadMap":
-        """The same road map with its nodes at heights ``z_m`` (e.g. draped on a DEM); edge
-        lengths and geodetic columns follow."""
-        n, e = self.nodes, self.edges
-        xyz = np.column_stack([n["x_m"], n["y_m"], np.asarray(z_m, float)])
-        return RoadMap.from_lists(self.origin, list(n["name"]), xyz, e["from_node"], e["to_node"],
-                                  e["oneway"], e["speed_limit_mps"], e["invisible"],
-                                  list(e["road_class"]), attribution=self.attribution,
-                                  source=self.source)
+    def draped(self, height_at, offset_m: float = 0.0) -> "RoadMap":
+        """A copy with every node's z set to ``height_at(x_m, y_m) + offset_m`` (ENU metres).
+
+        ``height_at`` is e.g. ``Terrain.height_at``; edge lengths, geodetic columns and the graph
+        are recomputed. Tunnel nodes are draped too (their roads stay invisible).
+        """
+        n = self.nodes
+        z = np.asarray(height_at(n["x_m"], n["y_m"]), dtype=float) + float(offset_m)
+        if z.shape != n["x_m"].shape or not np.all(np.isfinite(z)):
+            raise RoadMapError(f"{self.source}: height_at returned no finite height for every "
+                               f"road node")
+        e = self.edges
+        xyz = np.column_stack([n["x_m"], n["y_m"], z])
+        out = RoadMap.from_lists(self.origin, n["name"].tolist(), xyz, e["from_node"],
+                                 e["to_node"], e["oneway"], e["speed_limit_mps"].tolist(),
+                                 e["invisible"], e["road_class"].tolist(),
+                                 attribution=self.attribution, source=self.source)
+        return out
 
     # -- queries ------------------------------------------------------------------------------
     @property

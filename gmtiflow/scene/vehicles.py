@@ -17,7 +17,11 @@ Choices (documented in docs/scene.md):
   stops) at fixed gaps ``spacing_m`` behind it (or ``spacing_s`` times the leader's start speed);
   member i enters the route when the leader is ``i * gap`` down it and stops behind the leader
   at stop points, like a queue. Each member has its own position noise from its own stream.
-* Position noise (σ along, across, up) is drawn on the profile's time grid and interpolated
+* Speed noise: σ about the cruise speed, independent per step as in the paper
+  (``speed_noise_corr_s = 0``) or Gauss-Markov with that correlation time, which makes the
+  speed wander and the accelerations it implies independent of dt.
+* Position noise (σ along, across, up) is drawn on the profile's time grid (independent per
+  step as in the paper, or Gauss-Markov with ``position_noise_corr_s``) and interpolated
   linearly in time, so ``state_at`` is reproducible at any t. Velocity and acceleration are along
   the road (tangential acceleration only; corners are sharp as in the paper).
 * The random fleet draws its start/end nodes, type, cruise speed and start time from
@@ -30,6 +34,7 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
 import numpy as np
+from scipy.signal import lfilter
 from scipy.special import ndtri
 
 from gmtiflow import frames, rng, schema
@@ -79,6 +84,14 @@ class VehicleSpec:
     Node references (start, end, stopovers, stop_points, speed_changes[].at) may be a node name,
     an OSM id, or [x, y] metres (nearest node). ``off_road``: waypoints [x, y(, z)] in metres; when
     given, the vehicle drives them without the road graph and start/end are ignored.
+
+    Fields (units in the suffix): ``type`` key into the sensor's RCS models; ``start_speed_mps``
+    None = cruise speed of the first road; ``obey_speed_limits`` caps cruise by road limits;
+    ``speed_noise_mps`` σ of the speed, ``speed_noise_corr_s`` its correlation time (0 =
+    independent per step); ``position_noise_m`` σ [along, across, up], ``position_noise_corr_s``
+    likewise; ``stop_points`` nodes where it stops exactly; ``random_stop_rate_per_s`` Poisson
+    rate of random stops while driving; ``mean_wait_s``/``max_wait_s`` the geometric wait;
+    ``speed_changes`` permanent new cruise speeds from a node on; ``convoy`` count and gap.
     """
 
     name: str = "???"
@@ -91,7 +104,9 @@ class VehicleSpec:
     start_speed_mps: Optional[float] = None
     obey_speed_limits: bool = True
     speed_noise_mps: float = 0.0
+    speed_noise_corr_s: float = 0.0
     position_noise_m: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    position_noise_corr_s: float = 0.0
     max_accel_mps2: float = 2.0
     max_decel_mps2: float = 4.0
     stop_points: List[Any] = field(default_factory=list)
@@ -107,7 +122,8 @@ class VehicleSpec:
         if not self.name or self.name == "???":
             out.append(schema.Problem("name", "every vehicle needs a name"))
         out += schema.non_negative(self, "start_time_s", "speed_noise_mps",
-                                   "random_stop_rate_per_s", "start_speed_mps")
+                                   "speed_noise_corr_s", "random_stop_rate_per_s",
+                                   "start_speed_mps", "position_noise_corr_s")
         out += schema.positive(self, "cruise_speed_mps", "max_accel_mps2", "max_decel_mps2",
                                "mean_wait_s", "max_wait_s")
         out += schema.ordered(self, "mean_wait_s", "max_wait_s", strict=False)
@@ -149,7 +165,9 @@ class RandomFleetSpec:
     start_time_min_s: float = 0.0
     start_time_max_s: float = 0.0
     speed_noise_mps: float = 0.3
+    speed_noise_corr_s: float = 5.0
     position_noise_m: List[float] = field(default_factory=lambda: [0.5, 0.5, 0.05])
+    position_noise_corr_s: float = 5.0
     max_accel_mps2: float = 2.0
     max_decel_mps2: float = 4.0
     random_stop_rate_per_s: float = 0.0
@@ -162,7 +180,9 @@ class RandomFleetSpec:
         out += schema.positive(self, "cruise_speed_min_mps", "cruise_speed_max_mps",
                                "max_accel_mps2", "max_decel_mps2", "mean_wait_s", "max_wait_s")
         out += schema.non_negative(self, "start_time_min_s", "start_time_max_s",
-                                   "speed_noise_mps", "random_stop_rate_per_s", "min_route_m")
+                                   "speed_noise_mps", "speed_noise_corr_s",
+                                   "position_noise_corr_s", "random_stop_rate_per_s",
+                                   "min_route_m")
         out += schema.ordered(self, "cruise_speed_min_mps", "cruise_speed_max_mps", strict=False)
         out += schema.ordered(self, "start_time_min_s", "start_time_max_s", strict=False)
         out += schema.ordered(self, "mean_wait_s", "max_wait_s", strict=False)
@@ -206,6 +226,7 @@ class _Vehicle:
     offset_m: float
     off_road: bool
     sigma_pos: np.ndarray
+    pos_corr_s: float
 
 
 @dataclass
@@ -254,7 +275,14 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
         if spec.off_road:
             route = off_road_route(spec.off_road, who=who)
         else:
-            route = shortest_route(roadmap, spec.start, spec.end, spec.stopovers, who=who)
+            try:
+                route = shortest_route(roadmap, spec.start, spec.end, spec.stopovers, who=who)
+            except RoadMapError as exc:
+                if "unknown node" in str(exc) and roadmap.source != "default scene":
+                    raise RoadMapError(f"{exc}. Note: the vehicles=default preset names nodes "
+                                       f"of roadmap=default; vehicles=random works on any "
+                                       f"map") from None
+                raise
         r = len(routes)
         routes.append(route)
         nseg = len(route.edge_id)
@@ -297,7 +325,8 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
         for name, off in members:
             vehicles.append(_Vehicle(name=name, type=str(spec.type), convoy_id=convoy_id,
                                      profile=p, route=r, offset_m=off,
-                                     off_road=bool(spec.off_road), sigma_pos=sig))
+                                     off_road=bool(spec.off_road), sigma_pos=sig,
+                                     pos_corr_s=float(spec.position_noise_corr_s)))
     names = [v.name for v in vehicles]
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
@@ -333,7 +362,9 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
             end=str(roadmap.nodes["name"][nodes[b]]),
             start_time_s=float(g.uniform(spec.start_time_min_s, spec.start_time_max_s)),
             cruise_speed_mps=float(g.uniform(spec.cruise_speed_min_mps, spec.cruise_speed_max_mps)),
-            speed_noise_mps=spec.speed_noise_mps, position_noise_m=list(spec.position_noise_m),
+            speed_noise_mps=spec.speed_noise_mps, speed_noise_corr_s=spec.speed_noise_corr_s,
+            position_noise_m=list(spec.position_noise_m),
+            position_noise_corr_s=spec.position_noise_corr_s,
             max_accel_mps2=spec.max_accel_mps2, max_decel_mps2=spec.max_decel_mps2,
             random_stop_rate_per_s=spec.random_stop_rate_per_s, mean_wait_s=spec.mean_wait_s,
             max_wait_s=spec.max_wait_s))
@@ -368,7 +399,14 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
             u_stop[:, p] = u[:K, 1]
             u_wait[:, p] = u[:K, 2]
         if np.any(veh.sigma_pos > 0):
-            pos_noise[:, vi, :] = ndtri(u[:, 3:6]) * veh.sigma_pos
+            z = ndtri(u[:, 3:6])
+            if veh.pos_corr_s > 0:
+                # Stationary Gauss-Markov on the grid: x_k = rho x_{k-1} + sqrt(1-rho^2) n_k.
+                rho = math.exp(-dt / veh.pos_corr_s)
+                c = math.sqrt(1.0 - rho * rho)
+                z[0] /= c if c > 0 else 1.0
+                z = lfilter([c], [1.0, -rho], z, axis=0) if c > 0 else np.repeat(z[:1], K + 1, 0)
+            pos_noise[:, vi, :] = z * veh.sigma_pos
 
     seg_start, seg_target, seg_off = [], [], [0]
     stop_m, stop_off = [], [0]
@@ -392,6 +430,7 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
         max_accel_mps2=arr(lambda s: s.max_accel_mps2),
         max_decel_mps2=arr(lambda s: s.max_decel_mps2),
         speed_noise_mps=arr(lambda s: s.speed_noise_mps),
+        noise_rho=np.exp(-dt / np.maximum(arr(lambda s: s.speed_noise_corr_s), 1e-300)),
         p_stop=-np.expm1(-arr(lambda s: s.random_stop_rate_per_s) * dt),
         q_wait=np.minimum(1.0, dt / arr(lambda s: s.mean_wait_s)),
         max_wait_steps=np.asarray([int(math.floor(s.max_wait_s / dt + 1e-9)) for s in specs],
@@ -438,7 +477,8 @@ class Fleet:
         # Flat route arrays for vectorised look-ups: key = s + route * span is sorted.
         self._span = float(2.0 ** np.ceil(np.log2(max([r.length_m for r in routes] + [1.0])
                                                   * 2.0 + 2.0)))
-        self._vx_off = np.concatenate([[0], np.cumsum([len(r.s_m) for r in routes])])
+        self._vx_off = np.concatenate([[0], np.cumsum([len(r.s_m) for r in routes],
+                                                      dtype=np.int64)]).astype(np.int64)
         self._vx_xyz = np.concatenate([r.xyz_m for r in routes]) if routes else np.zeros((0, 3))
         self._vx_s = np.concatenate([r.s_m for r in routes]) if routes else np.zeros(0)
         pad = lambda a, fill: np.concatenate([a, [fill]])  # noqa: E731
@@ -539,7 +579,7 @@ class Fleet:
             st = self.state_at(tt[:, None], ids[None, :])
             mask = st.pop("active").ravel()
             parts.append({k: c.ravel()[mask] for k, c in st.items()})
-        if not parts:
+        if not parts or n == 0:
             st = self.state_at(np.zeros(0), np.zeros(0, np.int64))
             st.pop("active")
             return st

@@ -172,6 +172,14 @@ def test_small_osm_tags(tmp_path):
     assert rm.nodes["y_m"][1] - rm.nodes["y_m"][0] == pytest.approx(111.2, abs=0.2)  # 0.001°
 
 
+def test_deleted_elements_are_ignored(tmp_path):
+    body = NODES + ('<way id="10"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way>'
+                    '<way id="11" action="delete"><nd ref="2"/><nd ref="3"/>'
+                    '<tag k="highway" v="primary"/></way>')
+    rm = load_osm(write(tmp_path, osm_text(body)))
+    assert len(rm.edges["edge_id"]) == 1 and rm.n_nodes == 2
+
+
 @pytest.mark.parametrize("text, match", [
     ("this is not xml", "not well-formed"),
     ('<?xml version="1.0"?><gpx></gpx>', "expected <osm>"),

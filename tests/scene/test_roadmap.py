@@ -142,3 +142,18 @@ def test_point_in_polygon_square():
     sq = [[0, 0], [1, 0], [1, 1], [0, 1]]
     got = point_in_polygon([0.5, 1.5, -0.1, 0.99], [0.5, 0.5, 0.5, 0.01], sq)
     assert got.tolist() == [True, False, False, True]
+
+
+def test_draping_on_terrain_recomputes_lengths(square_map):
+    hill = lambda x, y: 0.1 * np.asarray(x)  # noqa: E731  (a 10 % slope up to the east)
+    d = square_map.draped(hill, offset_m=1.0)
+    assert np.allclose(d.nodes["z_m"], 0.1 * d.nodes["x_m"] + 1.0)
+    i = d.node_index("s1")
+    assert d.nodes["height_m"][i] - d.nodes["height_m"][d.node_index("s0")] == \
+        pytest.approx(100.0, abs=0.1)
+    e = d.edges["edge_id"][0]                                   # s0 -> s1, 1000 m east
+    assert d.edges["length_m"][e] == pytest.approx(np.hypot(1000.0, 100.0))
+    assert d.graph.edges[0, 1]["length_m"] == pytest.approx(np.hypot(1000.0, 100.0))
+    assert np.all(square_map.nodes["z_m"] == 0.0)                 # the original is unchanged
+    with pytest.raises(RoadMapError, match="finite"):
+        square_map.draped(lambda x, y: np.full_like(x, np.nan))

@@ -7,12 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as hst
 from omegaconf import OmegaConf
 from scipy import stats
 
 from gmtiflow.errors import ConfigError, RoadMapError
 from gmtiflow.scene import motion
-from gmtiflow.scene.roadmap import RoadmapConfig, load_roadmap
+from gmtiflow.scene.roadmap import RoadmapConfig, RoadSpec, load_roadmap
 from gmtiflow.scene.vehicles import (TRUTH_COLUMNS, ConvoySpec, RandomFleetSpec, SpeedChangeSpec,
                                      VehiclesConfig, VehicleSpec, build_fleet)
 
@@ -132,6 +134,27 @@ def test_position_noise_has_the_configured_sigma(straight_map):
     assert np.array_equal(again["y_m"], fl.state_at(t + 0.37, 0)["y_m"])
 
 
+def test_correlated_position_noise_keeps_sigma_and_correlation(straight_map):
+    sig, corr, dt = np.array([1.0, 0.5, 0.05]), 3.0, 0.5
+    specs = [VehicleSpec(name=f"p{i}", start="a", end="b", cruise_speed_mps=10.0,
+                         position_noise_m=sig.tolist(), position_noise_corr_s=corr)
+             for i in range(30)]
+    fl = fleet_of(straight_map, *specs, duration_s=900.0, dt_s=dt, seed=8)
+    t = np.arange(0.0, 900.0, 30.0)                   # 10 correlation times apart: independent
+    st = fl.state_at(t[:, None], np.arange(30)[None, :])
+    d = np.stack([st["x_m"] - st["route_s_m"], st["y_m"], st["z_m"]], axis=-1).reshape(-1, 3)
+    n = len(d)
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], n)
+    for col in range(3):
+        assert lo < np.sum((d[:, col] / sig[col]) ** 2) < hi, col
+    # Lag-1 s correlation of the across-road noise: exp(-1/3).
+    t = np.arange(0.0, 900.0, 1.0)
+    y = fl.state_at(t[:, None], np.arange(30)[None, :])["y_m"] / sig[1]
+    r = np.sum(y[:-1] * y[1:]) / np.sqrt(np.sum(y[:-1] ** 2) * np.sum(y[1:] ** 2))
+    rho = np.exp(-1.0 / corr)
+    assert abs(r - rho) < 4.5 * (1 - rho**2) / np.sqrt(y.size / (2 * corr)) + 0.01
+
+
 # -- speed noise, random stops, waiting times -----------------------------------------------------
 def test_speed_noise_has_the_configured_sigma(straight_map):
     sigma, cruise = 0.4, 20.0
@@ -144,6 +167,29 @@ def test_speed_noise_has_the_configured_sigma(straight_map):
     lo, hi = stats.chi2.ppf([0.0005, 0.9995], n)
     assert n > 900 and lo < chi < hi
     assert abs(v.mean() - cruise) < 4.5 * sigma / np.sqrt(n)
+
+
+@pytest.mark.parametrize("dt_s", [0.25, 2.0])
+def test_correlated_speed_noise_keeps_sigma_and_correlation_time_at_any_dt(straight_map, dt_s):
+    sigma, cruise, corr = 0.5, 20.0, 4.0
+    specs = [VehicleSpec(name=f"v{i}", start="a", end="b", cruise_speed_mps=cruise,
+                         speed_noise_mps=sigma, speed_noise_corr_s=corr, max_accel_mps2=4.0,
+                         max_decel_mps2=4.0) for i in range(40)]
+    fl = fleet_of(straight_map, *specs, duration_s=800.0, dt_s=dt_s, seed=4)
+    v = fl.profiles.v_mps[1:]                          # (K, 40) end-of-step speeds
+    # Samples 40 s = 10 correlation times apart are independent: chi-square on their spread.
+    every = int(round(40.0 / dt_s))
+    x = (v[::every] - cruise) / sigma
+    n = x.size
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], n)
+    assert n >= 760 and lo < np.sum(x**2) < hi
+    # Lag-1 s correlation exp(-1/4); its standard error is about (1 - rho^2) / sqrt(n_eff).
+    lag = int(round(1.0 / dt_s)) or 1
+    z = (v - cruise) / sigma
+    r = np.sum(z[:-lag] * z[lag:]) / np.sqrt(np.sum(z[:-lag] ** 2) * np.sum(z[lag:] ** 2))
+    rho = np.exp(-lag * dt_s / corr)
+    n_eff = v.size * dt_s / (2 * corr)
+    assert abs(r - rho) < 4.5 * (1 - rho**2) / np.sqrt(n_eff) + 0.01
 
 
 def _runs(labels, value):
@@ -212,6 +258,24 @@ def test_random_stop_rate_does_not_depend_on_dt(long_road):
     a, b = counts[0.5], counts[2.0]
     # Two Poisson counts of the same mean (~ 20 * 3000 s * 0.01 * driving fraction).
     assert a > 300 and abs(a - b) < 4.5 * np.sqrt(a + b)
+
+
+def test_random_stop_just_short_of_a_stop_point_does_not_strand_the_vehicle(make_map):
+    """Regression: a vehicle at rest 1 m before a stop point used to brake 'to the point' from
+    v = 0 for ever. Dense stop points (every 37 m) and frequent random stops provoke it."""
+    nodes = {f"n{i}": [37.0 * i, 0.0, 0.0] for i in range(30)}
+    rm = make_map(nodes, [RoadSpec(f"n{i}", f"n{i + 1}") for i in range(29)])
+    specs = [VehicleSpec(name=f"v{i}", start="n0", end="n29", cruise_speed_mps=15.0,
+                         random_stop_rate_per_s=0.3, mean_wait_s=2.0, max_wait_s=4.0,
+                         stop_points=[f"n{j}" for j in range(1, 29)]) for i in range(20)]
+    fl = fleet_of(rm, *specs, duration_s=1500.0, dt_s=1.0, seed=3)
+    assert np.all(np.isfinite(fl.end_time_s))
+    p = fl.profiles
+    for c in range(20):
+        # at v = 0 without being 'stopped' for at most the one step of moving off
+        idle = (p.v_mps[:-1, c] == 0) & (p.mode[:, c] != motion.MODE_STOPPED) \
+            & (p.s_m[:-1, c] < fl.routes[c].length_m)
+        assert _runs(np.concatenate([[False], idle, [False]]), True).max(initial=0) <= 1
 
 
 # -- convoys --------------------------------------------------------------------------------------
@@ -302,6 +366,16 @@ def test_truth_table_columns_and_order(default_map):
     assert fl.state_at(150.0, [-1, 99])["active"].tolist() == [False, False]
 
 
+def test_empty_fleet_and_empty_times(default_map):
+    empty = build_fleet(VehiclesConfig(), default_map, 1, 100.0, 1.0)
+    tt = empty.truth_table(np.arange(10.0))
+    assert list(tt) == list(TRUTH_COLUMNS) and len(tt["time_s"]) == 0
+    assert len(empty.vehicles["vehicle_id"]) == 0
+    fl = build_fleet(load_vehicles("default"), default_map, 1, 100.0, 1.0)
+    tt = fl.truth_table([])
+    assert list(tt) == list(TRUTH_COLUMNS) and len(tt["time_s"]) == 0
+
+
 # -- reproducibility ------------------------------------------------------------------------------
 def _equal(a, b):
     return all(np.array_equal(a[k], b[k], equal_nan=a[k].dtype.kind == "f") for k in a)
@@ -384,7 +458,51 @@ def test_config_problems_name_vehicle_and_key(straight_map):
 def test_road_errors_name_the_vehicle(square_map):
     with pytest.raises(RoadMapError, match=r"vehicle 'lost'.*unknown node 'mars'"):
         fleet_of(square_map, VehicleSpec(name="lost", start="s0", end="mars"))
+    with pytest.raises(RoadMapError, match=r"vehicles=random works on any map"):
+        build_fleet(load_vehicles("default"), square_map, 1, 60.0, 1.0)
     with pytest.raises(RoadMapError, match=r"vehicle 'far'.*no route from node 's0'"):
         fleet_of(square_map, VehicleSpec(name="far", start="s0", end="iso_b"))
     with pytest.raises(RoadMapError, match=r"vehicle 'sp'.*'iso_a' is not on the vehicle's route"):
         fleet_of(square_map, VehicleSpec(name="sp", start="s0", end="t1", stop_points=["iso_a"]))
+
+
+# -- property test of the kernel ------------------------------------------------------------------
+@settings(max_examples=30, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(dt=hst.sampled_from([0.1, 0.5, 1.0, 2.0, 3.3]), cruise=hst.floats(1.0, 40.0),
+       sigma=hst.floats(0.0, 3.0), amax=hst.floats(0.3, 5.0), dmax=hst.floats(0.5, 8.0),
+       limit=hst.floats(3.0, 30.0), seed=hst.integers(0, 2**31),
+       rate=hst.sampled_from([0.0, 0.0, 0.05, 0.3]))
+def test_kernel_invariants(make_map, dt, cruise, sigma, amax, dmax, limit, seed, rate):
+    """Whatever the parameters: s never runs backwards, v >= 0, s(t) is continuous across step
+    boundaries, and without random stops every stop (mode stopped) is exactly at a stop point.
+    (Speed noise alone may touch v = 0 in cruise: it is clipped at zero, never negative.)"""
+    rm = make_map({"a": [0, 0, 0], "b": [400, 0, 0], "c": [400, 700, 5], "d": [1500, 700, 5]},
+                  [RoadSpec("a", "b"), RoadSpec("b", "c", speed_limit_mps=limit),
+                   RoadSpec("c", "d")])
+    spec = VehicleSpec(name="h", start="a", end="d", cruise_speed_mps=cruise,
+                       speed_noise_mps=sigma, max_accel_mps2=amax, max_decel_mps2=dmax,
+                       stop_points=["b", "c"], mean_wait_s=3.0, max_wait_s=6.0,
+                       random_stop_rate_per_s=rate)
+    fl = fleet_of(rm, spec, seed=seed, duration_s=400.0, dt_s=dt)
+    t = np.linspace(0.0, 400.0, 8_001)
+    s = fl.state_at(t, 0)
+    act = s["active"]
+    assert np.all(np.diff(s["route_s_m"][act]) >= -1e-9)
+    assert np.all(s["speed_mps"][act] >= 0.0)
+    rest = act & (s["mode"] == motion.MODE_STOPPED)
+    assert np.all(s["speed_mps"][rest] == 0.0)
+    if rate == 0.0:
+        stop_s = fl.routes[0].s_m[[1, 2]]
+        d = np.min(np.abs(s["route_s_m"][rest][:, None] - stop_s[None, :]), axis=1)
+        assert np.all(d <= 1e-9)
+    # Never stuck: no rest lasts longer than the longest wait plus the steps around it.
+    still = np.concatenate([[0], (act & (s["speed_mps"] == 0.0)).astype(np.int8), [0]])
+    edges = np.flatnonzero(np.diff(still))
+    longest = np.max(edges[1::2] - edges[::2], initial=0) * (t[1] - t[0])
+    assert longest <= 6.0 + 3 * dt + 0.2 or sigma >= cruise / 3
+    k = np.arange(1, fl.profiles.n_steps)
+    left = fl.state_at(k * dt - 1e-9, 0)["route_s_m"]
+    right = fl.state_at(k * dt, 0)["route_s_m"]
+    ok = np.isfinite(left) & np.isfinite(right)
+    assert np.all(np.abs(left[ok] - right[ok]) <= 1e-9 * 50 + 1e-9)
