@@ -20,6 +20,12 @@ def compose_app(overrides=()):
 
 
 @pytest.fixture
+def compose():
+    """The config composer as a fixture: ``compose(["sensor=wide_fov", ...])``."""
+    return compose_app
+
+
+@pytest.fixture
 def shared_data():
     if not SHARED_DATA.is_dir():
         pytest.skip(f"shared data not found at {SHARED_DATA}")

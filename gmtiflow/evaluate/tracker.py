@@ -348,7 +348,13 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
         return empty_tracks()
     table = {name: np.concatenate([o[name] for o in out]) for name in TRACK_COLUMNS}
     order = np.lexsort((table["time_s"], table["track_id"]))
-    return {name: col[order] for name, col in table.items()}
+    table = {name: col[order] for name, col in table.items()}
+    # Several dwells can share one instant (instant_scan evaluates a whole scan at once): a track
+    # updated twice at the same time keeps its last state only (lexsort is stable).
+    ids, t = table["track_id"], table["time_s"]
+    last = np.ones(len(ids), bool)
+    last[:-1] = (ids[1:] != ids[:-1]) | (t[1:] != t[:-1])
+    return {name: col[last] for name, col in table.items()}
 
 
 def _rows(ids, t, x, P, z, plat_pos, plat_vel, confirmed) -> Table:
