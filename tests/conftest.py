@@ -20,8 +20,8 @@ def compose_app(overrides=()):
 
 
 @pytest.fixture
-def compose():
-    """The config composer as a fixture: ``compose(["sensor=wide_fov", ...])``."""
+def compose_config():
+    """The config composer as a fixture: ``compose_config(["sensor=wide_fov", ...])``."""
     return compose_app
 
 

@@ -222,12 +222,12 @@ def test_doppler_wrapped_range_rates_are_unwrapped_in_the_innovation():
     assert len(np.unique(broken["track_id"][broken["confirmed"]])) == 0
 
 
-def test_one_row_per_track_and_time_when_dwells_share_an_instant(tmp_path, compose):
+def test_one_row_per_track_and_time_when_dwells_share_an_instant(tmp_path, compose_config):
     """instant_scan gives every dwell of a scan the same time; /tracks stays one row per
     (track, time) so it passes the same validation as an external tracker's table."""
     from gmtiflow.evaluate.tracks import validate_tracks
     from gmtiflow import pipeline, store
-    cfg = compose(["fidelity=fast", "scene.duration_s=60"])
+    cfg = compose_config(["fidelity=fast", "scene.duration_s=60"])
     path = pipeline.run(cfg, tmp_path)
     tracks = store.read_table(path, "tracks")
     key = tracks["track_id"] * 10_000_000 + np.round(tracks["time_s"] * 1000).astype(np.int64)
