@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, Tuple
+from typing import Any, Dict, Iterable, Tuple
 
 import numpy as np
 import yaml
@@ -54,14 +54,16 @@ class RunData:
         return default if node is None else node
 
 
-def load_run(run_path) -> RunData:
-    """Read every table the report uses from a complete run file (StoreError otherwise)."""
+def load_run(run_path, tables: Iterable[str] = TABLES) -> RunData:
+    """Read the report's tables (or just ``tables``) from a complete run file (StoreError
+    otherwise)."""
     path = Path(run_path)
+    names = tuple(tables)
     with open_run(path) as f:
         attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
         config = yaml.safe_load(read_text(f, "config")) if "config" in f else {}
         tables = {}
-        for name in TABLES:
+        for name in names:
             if name in f:
                 tables[name] = read_table(f, name)
     return RunData(path=path, attrs=attrs, config=config or {}, tables=tables)
