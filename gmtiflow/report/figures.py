@@ -308,7 +308,8 @@ def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells
     over.set_ylabel("north (km)")
     over.set_title(f"Orbit and beam footprints\n({len(fps)} revisits, colour = time)", fontsize=10)
     over.grid(alpha=0.3)
-    over.legend(loc="upper left", fontsize=7)
+    if n(platform):
+        over.legend(loc="upper left", fontsize=7)
 
     # Scene map.
     _draw_roads(ax, nodes, edges, km)
@@ -345,6 +346,11 @@ def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells
         if n(t):
             xs_.append(_col(t, cx))
             ys_.append(_col(t, cy))
+    for p in ax.patches:  # clutter regions (the footprints are far larger: left out)
+        if str(p.get_label()).startswith("clutter"):
+            v = p.get_path().transformed(p.get_patch_transform()).vertices * km
+            xs_.append(v[:, 0])
+            ys_.append(v[:, 1])
     if xs_:
         allx, ally = np.concatenate(xs_) / km, np.concatenate(ys_) / km
         pad = 0.08 * max(np.ptp(allx), np.ptp(ally), 0.5)
@@ -436,11 +442,12 @@ def sensor_figure(looks: Table, detections: Table, pfa: float, *, snr_bin_db: fl
     centres, pd_emp, count, model = pd_vs_snr(looks, snr_bin_db)
     low = centres < SNR_FLOOR_DB
     n_low = int(count[low].sum())
+    low_hits = float(np.sum(pd_emp[low] * count[low]))
     centres, pd_emp, count, model = centres[~low], pd_emp[~low], count[~low], model[~low]
     if n_low:
-        ax.text(0.01, 0.97, f"{n_low} looks below {SNR_FLOOR_DB:g} dB (deep in the clutter "
-                f"notch; P_D ≈ 0) not shown", transform=ax.transAxes, va="top", fontsize=8,
-                color="0.3")
+        ax.text(0.01, 0.97, f"{n_low} looks below {SNR_FLOOR_DB:g} dB not shown (deep in the "
+                f"clutter notch or beam edge; {low_hits:.0f} detected)", transform=ax.transAxes,
+                va="top", fontsize=8, color="0.3")
     if len(centres):
         grid = np.linspace(min(centres.min(), 0) - 2, max(centres.max(), 20) + 2, 400)
         ax.plot(grid, swerling1_pd(pfa, 10 ** (grid / 10)), "k-", lw=1.5,
@@ -458,7 +465,8 @@ def sensor_figure(looks: Table, detections: Table, pfa: float, *, snr_bin_db: fl
         ax.legend(loc="center left", fontsize=8)
         ax.set_ylim(-0.03, 1.03)
     else:
-        _note(ax, "no looks on visible targets: nothing to compare")
+        _note(ax, "no looks above the SNR floor: nothing to compare" if n_low
+              else "no looks on visible targets: nothing to compare")
     ax.set_xlabel(f"model SNR of the look (dB, bins of {snr_bin_db:g} dB; incl. beam and STAP losses)")
     ax.set_ylabel("$P_D$")
     ax.set_title("Detection probability vs SNR (looks with a detection draw: detected, "
@@ -697,8 +705,8 @@ def track_errors_figure(track_errors: Table, *, max_tracks: int = 200,
     rows = (("position_error_m", "position error (m)"), ("speed_error_mps", "speed error (m/s)"),
             ("range_rate_error_mps", "range-rate error (m/s)"))
     if not n(track_errors):
-        for a in axes:
-            a.set_visible(True)
+        for a, (_, label) in zip(axes, rows):
+            a.set_ylabel(label)
         _note(axes[1], "no tracks associated with truth" if tracker_enabled
               else "tracker off: no tracks in this run")
     else:
