@@ -376,7 +376,8 @@ def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells
     handles += [Line2D([], [], ls="", marker=m, color=c, label=lab)
                 for key, (c, m, lab) in DET_STYLE.items() if classes[key].any()]
     handles += [p for p in ax.patches if str(p.get_label()).startswith("clutter")]
-    ax.legend(handles=handles, loc="best", fontsize=7, framealpha=0.85)
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=5,
+              fontsize=7, frameon=False)
     if attribution:
         ax.text(0.995, 0.005, attribution if "©" in attribution else f"© {attribution}",
                 transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
