@@ -27,10 +27,9 @@ def _hydra_main(cfg: DictConfig) -> None:
         app = config.to_object(cfg)
         pipeline.run(app, out_dir)
     except GmtiflowError as exc:
-        log.error("%s", exc)
         if HydraConfig.get().mode == RunMode.MULTIRUN:
-            raise  # let the launcher record this job as failed; the others go on
-        print(f"gmtiflow: error: {exc}", file=sys.stderr)
+            raise  # let the launcher record this job as failed
+        log.error("%s", exc)    # console (stderr) and the run's log file, once
         sys.exit(1)
 
 

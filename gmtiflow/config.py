@@ -21,6 +21,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
+from gmtiflow.export import ExportConfig
 from gmtiflow.report.config import ReportConfig
 from gmtiflow.scene.platform import PlatformConfig
 from gmtiflow.scene.roadmap import RoadmapConfig
@@ -97,6 +98,7 @@ class AppConfig:
     tracker: TrackerConfig = MISSING
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     fidelity: FidelityConfig = MISSING
+    export: ExportConfig = MISSING
     report: ReportConfig = field(default_factory=ReportConfig)
 
     def problems(self) -> List[Problem]:

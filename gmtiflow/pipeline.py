@@ -20,6 +20,7 @@ import numpy as np
 from gmtiflow import config as config_mod
 from gmtiflow.config import AppConfig
 from gmtiflow.evaluate import evaluate, track
+from gmtiflow.export import export_run
 from gmtiflow.scene.platform import Platform
 from gmtiflow.scene.roadmap import RoadMap, load_roadmap
 from gmtiflow.scene.terrain import Terrain, build_terrain
@@ -142,4 +143,5 @@ def run(cfg: AppConfig, out_dir) -> Path:
             writer.write_table(name, table)
         runner.stage("store", writer.commit)
     log.info("wrote %s", path)
+    runner.stage("export", export_run, cfg.export, path, out_dir)
     return path

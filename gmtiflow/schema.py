@@ -81,3 +81,24 @@ def prefixed(prefix: str, problems: List[Problem]) -> List[Problem]:
 def optional_path(value: Optional[str]) -> Optional[str]:
     """Normalise an optional path value ('' and None both mean unset)."""
     return value or None
+
+
+def is_number(value: Any) -> bool:
+    """A finite int or float (not a bool, not a string)."""
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
+def point_problems(key: str, point: Any, dims=(2, 3), what: str = "[x, y] or [x, y, z]"
+                   ) -> List[Problem]:
+    """Problems of one coordinate list (e.g. a waypoint) given as ``key``.
+
+    Coordinate lists are typed ``Any`` in the schemas because OmegaConf 2.3 rejects YAML
+    integers inside nested float containers (``List[List[float]]``); this check replaces the
+    type check with a message that names the key.
+    """
+    ok = isinstance(point, (list, tuple)) and len(point) in dims and all(map(is_number, point))
+    if ok:
+        return []
+    shown = list(point) if isinstance(point, (list, tuple)) else point
+    return [Problem(key, f"must be {what} in finite metres, got {shown!r}")]

@@ -2,21 +2,11 @@
 from pathlib import Path
 
 import pytest
-from hydra import compose, initialize_config_module
-from hydra.core.global_hydra import GlobalHydra
 
-from gmtiflow import config
+from gmtiflow.compose import compose as compose_app
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = ROOT.parent / "shared" / "data"
-
-
-def compose_app(overrides=()):
-    """Compose conf/config.yaml with overrides and convert to validated dataclasses."""
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-        cfg = compose(config_name="config", overrides=list(overrides))
-    return config.to_object(cfg)
 
 
 @pytest.fixture

@@ -20,15 +20,14 @@ state at any set of instants is one vectorised evaluation (no time stepping).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from typing import List
+from typing import Any, List
 
 import numpy as np
 
 from gmtiflow import frames
 from gmtiflow.errors import ConfigError
-from gmtiflow.schema import Problem, positive
+from gmtiflow.schema import Problem, point_problems, positive
 from gmtiflow.tables import Table
 
 G_MPS2 = 9.80665
@@ -39,7 +38,7 @@ G_MPS2 = 9.80665
 class PlatformConfig:
     """Platform orbit.  ``waypoints_m``: list of ``[x_m, y_m, altitude_m]`` in scene ENU."""
 
-    waypoints_m: List[List[float]] = field(default_factory=lambda: [
+    waypoints_m: List[Any] = field(default_factory=lambda: [
         [12426.4, -30000.0, 6000.0], [-12426.4, -30000.0, 6000.0],
         [-30000.0, -12426.4, 6000.0], [-30000.0, 12426.4, 6000.0],
         [-12426.4, 30000.0, 6000.0], [12426.4, 30000.0, 6000.0],
@@ -55,10 +54,8 @@ class PlatformConfig:
         if len(wps) < 2:
             return out + [Problem("waypoints_m", f"needs at least 2 waypoints, got {len(wps)}")]
         for i, wp in enumerate(wps):
-            if len(wp) != 3 or not all(isinstance(v, (int, float)) and math.isfinite(v)
-                                       for v in wp):
-                out.append(Problem(f"waypoints_m[{i}]",
-                                   f"must be [x_m, y_m, altitude_m] (3 finite numbers), got {wp}"))
+            out += point_problems(f"waypoints_m[{i}]", wp, dims=(3,),
+                                  what="[x_m, y_m, altitude_m]")
         if out:
             return out
         xy = np.asarray(wps, float)[:, :2]

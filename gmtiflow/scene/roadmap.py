@@ -75,14 +75,12 @@ class RoadSpec:
     speed_limit_mps: Optional[float] = None
     invisible: bool = False
     road_class: str = "road"
-    via: List[List[float]] = field(default_factory=list)
+    via: List[Any] = field(default_factory=list)     # [[x, y(, z)], ...]: see schema.point_problems
 
     def problems(self) -> List[schema.Problem]:
         out = schema.positive(self, "speed_limit_mps")
         for i, point in enumerate(self.via):
-            if len(point) not in (2, 3) or not all(math.isfinite(float(c)) for c in point):
-                out.append(schema.Problem(f"via[{i}]", f"must be [x, y] or [x, y, z] in finite "
-                                                       f"metres, got {list(point)!r}"))
+            out += schema.point_problems(f"via[{i}]", point)
         return out
 
 
@@ -112,7 +110,7 @@ class RoadmapConfig:
     origin_lat_deg: Optional[float] = None
     origin_lon_deg: Optional[float] = None
     origin_height_m: Optional[float] = None
-    nodes: Dict[str, List[float]] = field(default_factory=dict)
+    nodes: Dict[str, Any] = field(default_factory=dict)   # name -> [x, y(, z)] metres
     roads: List[RoadSpec] = field(default_factory=list)
     drivable_classes: List[str] = field(default_factory=lambda: list(DRIVABLE_HIGHWAY_CLASSES))
     implied_oneway: bool = True
@@ -134,9 +132,7 @@ class RoadmapConfig:
                 out.append(schema.Problem("roads", "an inline road map needs at least one node "
                                                    "and one road"))
             for name, xyz in self.nodes.items():
-                if len(xyz) not in (2, 3) or not all(math.isfinite(float(c)) for c in xyz):
-                    out.append(schema.Problem(f"nodes.{name}", f"must be [x, y] or [x, y, z] in "
-                                                               f"finite metres, got {list(xyz)!r}"))
+                out += schema.point_problems(f"nodes.{name}", xyz)
             for i, road in enumerate(self.roads):
                 out += schema.prefixed(f"roads[{i}]", road.problems())
                 for end in ("from_node", "to_node"):

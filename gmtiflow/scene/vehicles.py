@@ -115,7 +115,7 @@ class VehicleSpec:
     max_wait_s: float = 60.0
     speed_changes: List[SpeedChangeSpec] = field(default_factory=list)
     convoy: ConvoySpec = field(default_factory=ConvoySpec)
-    off_road: List[List[float]] = field(default_factory=list)
+    off_road: List[Any] = field(default_factory=list)   # [[x, y(, z)], ...] metres
 
     def problems(self) -> List[schema.Problem]:
         out = []
@@ -136,6 +136,8 @@ class VehicleSpec:
         if self.off_road:
             if len(self.off_road) < 2:
                 out.append(schema.Problem("off_road", "needs at least two waypoints"))
+            for i, point in enumerate(self.off_road):
+                out += schema.point_problems(f"off_road[{i}]", point)
             if self.stop_points or self.speed_changes:
                 out.append(schema.Problem("off_road", "an off-road vehicle has no road nodes for "
                                                       "stop_points or speed_changes"))

@@ -1,0 +1,476 @@
+"""The export stage: a finished run file -> STANAG 4607, GMTI XML, CSV and GeoJSON beside it.
+
+:func:`export_run` reads ``run.h5`` (so the stage behaves the same after a run and from
+``gmtiflow-convert``), adapts the tables to what each format means, and calls the writers of
+:mod:`formats`.  Every file is written under a temporary name and renamed into place when
+complete; if any export fails, the files this call already wrote are removed again, so a failed
+export never leaves a set of files that looks complete.
+
+Adapting the tables (docs/exports.md has the user-facing version):
+
+* **Range rate.**  /detections ``range_rate_mps`` is the full ṙ = (v_t − v_p)·ℓ (+ receding).
+  STANAG 4607 D32.7 is the LOS velocity *corrected for platform motion*, i.e. the target's own
+  radial speed ṙ − ṙ_MLC = v_t·ℓ, where ṙ_MLC = −v_p·ℓ is the range rate of the ground at the
+  report's position (ℓ from the dwell's platform position to the report's ground position
+  ``x_m y_m z_m``).  :func:`to_4607_tables` subtracts ṙ_MLC; :func:`from_4607_tables` adds it
+  back (recomputed from D7–D9, D15–D17 and the report's position, in the sensor's local ENU).
+  XML and CSV carry ``range_rate_mps`` with the table's meaning (full ṙ), losslessly.
+* **Platform velocity and heading** (D15–D17, D21) are sent relative to true north *at the
+  sensor*, as the standard defines them; the tables hold them in the scene's ENU frame, whose
+  north differs by the meridian convergence (≈0.3° 30 km from the origin).  They are rotated
+  through ECEF (pymap3d).
+* **Unlocated reports** (NaN ``lat_deg``/``lon_deg``, e.g. folded reports that could not be
+  geolocated) are skipped in 4607 (a target report must have a position; NaN would be written
+  as 0°, 0°) and in GeoJSON (no geometry to draw), and kept in XML and CSV, which carry every
+  row.  Located reports flagged ``implausible`` are exported like any other: a real processor
+  cannot tell, and the flag is kept in XML/CSV/GeoJSON for scoring.
+* **Meta** (4607 and XML): epoch = run attr ``scene_epoch_utc``; revisit interval J15 =
+  ``sensor.revisit_s`` of the run's /config (else the dwells' median); MDV J24 = median of the
+  dwells' ``mdv_mps``; false-alarm density J26 = ``clutter.fov_density_per_km2`` (per dwell)
+  when > 0, else No Statement; Pd J25 only when the user states one (``export.pd``): it is
+  defined for a 10 m² target and a run has no single value; nominal accuracies J21–J23 = medians
+  of the reports' σ when ``export.nominal_accuracies``.
+* **GeoJSON**: truth and road nodes get ``lat_deg lon_deg height_m`` through
+  :func:`gmtiflow.frames.enu_to_geodetic` with the run's origin; clutter regions of the run's
+  config are drawn as polygons (circles and rings as 72-gons; a ring is its outer circle with
+  ``inner_radius_m`` as a property).
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+import pymap3d
+from omegaconf import OmegaConf
+
+import formats
+from gmtiflow import frames
+from gmtiflow.errors import InputFileError
+from gmtiflow.schema import Problem
+from gmtiflow.sensor import geometry
+from gmtiflow.store import open_run, read_table, read_text
+from gmtiflow.tables import Table
+
+log = logging.getLogger(__name__)
+
+FORMATS = ("stanag4607", "xml", "csv", "geojson")
+CSV_TABLES = ("detections", "truth", "tracks")
+FILE_NAMES = {"stanag4607": "detections.4607", "xml": "detections.xml",
+              "geojson": "scene.geojson"}
+"""Output file of each format (CSV: ``<table>.csv`` per entry of ``csv_tables``)."""
+
+
+@dataclass
+class ExportConfig:
+    """What the export stage writes beside ``run.h5`` (``conf/export/*.yaml``)."""
+
+    formats: List[str] = field(default_factory=lambda: list(FORMATS))
+    """Any of stanag4607, xml, csv, geojson; [] writes nothing."""
+    csv_tables: List[str] = field(default_factory=lambda: list(CSV_TABLES))
+    """Tables written as CSV when ``csv`` is selected: detections, truth, tracks."""
+    edition: str = "30"
+    """4607 P1: "30" (STANAG 4607 Ed. 3; what tshark reads) or "41" (AEDP-4607 Ed. A v1)."""
+    platform_location_packets: bool = False
+    """Add a 4607 Platform Location packet per /platform row (the spec sends them while not
+    collecting; the dwells already carry the platform state)."""
+    platform_id: str = "GMTIFLOW"        # P8, at most 10 ASCII characters
+    mission_id: int = 1                  # P9
+    job_id: int = 1                      # P10 / J1, >= 1
+    nationality: str = "XN"              # P3, two letters
+    exercise_indicator: int = 129        # P7: 129 = Exercise, Simulated
+    mission_plan: str = "SIMULATION"     # M1, at most 12 characters
+    flight_plan: str = ""                # M2, at most 12 characters
+    nominal_accuracies: bool = True
+    """J21–J23 = medians of the reports' σ_range, σ_cross-range, σ_range-rate (else No Statement)."""
+    pd: Optional[float] = None
+    """J25 detection probability statement (0..1, for a 10 m² target); None = No Statement."""
+    geojson_truth: bool = True
+    geojson_roads: bool = True
+    geojson_clutter: bool = True
+
+    def problems(self) -> List[Problem]:
+        out: List[Problem] = []
+        bad = [f for f in self.formats if f not in FORMATS]
+        if bad:
+            out.append(Problem("formats", f"unknown format(s) {bad}; choose from {list(FORMATS)}"))
+        bad = [t for t in self.csv_tables if t not in CSV_TABLES]
+        if bad:
+            out.append(Problem("csv_tables", f"unknown table(s) {bad}; choose from "
+                                             f"{list(CSV_TABLES)}"))
+        if str(self.edition) not in ("30", "41"):
+            out.append(Problem("edition", f"must be '30' or '41', got {self.edition!r}"))
+        for key, n in (("platform_id", 10), ("mission_plan", 12), ("flight_plan", 12),
+                       ("nationality", 2)):
+            value = getattr(self, key)
+            if len(value) > n or not value.isascii():
+                out.append(Problem(key, f"must be at most {n} ASCII characters, got {value!r}"))
+        if not 1 <= self.job_id <= 2 ** 32 - 1:
+            out.append(Problem("job_id", f"must be in 1..2^32-1, got {self.job_id}"))
+        if not 0 <= self.mission_id <= 2 ** 32 - 1:
+            out.append(Problem("mission_id", f"must be in 0..2^32-1, got {self.mission_id}"))
+        if not 0 <= self.exercise_indicator <= 255:
+            out.append(Problem("exercise_indicator", f"must be 0..255, got "
+                                                     f"{self.exercise_indicator}"))
+        if self.pd is not None and not 0.0 <= self.pd <= 1.0:
+            out.append(Problem("pd", f"must be a probability in [0, 1], got {self.pd}"))
+        return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading the run
+# ---------------------------------------------------------------------------------------------
+
+@dataclass
+class RunTables:
+    """What the exports need from a run file."""
+
+    path: Path
+    attrs: dict
+    origin: frames.Origin
+    epoch_utc: str
+    config: dict
+    tables: Dict[str, Table]
+
+
+def load_run(run_path) -> RunTables:
+    """Read the tables the exports use from a complete run file (StoreError if it is not one)."""
+    run_path = Path(run_path)
+    with open_run(run_path) as f:
+        attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
+        tables = {name: read_table(f, name)
+                  for name in ("dwells", "detections", "truth", "tracks", "platform",
+                               "roads/nodes", "roads/edges")
+                  if name in f}
+        try:
+            config = OmegaConf.to_container(OmegaConf.create(read_text(f, "config"))) \
+                if "config" in f else {}
+        except Exception:           # a foreign or hand-edited /config: use no config values
+            config = {}
+    for key in ("origin_lat_deg", "origin_lon_deg", "scene_epoch_utc"):
+        if key not in attrs:
+            raise InputFileError(f"{run_path}: run file lacks the root attribute {key!r}")
+    origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
+                           float(attrs.get("origin_height_m", 0.0)))
+    return RunTables(run_path, attrs, origin, str(attrs["scene_epoch_utc"]),
+                     config if isinstance(config, dict) else {}, tables)
+
+
+def _cfg(config: dict, *keys, default=None):
+    node = config
+    for k in keys:
+        if not isinstance(node, dict) or k not in node:
+            return default
+        node = node[k]
+    return node
+
+
+# ---------------------------------------------------------------------------------------------
+# Frames and range rates
+# ---------------------------------------------------------------------------------------------
+
+def scene_to_local_velocity(origin: frames.Origin, lat_deg, lon_deg, ve, vn, vu):
+    """Rotate scene-ENU vectors to the local ENU at (lat_deg, lon_deg) (through ECEF)."""
+    u, v, w = pymap3d.enu2uvw(np.asarray(ve, float), np.asarray(vn, float),
+                              np.asarray(vu, float), origin.lat_deg, origin.lon_deg)
+    e, n, up = pymap3d.uvw2enu(u, v, w, np.asarray(lat_deg, float), np.asarray(lon_deg, float))
+    return np.asarray(e, float), np.asarray(n, float), np.asarray(up, float)
+
+
+def ground_range_rate_scene(dwells: Table, detections: Table) -> np.ndarray:
+    """ṙ_MLC = −v_p·ℓ of each report's ground position, in the scene ENU frame (m/s)."""
+    k = _dwell_rows(dwells, detections["dwell_id"])
+    platform = tuple(np.asarray(dwells[f"platform_{c}_m"], float)[k] for c in "xyz")
+    _, los = geometry.line_of_sight(platform, tuple(np.asarray(detections[f"{c}_m"], float)
+                                                    for c in "xyz"))
+    vel = tuple(np.asarray(dwells[f"platform_v{c}_mps"], float)[k] for c in "xyz")
+    return geometry.clutter_range_rate(vel, los)
+
+
+def ground_range_rate_geodetic(dwells: Table, detections: Table) -> np.ndarray:
+    """ṙ_MLC from geodetic positions and a sensor velocity in the sensor's local ENU (as 4607
+    carries them: D7–D9, D15–D17, D32.2/3/6).  A report without height is put at 0 m HAE."""
+    k = _dwell_rows(dwells, detections["dwell_id"])
+    slat = np.asarray(dwells["platform_lat_deg"], float)[k]
+    slon = np.asarray(dwells["platform_lon_deg"], float)[k]
+    sh = np.asarray(dwells["platform_height_m"], float)[k]
+    h = np.asarray(detections.get("height_m", np.zeros(len(k))), float)
+    e, n, u = pymap3d.geodetic2enu(np.asarray(detections["lat_deg"], float),
+                                   np.asarray(detections["lon_deg"], float),
+                                   np.where(np.isfinite(h), h, 0.0), slat, slon, sh)
+    _, los = geometry.line_of_sight((0.0, 0.0, 0.0), (np.asarray(e), np.asarray(n), np.asarray(u)))
+    vel = tuple(np.asarray(dwells[f"platform_v{c}_mps"], float)[k] for c in "xyz")
+    return geometry.clutter_range_rate(vel, los)
+
+
+def _dwell_rows(dwells: Table, dwell_id) -> np.ndarray:
+    ids = np.asarray(dwells["dwell_id"], np.int64)
+    order = np.argsort(ids, kind="stable")
+    want = np.asarray(dwell_id, np.int64)
+    pos = np.clip(np.searchsorted(ids[order], want), 0, max(len(ids) - 1, 0))
+    if len(want) and (len(ids) == 0 or np.any(ids[order][pos] != want)):
+        missing = want[(len(ids) == 0) | (ids[order][pos] != want)][0]
+        raise InputFileError(f"detection refers to dwell_id {missing}, which is not in /dwells")
+    return order[pos]
+
+
+def to_4607_tables(run: RunTables):
+    """(dwells, detections) as the 4607 writer should see them (see the module docstring)."""
+    dw = {k: np.asarray(v) for k, v in run.tables["dwells"].items()}
+    det = {k: np.asarray(v) for k, v in run.tables["detections"].items()}
+    located = np.isfinite(np.asarray(det["lat_deg"], float)) & \
+        np.isfinite(np.asarray(det["lon_deg"], float))
+    if not located.all():
+        log.info("4607: %d unlocated report(s) skipped", int((~located).sum()))
+    det = {k: v[located] for k, v in det.items()}
+    if len(dw.get("dwell_id", ())):
+        lat, lon = dw["platform_lat_deg"], dw["platform_lon_deg"]
+        ve, vn, vu = scene_to_local_velocity(run.origin, lat, lon, dw["platform_vx_mps"],
+                                             dw["platform_vy_mps"], dw["platform_vz_mps"])
+        he, hn, _ = scene_to_local_velocity(run.origin, lat, lon,
+                                            np.sin(dw["platform_heading_rad"]),
+                                            np.cos(dw["platform_heading_rad"]), 0.0)
+        dw = dict(dw, platform_vx_mps=ve, platform_vy_mps=vn, platform_vz_mps=vu,
+                  platform_heading_rad=frames.heading_rad(he, hn))
+    if len(det.get("det_id", ())) and "range_rate_mps" in det:
+        det["range_rate_mps"] = det["range_rate_mps"] - ground_range_rate_scene(
+            run.tables["dwells"], det)
+    # Columns 4607 has no field for are not needed by the writer (it ignores them).
+    return dw, det
+
+
+def from_4607_tables(tables: dict, origin: Optional[frames.Origin] = None) -> dict:
+    """Tables read by :func:`formats.read_4607` in gmtiflow's conventions.
+
+    ``detections``: ``los_velocity_mps`` keeps D32.7 as sent (corrected for platform motion);
+    ``range_rate_mps`` becomes the full ṙ = D32.7 + ṙ_MLC (NaN where the dwell lacks D15–D17).
+    With a scene ``origin``: ``x_m y_m z_m`` on detections, ``platform_x_m ...`` and scene-ENU
+    ``platform_v*_mps`` / ``platform_heading_rad`` on dwells, and detection ``azimuth_rad``
+    from the platform in the scene frame (the reader's is relative to true north at the sensor).
+    """
+    out = {k: v for k, v in tables.items() if k != "attrs"}
+    dw = dict(out["dwells"])
+    det = dict(out["detections"])
+    if len(det.get("det_id", ())):
+        los = np.asarray(det["range_rate_mps"], float)
+        det["los_velocity_mps"] = los
+        det["range_rate_mps"] = los + ground_range_rate_geodetic(dw, det)
+    if origin is not None:
+        h = np.asarray(det.get("height_m", np.zeros(len(det["det_id"]))), float)
+        det["x_m"], det["y_m"], det["z_m"] = frames.geodetic_to_enu(
+            origin, det["lat_deg"], det["lon_deg"], np.where(np.isfinite(h), h, 0.0))
+        px, py, pz = frames.geodetic_to_enu(origin, dw["platform_lat_deg"],
+                                            dw["platform_lon_deg"], dw["platform_height_m"])
+        dw["platform_x_m"], dw["platform_y_m"], dw["platform_z_m"] = px, py, pz
+        # local ENU at the sensor -> scene ENU: the inverse rotation of scene_to_local_velocity
+        u, v, w = pymap3d.enu2uvw(dw["platform_vx_mps"], dw["platform_vy_mps"],
+                                  dw["platform_vz_mps"], dw["platform_lat_deg"],
+                                  dw["platform_lon_deg"])
+        ve, vn, vu = pymap3d.uvw2enu(u, v, w, origin.lat_deg, origin.lon_deg)
+        dw["platform_vx_mps"], dw["platform_vy_mps"], dw["platform_vz_mps"] = (
+            np.asarray(ve, float), np.asarray(vn, float), np.asarray(vu, float))
+        hd = np.asarray(dw["platform_heading_rad"], float)
+        u, v, w = pymap3d.enu2uvw(np.sin(hd), np.cos(hd), np.zeros_like(hd),
+                                  dw["platform_lat_deg"], dw["platform_lon_deg"])
+        he, hn, _ = pymap3d.uvw2enu(u, v, w, origin.lat_deg, origin.lon_deg)
+        dw["platform_heading_rad"] = frames.heading_rad(np.asarray(he), np.asarray(hn))
+        if len(det.get("det_id", ())):
+            k = _dwell_rows(dw, det["dwell_id"])
+            det["azimuth_rad"] = frames.heading_rad(det["x_m"] - px[k], det["y_m"] - py[k])
+    out["dwells"], out["detections"] = dw, det
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Meta
+# ---------------------------------------------------------------------------------------------
+
+def meta_for(cfg: ExportConfig, run: RunTables) -> dict:
+    """The 4607/XML meta dict (``formats.stanag4607.DEFAULT_META`` keys) of a run."""
+    meta = {"epoch_utc": run.epoch_utc, "platform_id": cfg.platform_id,
+            "mission_id": int(cfg.mission_id), "job_id": int(cfg.job_id),
+            "nationality": cfg.nationality, "exercise_indicator": int(cfg.exercise_indicator),
+            "mission_plan": cfg.mission_plan, "flight_plan": cfg.flight_plan}
+    revisit = _cfg(run.config, "sensor", "revisit_s")
+    if isinstance(revisit, (int, float)) and revisit > 0:
+        meta["revisit_interval_s"] = float(revisit)
+    fa = _cfg(run.config, "clutter", "fov_density_per_km2")
+    if isinstance(fa, (int, float)) and fa > 0:
+        meta["false_alarm_density_per_m2"] = float(fa) / 1e6
+    if cfg.pd is not None:
+        meta["pd"] = float(cfg.pd)
+    det = run.tables.get("detections", {})
+    if cfg.nominal_accuracies and len(det.get("det_id", ())):
+        def med(x):
+            x = np.asarray(x, float)
+            x = x[np.isfinite(x)]
+            return float(np.median(x)) if len(x) else None
+        if "sigma_range_m" in det:
+            meta["nominal_slant_range_sigma_m"] = med(det["sigma_range_m"])
+        if "sigma_azimuth_rad" in det:
+            s = med(det["sigma_azimuth_rad"])
+            meta["nominal_cross_range_sigma_deg"] = None if s is None else float(np.degrees(s))
+        if "sigma_range_rate_mps" in det:
+            meta["nominal_range_rate_sigma_mps"] = med(det["sigma_range_rate_mps"])
+    return meta
+
+
+# ---------------------------------------------------------------------------------------------
+# GeoJSON inputs
+# ---------------------------------------------------------------------------------------------
+
+def with_geodetic(table: Table, origin: frames.Origin, xyz=("x_m", "y_m", "z_m")) -> Table:
+    """``table`` plus ``lat_deg lon_deg height_m`` from its ENU columns (z 0 when absent)."""
+    if "lat_deg" in table and "lon_deg" in table and "height_m" in table:
+        return dict(table)
+    n = len(table[xyz[0]])
+    z = table.get(xyz[2], np.zeros(n))
+    lat, lon, h = frames.enu_to_geodetic(origin, table[xyz[0]], table[xyz[1]], z)
+    return dict(table, lat_deg=lat, lon_deg=lon, height_m=h)
+
+
+def clutter_regions(config: dict, origin: frames.Origin) -> list:
+    """Clutter regions of a run's config as GeoJSON writer regions (lat/lon rings)."""
+    regions = _cfg(config, "clutter", "regions", default=None) or []
+    out = []
+    for i, reg in enumerate(regions):
+        if not isinstance(reg, dict):
+            continue
+        shape = reg.get("shape", "polygon")
+        props = {"name": str(reg.get("name") or f"region-{i}"), "shape": shape,
+                 "density_per_km2": float(reg.get("density_per_km2") or 0.0)}
+        if shape == "polygon" and reg.get("vertices_m"):
+            xy = np.asarray(reg["vertices_m"], float).reshape(-1, 2)
+        elif shape in ("circle", "ring") and reg.get("centre_m") is not None:
+            r = reg.get("radius_m") if shape == "circle" else reg.get("outer_radius_m")
+            if r is None:
+                continue
+            a = np.linspace(0.0, 2 * np.pi, 72, endpoint=False)
+            c = np.asarray(reg["centre_m"], float)
+            xy = np.c_[c[0] + r * np.sin(a), c[1] + r * np.cos(a)]
+            if shape == "ring":
+                props["inner_radius_m"] = float(reg.get("inner_radius_m") or 0.0)
+                props["outer_radius_m"] = float(r)
+            else:
+                props["radius_m"] = float(r)
+        else:
+            continue
+        lat, lon, _ = frames.enu_to_geodetic(origin, xy[:, 0], xy[:, 1], np.zeros(len(xy)))
+        out.append(dict(props, lat_deg=lat, lon_deg=lon))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Writers
+# ---------------------------------------------------------------------------------------------
+
+def _csv_table(run: RunTables, name: str) -> Optional[Table]:
+    table = run.tables.get(name)
+    if table is None:
+        return None
+    cols = formats.csvtable.COLUMNS[name]
+    if name == "truth" and "x_m" in table:
+        table = with_geodetic(table, run.origin)
+    dropped = [c for c in table if c not in cols]
+    if dropped:
+        log.info("%s.csv: columns %s are not part of the CSV form and are left out", name,
+                 dropped)
+    return {c: v for c, v in table.items() if c in cols}
+
+
+def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
+    """Write one export of ``run`` to ``dest`` (a path or a binary file object).
+
+    ``fmt`` is ``stanag4607``, ``xml``, ``geojson`` or ``csv:<table>``.
+    """
+    t = run.tables
+    if fmt == "stanag4607":
+        dw, det = to_4607_tables(run)
+        formats.write_4607(dest, dw, det, meta_for(cfg, run), edition=str(cfg.edition),
+                           platform=t.get("platform") if cfg.platform_location_packets else None)
+    elif fmt == "xml":
+        cols = formats.xmldoc.DETECTION_COLUMNS
+        det = {c: v for c, v in t["detections"].items() if c in cols or c == "dwell_id"}
+        dw = {c: v for c, v in t["dwells"].items() if c in formats.xmldoc.DWELL_COLUMNS}
+        formats.write_xml(dest, dw, det, meta_for(cfg, run), edition=str(cfg.edition))
+    elif fmt.startswith("csv:"):
+        name = fmt[4:]
+        table = _csv_table(run, name)
+        if table is None:
+            raise InputFileError(f"{run.path}: has no table /{name} to write as CSV")
+        formats.write_csv(dest, table, name, epoch_utc=run.epoch_utc)
+    elif fmt == "geojson":
+        det = t.get("detections")
+        if det is not None:
+            ok = np.isfinite(np.asarray(det["lat_deg"], float)) & \
+                np.isfinite(np.asarray(det["lon_deg"], float))
+            det = {k: np.asarray(v)[ok] for k, v in det.items()}
+        truth = with_geodetic(t["truth"], run.origin) \
+            if cfg.geojson_truth and "truth" in t else None
+        nodes = edges = None
+        if cfg.geojson_roads and "roads/nodes" in t:
+            nodes = with_geodetic(t["roads/nodes"], run.origin)
+            edges = t.get("roads/edges")
+        regions = clutter_regions(run.config, run.origin) if cfg.geojson_clutter else None
+        formats.write_geojson(dest, detections=det, truth=truth, road_nodes=nodes,
+                              road_edges=edges, clutter_regions=regions,
+                              epoch_utc=run.epoch_utc)
+    else:
+        raise ValueError(f"unknown export format {fmt!r}")
+
+
+def planned_files(cfg: ExportConfig) -> list:
+    """(format key, file name) of every file ``cfg`` asks for, in writing order."""
+    out = []
+    for fmt in FORMATS:
+        if fmt not in cfg.formats:
+            continue
+        if fmt == "csv":
+            out += [(f"csv:{name}", f"{name}.csv") for name in CSV_TABLES
+                    if name in cfg.csv_tables]
+        else:
+            out.append((fmt, FILE_NAMES[fmt]))
+    return out
+
+
+def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
+    """Write the exports ``cfg`` selects for the run file ``run_path`` into ``out_dir``.
+
+    ``out_dir`` defaults to the run file's directory.  Returns the paths written, in order.
+    Each file is written atomically; if one export fails, the files written by this call are
+    removed and the error is raised (a ``GmtiflowError`` for bad input, e.g. an incomplete run
+    file).
+    """
+    problems = cfg.problems()
+    if problems:
+        from gmtiflow.errors import ConfigError
+        raise ConfigError("invalid config: " + "; ".join(f"export.{p.key}: {p.message}"
+                                                         for p in problems))
+    plan = planned_files(cfg)
+    if not plan:
+        return []
+    run = load_run(run_path)
+    out_dir = Path(out_dir) if out_dir is not None else Path(run_path).parent
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written: List[Path] = []
+    try:
+        for fmt, name in plan:
+            if fmt == "csv:tracks" and "tracks" not in run.tables:
+                log.info("no /tracks in %s: tracks.csv not written", run.path)
+                continue
+            path = out_dir / name
+            write_format(fmt, run, cfg, path)
+            written.append(path)
+            log.info("export: wrote %s (%d bytes)", path, path.stat().st_size)
+    except BaseException:
+        for path in written:
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
+        raise
+    return written

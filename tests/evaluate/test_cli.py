@@ -1,0 +1,100 @@
+"""gmtiflow-evaluate end to end: our own baseline tracks exported to CSV, re-imported and scored
+give the run's /metrics; bad track files are one clear error with no output."""
+import csv
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from gmtiflow import convert, pipeline, store
+from gmtiflow.evaluate import cli as evaluate_cli
+from tests.conftest import compose_app
+
+OVERRIDES = ["scene.duration_s=40", "fidelity.truth_output_dt_s=1.0", "progress=false"]
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    return pipeline.run(compose_app(OVERRIDES), tmp_path_factory.mktemp("run"))
+
+
+@pytest.fixture(scope="module")
+def tracks_csv(run, tmp_path_factory):
+    path = tmp_path_factory.mktemp("tracks") / "baseline.csv"
+    assert convert.main([str(run), "--to", "csv", "--table", "tracks", "-o", str(path)]) == 0
+    return path
+
+
+def cli(*args):
+    proc = subprocess.run([sys.executable, "-m", "gmtiflow.evaluate.cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=120)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def test_baseline_tracks_through_csv_score_as_the_run(run, tracks_csv, tmp_path):
+    out = tmp_path / "scores.h5"
+    code, stdout, err = cli(tracks_csv, run, "-o", out)
+    assert code == 0, err
+    expected = store.read_table(run, "metrics")
+    assert expected["value"][list(expected["name"]).index("n_tracks")] > 0
+    got = store.read_table(out, "metrics")
+    assert list(got["name"]) == list(expected["name"])
+    assert np.array_equal(got["value"], expected["value"], equal_nan=True)
+    for table in ("metrics/ospa", "metrics/track_errors", "metrics/association"):
+        a, b = store.read_table(run, table), store.read_table(out, table)
+        for col in a:
+            assert np.array_equal(a[col], b[col], equal_nan=a[col].dtype.kind == "f"), (table, col)
+    # the summary is printed as a table
+    assert stdout.splitlines()[0].split() == ["metric", "value", "unit"]
+    assert any(line.split()[0] == "ospa_mean_m" for line in stdout.splitlines()[1:-1])
+    assert stdout.strip().endswith(f"wrote {out}")
+
+
+def test_csv_output_and_hdf5_track_input(run, tracks_csv, tmp_path):
+    h5 = tmp_path / "tracks.h5"
+    assert convert.main([str(tracks_csv), "--to", "h5", "-o", str(h5)]) == 0
+    code, _, err = cli(h5, run, "--csv")
+    assert code == 0, err
+    out = tmp_path / "tracks.metrics.csv"                       # default name beside TRACKS
+    rows = list(csv.DictReader(out.open()))
+    expected = store.read_table(run, "metrics")
+    assert [r["name"] for r in rows] == list(expected["name"])
+    assert np.array_equal([float(r["value"]) for r in rows], expected["value"], equal_nan=True)
+
+
+def _bad(path, text):
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("time_s,track_id,x_m,y_m,heading\n0,1,0,0,1\n", "unknown column 'heading'"),
+    ("time_s,track_id,x_m,y_m\n2,1,0,0\n1,1,5,0\n", "goes back in time"),
+    ("time_s,track_id,x_m,y_m\n1,7,0,0\n1,7,5,0\n", "ids collide"),
+    ("time_s,track_id,x_m,y_m\n1,7,0,nan\n", "not a finite number"),
+    ("time_s,track_id,x_m\n1,7,0\n", "missing required columns"),
+])
+def test_bad_track_files_are_one_error_and_no_output(run, tmp_path, text, needle):
+    bad = _bad(tmp_path / "mine.csv", text)
+    code, stdout, err = cli(bad, run)
+    assert code == 1
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("gmtiflow-evaluate: error: ") and \
+        str(bad) in lines[0] and needle in lines[0], err
+    assert stdout == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.csv"]
+
+
+def test_xml_tracks_and_a_missing_run_are_clear_errors(run, tmp_path):
+    code, _, err = cli(_bad(tmp_path / "t.xml", "<x/>"), run)
+    assert code == 1 and "no XML track form" in err
+    code, _, err = cli(_bad(tmp_path / "t.csv", "time_s,track_id,x_m,y_m\n"), tmp_path / "no.h5")
+    assert code == 1 and "no such run file" in err
+    assert evaluate_cli.main([str(tmp_path / "t.csv"), str(run), "-o",
+                              str(tmp_path / "t.csv")]) == 1       # would overwrite its input
+
+
+def test_help_is_usable():
+    code, out, _ = cli("--help")
+    assert code == 0 and "TRACKS" in out and "RUN.h5" in out and "--csv" in out
