@@ -22,6 +22,7 @@ from omegaconf.errors import OmegaConfBaseException
 from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.export import ExportConfig
+from gmtiflow.report.config import ReportConfig
 from gmtiflow.scene.platform import PlatformConfig
 from gmtiflow.scene.roadmap import RoadmapConfig
 from gmtiflow.scene.terrain import TerrainConfig
@@ -98,6 +99,7 @@ class AppConfig:
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     fidelity: FidelityConfig = MISSING
     export: ExportConfig = MISSING
+    report: ReportConfig = field(default_factory=ReportConfig)
 
     def problems(self) -> List[Problem]:
         if not (0 <= self.seed < 2 ** 63):

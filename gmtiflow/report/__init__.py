@@ -1,0 +1,19 @@
+"""Reports: a PDF per run (:func:`build_run_report`) and a comparison PDF per sweep
+(:func:`build_sweep_report`), with matplotlib only (docs/reports.md).
+
+The builders are imported lazily so that ``gmtiflow.config`` (which types ``report:
+ReportConfig``) does not pull in matplotlib.
+"""
+from .config import ReportConfig
+
+__all__ = ["ReportConfig", "build_run_report", "build_sweep_report"]
+
+
+def __getattr__(name):
+    if name == "build_run_report":
+        from .run_report import build_run_report
+        return build_run_report
+    if name == "build_sweep_report":
+        from .sweep_report import build_sweep_report
+        return build_sweep_report
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,67 @@
+"""Time the run report on the default scene (target < 10 s) and on a bigger random fleet.
+
+    cd /work/wt/report && /work/venvs/report/bin/python benchmarks/report_time.py [--big N]
+
+Simulates each scene once (not timed) into a temporary dir, then builds report.pdf three times
+and prints the best total and the per-page seconds of the best build.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from hydra import compose, initialize_config_module
+from hydra.core.global_hydra import GlobalHydra
+
+from gmtiflow import config, pipeline
+from gmtiflow.report import ReportConfig, build_run_report
+from gmtiflow.report.data import key_numbers, load_run
+
+
+def make_run(out_dir: Path, overrides) -> Path:
+    GlobalHydra.instance().clear()
+    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
+        cfg = compose(config_name="config", overrides=["progress=false", *overrides])
+    return pipeline.run(config.to_object(cfg), out_dir)
+
+
+def bench(name: str, overrides, repeats: int = 3) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        run = make_run(Path(tmp), overrides)
+        sim = time.perf_counter() - t0
+        k = key_numbers(load_run(run))
+        best, pages = float("inf"), {}
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            out = build_run_report(ReportConfig(), run, Path(tmp) / "report.pdf")
+            dt = time.perf_counter() - t0
+            if dt < best:
+                best, pages = dt, dict(build_run_report.last_seconds)
+        size = out.stat().st_size / 1e3
+    print(f"{name}: {' '.join(overrides) or '(defaults)'}")
+    print(f"  run: {k['vehicles']:.0f} vehicles, {k['dwells']:.0f} dwells, {k['looks']:.0f} looks, "
+          f"{k['detections']:.0f} detections, {k['tracks']:.0f} tracks; simulation {sim:.1f} s")
+    print(f"  report: best of {repeats} = {best:.2f} s, PDF {size:.0f} kB")
+    print("  pages: " + ", ".join(f"{p} {s:.2f}" for p, s in pages.items()))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--big", type=int, default=500, help="random vehicles in the big scene (0: skip)")
+    args = ap.parse_args()
+    print(f"python {sys.version.split()[0]}, {platform.machine()}, {os.cpu_count()} cpus, "
+          f"load {os.getloadavg()[0]:.1f}")
+    bench("default scene (300 s)", [])
+    if args.big:
+        bench("big scene", ["vehicles=random", f"vehicles.random.count={args.big}",
+                            "clutter=urban"], repeats=1)
+
+
+if __name__ == "__main__":
+    main()

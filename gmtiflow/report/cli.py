@@ -1,0 +1,68 @@
+"""``gmtiflow-report DIR...``: a comparison PDF from run dirs and/or sweep dirs.
+
+    gmtiflow-report outputs/multirun/2026-11-21/14-00-00          # -> <that dir>/sweep_report.pdf
+    gmtiflow-report runA runB runC -o compare.pdf
+    gmtiflow-report --runs outputs/multirun/...                    # also (re)build report.pdf per run
+
+Exit status: 0 when the report was written (failed jobs are listed in it), 1 when no job
+directory was found or a run report failed, 2 for bad arguments.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+from gmtiflow.errors import GmtiflowError
+
+from .config import ReportConfig
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="gmtiflow-report",
+        description="Build a comparison PDF from gmtiflow run dirs or Hydra sweep dirs "
+                    "(and optionally each run's own report.pdf).")
+    parser.add_argument("dirs", nargs="+", metavar="DIR",
+                        help="a run dir (with run.h5 or .hydra/) or a sweep dir holding them")
+    parser.add_argument("-o", "--output", metavar="PDF",
+                        help="output file (default: DIR/sweep_report.pdf for one DIR, "
+                             "./sweep_report.pdf for several)")
+    parser.add_argument("--runs", action="store_true",
+                        help="also build report.pdf in every completed run dir")
+    parser.add_argument("-q", "--quiet", action="store_true")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
+                        format="%(message)s")
+    from .run_report import build_run_report
+    from .sweep_report import build_sweep_report, find_job_dirs
+
+    out = Path(args.output) if args.output else (
+        Path(args.dirs[0]) / "sweep_report.pdf" if len(args.dirs) == 1 else Path("sweep_report.pdf"))
+    status = 0
+    try:
+        if args.runs:
+            cfg = ReportConfig()
+            for d in find_job_dirs(args.dirs):
+                if (d / "run.h5").is_file():
+                    try:
+                        print(build_run_report(cfg, d / "run.h5", d / cfg.filename))
+                    except GmtiflowError as exc:
+                        print(f"gmtiflow-report: error: {exc}", file=sys.stderr)
+                        status = 1
+        print(build_sweep_report(args.dirs, out))
+    except GmtiflowError as exc:
+        print(f"gmtiflow-report: error: {exc}", file=sys.stderr)
+        return 1
+    return status
+
+
+def entry() -> None:
+    """Console script ``gmtiflow-report``."""
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    entry()

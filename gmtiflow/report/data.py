@@ -1,0 +1,123 @@
+"""Reading a finished run file into the plain tables the report figures take.
+
+Everything the report shows comes from ``run.h5`` (docs/tables.md): the tables, the resolved
+``/config`` YAML and the root attributes.  Tables a run did not write (an older layout, a stage
+that was off) read as empty dicts, so every figure can say "nothing to show" instead of failing.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Dict, Iterable, Tuple
+
+import numpy as np
+import yaml
+
+from gmtiflow.frames import Origin
+from gmtiflow.sensor.outcome import Outcome
+from gmtiflow.store import open_run, read_table, read_text
+from gmtiflow.tables import Table
+
+TABLES = ("roads/nodes", "roads/edges", "vehicles", "truth", "platform", "dwells", "detections",
+          "detection_ancestors", "looks", "tracks", "metrics", "metrics/ospa",
+          "metrics/track_errors", "metrics/identity_switches", "metrics/events",
+          "metrics/truth_identity", "metrics/association")
+
+# Looks where the beam was on a visible target: the Swerling draw happened.
+DRAWN = (Outcome.DETECTED, Outcome.DOPPLER_BLIND, Outcome.PD_MISS, Outcome.MERGED)
+DETECTED = (Outcome.DETECTED, Outcome.MERGED)
+
+
+@dataclass
+class RunData:
+    path: Path
+    attrs: Dict[str, Any]
+    config: Dict[str, Any]
+    tables: Dict[str, Table] = field(default_factory=dict)
+
+    def table(self, name: str) -> Table:
+        return self.tables.get(name, {})
+
+    @property
+    def origin(self) -> Origin:
+        a = self.attrs
+        return Origin(float(a.get("origin_lat_deg", 0.0)), float(a.get("origin_lon_deg", 0.0)),
+                      float(a.get("origin_height_m", 0.0)))
+
+    def cfg(self, dotted: str, default=None):
+        """A value of the resolved config by dotted key (``sensor.pfa``), or ``default``."""
+        node: Any = self.config
+        for part in dotted.split("."):
+            if not isinstance(node, dict) or part not in node:
+                return default
+            node = node[part]
+        return default if node is None else node
+
+
+def load_run(run_path, tables: Iterable[str] = TABLES) -> RunData:
+    """Read the report's tables (or just ``tables``) from a complete run file (StoreError
+    otherwise)."""
+    path = Path(run_path)
+    names = tuple(tables)
+    with open_run(path) as f:
+        attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
+        config = yaml.safe_load(read_text(f, "config")) if "config" in f else {}
+        tables = {}
+        for name in names:
+            if name in f:
+                tables[name] = read_table(f, name)
+    return RunData(path=path, attrs=attrs, config=config or {}, tables=tables)
+
+
+def n(table: Table) -> int:
+    """Rows of a table (0 for an empty or missing one)."""
+    for col in table.values():
+        return len(col)
+    return 0
+
+
+def summary(metrics: Table) -> Dict[str, Tuple[float, str]]:
+    """/metrics rows as ``{name: (value, unit)}``."""
+    if not n(metrics):
+        return {}
+    units = metrics.get("unit", np.full(n(metrics), ""))
+    return {str(k): (float(v), str(u)) for k, v, u in zip(metrics["name"], metrics["value"], units)}
+
+
+def key_numbers(run: RunData) -> Dict[str, float]:
+    """The counts a reader wants first, shared by the title page and the sweep report.
+
+    ``pd_achieved`` = detected looks (outcome detected or merged) over looks where the Swerling
+    draw happened (detected, doppler_blind, pd_miss, merged); ``pd_model_mean`` = the mean model
+    P_D of the same looks — the two agree when the detection stage is right.
+    """
+    det, looks, tracks = run.table("detections"), run.table("looks"), run.table("tracks")
+    out: Dict[str, float] = {"detections": float(n(det))}
+    if n(det):
+        truth_id = np.asarray(det["truth_id"])
+        out["false_alarms"] = float(np.sum(truth_id < 0))
+        out["merged"] = float(np.sum(np.asarray(det["merged"], bool)))
+    else:
+        out["false_alarms"] = out["merged"] = 0.0
+    if n(looks):
+        outcome = np.asarray(looks["outcome"])
+        drawn = np.isin(outcome, DRAWN)
+        out["looks"] = float(n(looks))
+        out["looks_drawn"] = float(drawn.sum())
+        if drawn.any():
+            out["pd_achieved"] = float(np.isin(outcome[drawn], DETECTED).mean())
+            out["pd_model_mean"] = float(np.nanmean(np.asarray(looks["pd"])[drawn]))
+        else:
+            out["pd_achieved"] = out["pd_model_mean"] = float("nan")
+    else:
+        out["looks"] = out["looks_drawn"] = 0.0
+        out["pd_achieved"] = out["pd_model_mean"] = float("nan")
+    out["tracks"] = float(len(np.unique(tracks["track_id"]))) if n(tracks) else 0.0
+    if n(tracks) and "confirmed" in tracks:
+        ids = np.asarray(tracks["track_id"])[np.asarray(tracks["confirmed"], bool)]
+        out["confirmed_tracks"] = float(len(np.unique(ids)))
+    else:
+        out["confirmed_tracks"] = 0.0
+    out["vehicles"] = float(n(run.table("vehicles")))
+    out["dwells"] = float(n(run.table("dwells")))
+    return out

@@ -1,0 +1,171 @@
+"""The run report: one PDF per run, built from a finished ``run.h5`` only.
+
+Pipeline hook (the runner calls it after the run file is committed)::
+
+    from gmtiflow.report import build_run_report
+    if cfg.report.enabled:
+        build_run_report(cfg.report, path, out_dir / cfg.report.filename)
+
+Pages (``PAGES``): title (scene summary, key numbers), map, physics sanity (P_D vs SNR and
+normalised measurement errors), range rate vs azimuth (clutter notch, blind speeds), per-vehicle
+timeline, track errors (paper Fig. 5), OSPA/GOSPA and identity events.  The PDF is written under
+a temporary name and renamed when complete, so an interrupted report never looks finished.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import os
+import time
+from pathlib import Path
+from typing import Callable, Dict, List, Optional, Tuple
+
+import numpy as np
+from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
+
+from gmtiflow import __version__
+
+from . import figures as F
+from .config import ReportConfig
+from .data import RunData, key_numbers, load_run, n, summary
+
+log = logging.getLogger(__name__)
+
+PAGES = ("title", "map", "sensor", "range_rate", "timeline", "track_errors", "ospa")
+
+
+def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[], Figure]]]:
+    """The report's pages in order, as (name, builder) pairs (built lazily, one at a time)."""
+    t = run.table
+    tracker_on = bool(run.cfg("tracker.enabled", True))
+    name = str(run.path.parent.name + "/" + run.path.name)
+    return [
+        ("title", lambda: F.title_figure(run.attrs, run.config, key_numbers(run),
+                                         summary(t("metrics")), str(run.path))),
+        ("map", lambda: F.map_figure(t("roads/nodes"), t("roads/edges"), t("truth"), t("platform"),
+                                     t("dwells"), t("detections"), t("tracks"),
+                                     run.cfg("clutter.regions", []) or [], run.origin,
+                                     str(run.attrs.get("attribution", "") or ""),
+                                     max_points=cfg.max_points, max_footprints=cfg.max_footprints,
+                                     max_track_lines=cfg.max_track_lines)),
+        ("sensor", lambda: F.sensor_figure(t("looks"), t("detections"),
+                                           float(run.cfg("sensor.pfa", 1e-6)),
+                                           snr_bin_db=cfg.snr_bin_db)),
+        ("range_rate", lambda: F.range_rate_figure(t("looks"), t("detections"), t("dwells"),
+                                                   max_points=cfg.max_points)),
+        ("timeline", lambda: F.timeline_figure(t("vehicles"), t("truth"), t("looks"),
+                                               max_vehicles=cfg.max_timeline_vehicles)),
+        ("track_errors", lambda: F.track_errors_figure(t("metrics/track_errors"),
+                                                       max_tracks=cfg.max_track_lines,
+                                                       tracker_enabled=tracker_on)),
+        ("ospa", lambda: F.ospa_figure(t("metrics/ospa"), t("metrics/identity_switches"),
+                                       t("metrics/events"),
+                                       cutoff_m=float(run.cfg("metrics.cutoff_m", float("nan"))),
+                                       tracker_enabled=tracker_on)),
+    ]
+
+
+def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
+    """Build the PDF report of the finished run file ``run_path`` at ``out_pdf``; returns it.
+
+    Reads nothing but ``run_path``.  Raises :class:`gmtiflow.errors.StoreError` for a missing or
+    incomplete run file.  With ``cfg.animation`` also writes ``<out_pdf stem>.gif`` beside it.
+    """
+    out_pdf = Path(out_pdf)
+    start = time.perf_counter()
+    run = load_run(run_path)
+    out_pdf.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out_pdf.with_name(f".{out_pdf.name}.{os.getpid()}.partial")
+    seconds: Dict[str, float] = {"load": time.perf_counter() - start}
+    try:
+        with PdfPages(tmp, metadata={"Title": f"gmtiflow run report: {run.path}",
+                                     "Creator": f"gmtiflow {__version__}"}) as pdf:
+            for page, builder in run_figures(run, cfg):
+                t0 = time.perf_counter()
+                fig = builder()
+                pdf.savefig(fig, dpi=cfg.dpi)
+                fig.clear()
+                seconds[page] = time.perf_counter() - t0
+        os.replace(tmp, out_pdf)
+    finally:
+        tmp.unlink(missing_ok=True)
+    if cfg.animation:
+        t0 = time.perf_counter()
+        gif = write_animation(run, out_pdf.with_suffix(".gif"), cfg)
+        seconds["animation"] = time.perf_counter() - t0
+        if gif is not None:
+            log.info("wrote %s", gif)
+    log.info("report %s in %.2f s (%s)", out_pdf, time.perf_counter() - start,
+             ", ".join(f"{k} {v:.2f}" for k, v in seconds.items()))
+    build_run_report.last_seconds = seconds  # for benchmarks/report_time.py
+    return out_pdf
+
+
+def write_animation(run: RunData, out_gif: Path, cfg: ReportConfig) -> Optional[Path]:
+    """An animated GIF, one frame per revisit (at most ``animation_max_frames``): truth positions
+    with short tails, that revisit's detections, and confirmed tracks with tails.
+
+    Uses matplotlib's PillowWriter; returns None (with a log line) when pillow is missing.
+    """
+    from matplotlib import animation
+    if not animation.PillowWriter.isAvailable():
+        log.warning("animation skipped: pillow is not installed")
+        return None
+    truth, det, tracks, dwells = (run.table(k) for k in ("truth", "detections", "tracks", "dwells"))
+    if not n(dwells):
+        log.warning("animation skipped: no dwells")
+        return None
+    rev = np.asarray(dwells["revisit_id"]) if "revisit_id" in dwells else np.asarray(dwells["dwell_id"])
+    revisits = np.unique(rev)
+    frames = revisits[F.even_subsample(len(revisits), cfg.animation_max_frames)]
+    t_end = {int(r): float(np.max(np.asarray(dwells["time_s"])[rev == r])) for r in frames}
+    det_rev = rev[np.searchsorted(np.asarray(dwells["dwell_id"]), np.asarray(det["dwell_id"]))] \
+        if n(det) else np.zeros(0)
+    km = 1e3
+    fig = F.new_figure((8, 7))
+    ax = fig.add_subplot(111)
+    F._draw_roads(ax, run.table("roads/nodes"), run.table("roads/edges"), km)
+    pts = [run.table(k) for k in ("roads/nodes", "truth") if n(run.table(k))]
+    if pts:
+        x = np.concatenate([np.asarray(p["x_m"]) for p in pts]) / km
+        y = np.concatenate([np.asarray(p["y_m"]) for p in pts]) / km
+        pad = 0.08 * max(np.ptp(x), np.ptp(y), 0.5)
+        ax.set_xlim(x.min() - pad, x.max() + pad)
+        ax.set_ylim(y.min() - pad, y.max() + pad)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("east (km)")
+    ax.set_ylabel("north (km)")
+    truth_sc = ax.scatter([], [], s=25, color="#35978f", label="truth", zorder=3)
+    det_sc = ax.scatter([], [], s=14, color="#2166ac", label="detections (this revisit)", zorder=4)
+    trk_sc = ax.scatter([], [], s=30, marker="s", facecolor="none", edgecolor="k",
+                        label="confirmed tracks", zorder=5)
+    ax.legend(loc="upper left", fontsize=8)
+    title = ax.set_title("")
+    tt = np.asarray(truth["time_s"]) if n(truth) else np.zeros(0)
+    tr_t = np.asarray(tracks["time_s"]) if n(tracks) else np.zeros(0)
+    conf = np.asarray(tracks["confirmed"], bool) if n(tracks) and "confirmed" in tracks else np.ones(len(tr_t), bool)
+
+    def draw(r):
+        te = t_end[int(r)]
+        if len(tt):
+            tnear = tt[np.argmin(np.abs(tt - te))]
+            m = tt == tnear
+            truth_sc.set_offsets(np.c_[np.asarray(truth["x_m"])[m], np.asarray(truth["y_m"])[m]] / km)
+        m = det_rev == r
+        det_sc.set_offsets(np.c_[np.asarray(det["x_m"])[m], np.asarray(det["y_m"])[m]] / km
+                           if m.any() else np.zeros((0, 2)))
+        m = conf & (tr_t <= te) & (tr_t > te - float(run.cfg("sensor.revisit_s", 5.0)))
+        trk_sc.set_offsets(np.c_[np.asarray(tracks["x_m"])[m], np.asarray(tracks["y_m"])[m]] / km
+                           if m.any() else np.zeros((0, 2)))
+        title.set_text(f"revisit {int(r)}, t = {te:.1f} s")
+        return truth_sc, det_sc, trk_sc, title
+
+    anim = animation.FuncAnimation(fig, draw, frames=list(frames), blit=False)
+    tmp = out_gif.with_name(f".{out_gif.name}.{os.getpid()}.partial.gif")
+    try:
+        anim.save(tmp, writer=animation.PillowWriter(fps=cfg.animation_fps), dpi=80)
+        os.replace(tmp, out_gif)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return out_gif

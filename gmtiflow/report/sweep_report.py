@@ -1,0 +1,418 @@
+"""The sweep report: one comparison PDF from any set of run dirs or Hydra sweep dirs.
+
+Built from files only (``reference/hydra.md`` §5: ``on_multirun_end`` gets no job results and is
+not called when a job failed), so the same plain function serves the Hydra callback and the
+``gmtiflow-report DIR...`` command, and works on partial, aborted or cluster sweeps:
+
+* a *job* is a directory with ``.hydra/`` or ``run.h5``; a directory with neither is searched one
+  level down (a sweep dir holds ``0/ 1/ ...``);
+* its parameters are its ``.hydra/overrides.yaml``; parameters whose value differs between jobs
+  are the *swept* ones, the rest are listed once as common overrides;
+* it is COMPLETED when ``run.h5`` opens as a complete run, else FAILED, with the error from
+  ``timing.json`` (written by :class:`gmtiflow.report.callbacks.SweepReport.on_job_end`) or the
+  last ERROR line of the job's log;
+* its wall time is ``timing.json``'s ``run_file_s`` (job start to run file written, i.e. without
+  the run report) when present.
+
+Pages: title with the job table (paginated), each result against each swept parameter (one line
+per combination of the other swept parameters, mean ± std over seeds and any other repeats),
+speed vs accuracy when fidelity presets are swept, and the failed jobs with their errors.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import re
+import textwrap
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Dict, Iterable, List, Optional, Sequence
+
+import numpy as np
+import yaml
+from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
+
+from gmtiflow import __version__
+from gmtiflow.errors import GmtiflowError
+
+from . import figures as F
+from .data import key_numbers, load_run, summary
+
+log = logging.getLogger(__name__)
+
+RUN_FILE = "run.h5"
+TIMING_FILE = "timing.json"
+
+# (key, label, unit) of the results compared across jobs, in table order.
+RESULTS = (
+    ("detections", "detections", ""),
+    ("false_alarms", "false alarms", ""),
+    ("pd_achieved", "P_D achieved", ""),
+    ("ospa_mean_m", "OSPA mean", "m"),
+    ("gospa_mean_m", "GOSPA mean", "m"),
+    ("position_rmse_m", "position RMSE", "m"),
+    ("speed_rmse_mps", "speed RMSE", "m/s"),
+    ("identity_switches", "identity switches", ""),
+    ("coverage_mean", "coverage", ""),
+    ("wall_s", "wall time", "s"),
+)
+ACCURACY = ("pd_achieved", "position_rmse_m", "ospa_mean_m", "identity_switches")
+_SUMMARY_TABLES = ("vehicles", "dwells", "detections", "looks", "tracks", "metrics")
+
+
+class SweepReportError(GmtiflowError):
+    """No job directories found in the given paths."""
+
+
+@dataclass
+class Job:
+    dir: Path
+    label: str
+    overrides: Dict[str, str] = field(default_factory=dict)
+    status: str = "FAILED"
+    error: str = ""
+    values: Dict[str, float] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "COMPLETED"
+
+
+def _is_job(d: Path) -> bool:
+    return (d / ".hydra").is_dir() or (d / RUN_FILE).is_file()
+
+
+def _natural(p: Path):
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", p.name)]
+
+
+def find_job_dirs(paths: Iterable) -> List[Path]:
+    """Job dirs among ``paths``: each path itself when it is a job, else its job subdirs."""
+    out: List[Path] = []
+    for p in map(Path, paths):
+        if not p.is_dir():
+            raise SweepReportError(f"{p}: not a directory")
+        if _is_job(p):
+            out.append(p)
+        else:
+            out += sorted((d for d in p.iterdir() if d.is_dir() and _is_job(d)), key=_natural)
+    seen, unique = set(), []
+    for d in out:
+        if d.resolve() not in seen:
+            seen.add(d.resolve())
+            unique.append(d)
+    if not unique:
+        raise SweepReportError("no run or job directories (with run.h5 or .hydra/) in "
+                               + ", ".join(map(str, paths)))
+    return unique
+
+
+def read_overrides(job_dir: Path) -> Dict[str, str]:
+    """``.hydra/overrides.yaml`` as {key: value} (``+``/``~`` prefixes dropped)."""
+    path = job_dir / ".hydra" / "overrides.yaml"
+    if not path.is_file():
+        return {}
+    try:
+        items = yaml.safe_load(path.read_text()) or []
+    except yaml.YAMLError:
+        return {}
+    out = {}
+    for item in items:
+        key, _, value = str(item).partition("=")
+        out[key.lstrip("+~")] = value
+    return out
+
+
+def _log_error(job_dir: Path) -> str:
+    for log_path in sorted(job_dir.glob("*.log")):
+        lines = [ln for ln in log_path.read_text(errors="replace").splitlines() if "ERROR" in ln]
+        if lines:
+            return lines[-1].split("] - ", 1)[-1].strip()
+    return ""
+
+
+def read_job(job_dir: Path, label: str) -> Job:
+    """Status, parameters and results of one job dir (never raises for a broken job)."""
+    job = Job(dir=job_dir, label=label, overrides=read_overrides(job_dir))
+    timing = {}
+    tpath = job_dir / TIMING_FILE
+    if tpath.is_file():
+        try:
+            timing = json.loads(tpath.read_text())
+        except (OSError, ValueError):
+            timing = {}
+    run_path = job_dir / RUN_FILE
+    try:
+        run = load_run(run_path, _SUMMARY_TABLES)
+    except GmtiflowError as exc:
+        job.status = "FAILED"
+        job.error = (timing.get("error") or _log_error(job_dir) or str(exc)).strip()
+        return job
+    except Exception as exc:  # a corrupt file must not stop the report of the others
+        job.status = "FAILED"
+        job.error = f"{run_path}: unreadable ({exc})"
+        return job
+    job.status = "COMPLETED"
+    job.values.update(key_numbers(run))
+    job.values.update({k: v for k, (v, _) in summary(run.table("metrics")).items()})
+    wall = timing.get("run_file_s", timing.get("wall_s"))
+    job.values["wall_s"] = float(wall) if wall is not None else float("nan")
+    if not job.overrides and run.config:
+        job.overrides = {"seed": str(run.attrs.get("seed", ""))}
+    return job
+
+
+def collect_jobs(paths: Sequence) -> List[Job]:
+    dirs = find_job_dirs(paths)
+    common = os.path.commonpath([str(d.resolve()) for d in dirs]) if len(dirs) > 1 else None
+    jobs = []
+    for d in dirs:
+        label = os.path.relpath(d.resolve(), common) if common else d.name
+        jobs.append(read_job(d, label))
+    return jobs
+
+
+def swept_keys(jobs: Sequence[Job]) -> List[str]:
+    """Override keys whose value differs between jobs (missing counts as a value), in order."""
+    keys: List[str] = []
+    for j in jobs:
+        keys += [k for k in j.overrides if k not in keys]
+    return [k for k in keys if len({j.overrides.get(k) for j in jobs}) > 1]
+
+
+def _number(text) -> Optional[float]:
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _fmt(v: float, key: str = "") -> str:
+    if v is None or not math.isfinite(v):
+        return "–"
+    if key in ("detections", "false_alarms", "identity_switches") or (v.is_integer() and abs(v) >= 100):
+        return f"{v:.0f}"
+    return f"{v:.3g}"
+
+
+# ----------------------------------------------------------------------------- pages
+
+def table_figures(jobs: Sequence[Job], keys: Sequence[str], sources: Sequence, rows_per_page=22
+                  ) -> List[Figure]:
+    """Title and the job table: swept parameters against key results, paginated."""
+    common = {}
+    if jobs:
+        first = jobs[0].overrides
+        common = {k: v for k, v in first.items() if k not in keys
+                  and all(j.overrides.get(k) == v for j in jobs)}
+    results = [r for r in RESULTS if any(math.isfinite(j.values.get(r[0], float("nan"))) for j in jobs)]
+    header = ["job"] + list(keys) + ["status"] + [f"{lab}" + (f" ({u})" if u else "") for _, lab, u in results]
+    figs = []
+    pages = max(1, math.ceil(len(jobs) / rows_per_page))
+    n_ok = sum(j.ok for j in jobs)
+    for page in range(pages):
+        fig = F.new_figure()
+        if page == 0:
+            fig.text(0.04, 0.94, "gmtiflow sweep report", fontsize=20, weight="bold")
+            src = ", ".join(str(s) for s in sources)
+            lines = [f"{len(jobs)} jobs: {n_ok} completed, {len(jobs) - n_ok} failed     "
+                     f"built {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, gmtiflow {__version__}",
+                     f"from: {textwrap.shorten(src, 150)}",
+                     f"swept: {', '.join(keys) or 'nothing (all jobs share their overrides)'}",
+                     f"common overrides: {textwrap.shorten(' '.join(f'{k}={v}' for k, v in common.items()) or 'none', 150)}",
+                     "wall time: job start to run file written (timing.json of the sweep callback); "
+                     "P_D achieved: detected / looks with a detection draw"]
+            for i, ln in enumerate(lines):
+                fig.text(0.04, 0.895 - 0.03 * i, ln, fontsize=9)
+            top = 0.72
+        else:
+            fig.text(0.04, 0.94, f"Jobs (page {page + 1} of {pages})", fontsize=14, weight="bold")
+            top = 0.9
+        chunk = jobs[page * rows_per_page:(page + 1) * rows_per_page]
+        cells = []
+        for j in chunk:
+            row = [textwrap.shorten(j.label, 18)] + [textwrap.shorten(str(j.overrides.get(k, "–")), 22) for k in keys]
+            row.append(j.status)
+            row += [_fmt(j.values.get(k, float("nan")), k) if j.ok else "" for k, _, _ in results]
+            cells.append(row)
+        ax = fig.add_axes([0.03, 0.04, 0.94, top - 0.04])
+        ax.axis("off")
+        if cells:
+            tab = ax.table(cellText=cells, colLabels=[textwrap.fill(h, 12) for h in header],
+                           loc="upper center", cellLoc="center")
+            tab.auto_set_font_size(False)
+            tab.set_fontsize(7.5 if len(header) < 14 else 6)
+            tab.scale(1.0, 1.35)
+            for (r, c), cell in tab.get_celld().items():
+                if r == 0:
+                    cell.set_facecolor("#deebf7")
+                    cell.set_height(cell.get_height() * 1.8)
+                elif cells[r - 1][len(keys) + 1] != "COMPLETED":
+                    cell.set_facecolor("#fddbc7")
+        figs.append(fig)
+    return figs
+
+
+def _groups(jobs: Sequence[Job], param: str, others: Sequence[str]):
+    """{other-params combination: {x value: [jobs]}}, x values in order of first appearance."""
+    out: Dict[tuple, Dict[str, List[Job]]] = {}
+    for j in jobs:
+        g = tuple(j.overrides.get(k, "–") for k in others)
+        out.setdefault(g, {}).setdefault(j.overrides.get(param, "–"), []).append(j)
+    return out
+
+
+def parameter_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Figure:
+    """Every result against one swept parameter; one line per combination of the other swept
+    parameters (seed excluded: seeds are the spread), mean ± std where several jobs share a point."""
+    ok = [j for j in jobs if j.ok]
+    others = [k for k in keys if k != param and k != "seed"]
+    results = [r for r in RESULTS if any(math.isfinite(j.values.get(r[0], float("nan"))) for j in ok)]
+    fig = F.new_figure()
+    ncols = 3 if len(results) > 4 else 2
+    nrows = max(1, math.ceil(len(results) / ncols))
+    axes = fig.subplots(nrows, ncols, squeeze=False,
+                        gridspec_kw=dict(left=0.07, right=0.98, top=0.86, bottom=0.1,
+                                         hspace=0.55, wspace=0.3))
+    values = list(dict.fromkeys(j.overrides.get(param, "–") for j in ok))
+    numeric = all(_number(v) is not None for v in values)
+    if numeric:
+        values.sort(key=float)
+    pos = {v: (float(v) if numeric else i) for i, v in enumerate(values)}
+    groups = _groups(ok, param, others)
+    colours = F.cm.tab10(np.arange(len(groups)) % 10)
+    repeats = max((len(js) for g in groups.values() for js in g.values()), default=1)
+    for ax, (key, label, unit) in zip(axes.ravel(), results):
+        for (g, by_x), c in zip(groups.items(), colours):
+            xs = [x for x in values if x in by_x]
+            means, stds = [], []
+            for x in xs:
+                v = np.array([j.values.get(key, np.nan) for j in by_x[x]], float)
+                v = v[np.isfinite(v)]
+                means.append(v.mean() if len(v) else np.nan)
+                stds.append(v.std(ddof=1) if len(v) > 1 else 0.0)
+                ax.scatter([pos[x]] * len(v), v, s=10, color=c, alpha=0.45, lw=0)
+            lab = ", ".join(f"{k}={v}" for k, v in zip(others, g)) or None
+            ax.errorbar([pos[x] for x in xs], means, yerr=stds if repeats > 1 else None, color=c,
+                        marker="o", ms=4, lw=1.2, capsize=3, label=lab)
+        ax.set_title(label + (f" ({unit})" if unit else ""), fontsize=9)
+        ax.grid(alpha=0.3)
+        if not numeric:
+            ax.set_xticks(list(pos.values()))
+            ax.set_xticklabels([textwrap.shorten(v, 14) for v in values], fontsize=7,
+                               rotation=20 if len(values) > 3 else 0)
+        ax.tick_params(labelsize=7)
+        ax.set_xlabel(param, fontsize=8)
+    for ax in axes.ravel()[len(results):]:
+        ax.axis("off")
+    if not results:
+        _ax = axes.ravel()[0]
+        F._note(_ax, "no completed jobs: nothing to plot")
+    handles, labels = axes.ravel()[0].get_legend_handles_labels()
+    if labels:
+        fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8,
+                   frameon=False)
+    spread = (f"; points = jobs, bars = mean ± std over {repeats} runs per point"
+              if repeats > 1 else "")
+    fig.suptitle(f"Results vs {param}{spread}", fontsize=13, weight="bold", x=0.04, ha="left")
+    return fig
+
+
+def speed_accuracy_figure(jobs: Sequence[Job], param: str = "fidelity") -> Figure:
+    """Wall time against accuracy per fidelity preset (mean ± std over repeats)."""
+    ok = [j for j in jobs if j.ok]
+    presets = list(dict.fromkeys(j.overrides.get(param, "–") for j in ok))
+    fig = F.new_figure()
+    axes = fig.subplots(2, 2, squeeze=False, gridspec_kw=dict(left=0.08, right=0.98, top=0.86,
+                                                               bottom=0.08, hspace=0.35, wspace=0.25))
+    colours = F.cm.tab10(np.arange(len(presets)) % 10)
+    labels = {k: (lab, u) for k, lab, u in RESULTS}
+    for ax, key in zip(axes.ravel(), ACCURACY):
+        for p, c in zip(presets, colours):
+            js = [j for j in ok if j.overrides.get(param, "–") == p]
+            t = np.array([j.values.get("wall_s", np.nan) for j in js], float)
+            v = np.array([j.values.get(key, np.nan) for j in js], float)
+            m = np.isfinite(t) & np.isfinite(v)
+            if not m.any():
+                continue
+            ax.scatter(t[m], v[m], color=c, s=14, alpha=0.5, lw=0)
+            ax.errorbar([t[m].mean()], [v[m].mean()], xerr=[t[m].std()] if m.sum() > 1 else None,
+                        yerr=[v[m].std()] if m.sum() > 1 else None, color=c, marker="o", ms=7,
+                        capsize=3, label=f"{p} ({m.sum()} runs)")
+            ax.annotate(p, (t[m].mean(), v[m].mean()), textcoords="offset points", xytext=(6, 4),
+                        fontsize=8)
+        lab, unit = labels[key]
+        ax.set_ylabel(lab + (f" ({unit})" if unit else ""), fontsize=9)
+        ax.set_xlabel("wall time per run (s)", fontsize=9)
+        ax.grid(alpha=0.3)
+        if not ax.has_data():
+            F._note(ax, "no wall times (timing.json) or no values")
+    h, l = axes[0, 0].get_legend_handles_labels()
+    if l:
+        fig.legend(h, l, loc="upper right", fontsize=8)
+    fig.suptitle(f"Speed vs accuracy over {param} presets", fontsize=13, weight="bold", x=0.04,
+                 ha="left")
+    return fig
+
+
+def failures_figure(jobs: Sequence[Job]) -> Figure:
+    failed = [j for j in jobs if not j.ok]
+    fig = F.new_figure()
+    fig.text(0.04, 0.94, f"Failed jobs ({len(failed)} of {len(jobs)})", fontsize=14, weight="bold")
+    y = 0.89
+    for j in failed:
+        ov = " ".join(f"{k}={v}" for k, v in j.overrides.items()) or "(no overrides)"
+        lines = [f"{j.label}: {ov}"] + textwrap.wrap(j.error or "no error recorded", 150)[:4]
+        for i, ln in enumerate(lines):
+            fig.text(0.05 if i == 0 else 0.08, y, ln, fontsize=9 if i == 0 else 8,
+                     weight="bold" if i == 0 else "normal", family=None if i == 0 else "monospace",
+                     color="k" if i == 0 else "#b2182b")
+            y -= 0.03
+        y -= 0.01
+        if y < 0.05:
+            fig.text(0.05, 0.02, "… more failures in the job table", fontsize=8)
+            break
+    return fig
+
+
+def sweep_figures(jobs: Sequence[Job], sources: Sequence) -> List[Figure]:
+    keys = swept_keys(jobs)
+    figs = table_figures(jobs, keys, sources)
+    plot_params = [k for k in keys if k != "seed"] or (["seed"] if "seed" in keys else [])
+    for k in plot_params:
+        figs.append(parameter_figure(jobs, k, keys))
+    fidelity_key = next((k for k in keys if k == "fidelity" or k == "fidelity.name"), None)
+    if fidelity_key:
+        figs.append(speed_accuracy_figure(jobs, fidelity_key))
+    if any(not j.ok for j in jobs):
+        figs.append(failures_figure(jobs))
+    return figs
+
+
+def build_sweep_report(paths: Sequence, out_pdf) -> Path:
+    """Build the comparison PDF of the jobs found in ``paths`` (run dirs and/or sweep dirs).
+
+    Failed or unfinished jobs are listed, never fatal; raises :class:`SweepReportError` only
+    when no job directory is found.
+    """
+    out_pdf = Path(out_pdf)
+    jobs = collect_jobs(paths)
+    out_pdf.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out_pdf.with_name(f".{out_pdf.name}.{os.getpid()}.partial")
+    try:
+        with PdfPages(tmp, metadata={"Title": "gmtiflow sweep report",
+                                     "Creator": f"gmtiflow {__version__}"}) as pdf:
+            for fig in sweep_figures(jobs, paths):
+                pdf.savefig(fig)
+                fig.clear()
+        os.replace(tmp, out_pdf)
+    finally:
+        tmp.unlink(missing_ok=True)
+    log.info("sweep report %s: %d jobs (%d failed)", out_pdf, len(jobs),
+             sum(not j.ok for j in jobs))
+    return out_pdf

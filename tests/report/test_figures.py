@@ -1,0 +1,152 @@
+"""Figure functions on small runs: the right number of points/artists, and empty tables."""
+import math
+
+import numpy as np
+import pytest
+from matplotlib.collections import PathCollection
+
+from gmtiflow.report import figures as F
+from gmtiflow.report.data import key_numbers, load_run, n
+from gmtiflow.sensor.outcome import Outcome
+
+
+def _points(ax, labels):
+    return sum(len(c.get_offsets()) for c in ax.collections
+               if isinstance(c, PathCollection) and c.get_label() in labels)
+
+
+DET_LABELS = {lab for _, _, lab in F.DET_STYLE.values()}
+
+
+def _map(run, **kw):
+    t = run.table
+    return F.map_figure(t("roads/nodes"), t("roads/edges"), t("truth"), t("platform"), t("dwells"),
+                        t("detections"), t("tracks"), run.cfg("clutter.regions", []) or [],
+                        run.origin, str(run.attrs.get("attribution", "")), **kw)
+
+
+def test_map_has_one_point_per_detection(small_run, clutter_run):
+    for path in (small_run, clutter_run):
+        run = load_run(path)
+        det = run.table("detections")
+        assert n(det) > 0
+        fig = _map(run)
+        scene = fig.axes[1]
+        assert _points(scene, DET_LABELS) == n(det)
+        classes = F.detection_classes(det)
+        assert sum(int(m.sum()) for m in classes.values()) == n(det)
+    # the lake run has false alarms, drawn as their own layer, and a clutter polygon
+    false = [c for c in scene.collections if c.get_label() == "false alarm"]
+    assert false and len(false[0].get_offsets()) == int(np.sum(det["truth_id"] < 0)) > 0
+    assert any(str(p.get_label()) == "clutter: lake" for p in scene.patches)
+
+
+def test_map_subsamples_big_layers_and_says_so(small_run):
+    run = load_run(small_run)
+    fig = _map(run, max_points=10)
+    scene = fig.axes[1]
+    assert _points(scene, {"true detection"}) == 10
+    assert "every" in scene.get_title()
+
+
+def test_map_draws_tracks_footprints_and_attribution(small_run):
+    run = load_run(small_run)
+    fig = _map(run, max_footprints=3)
+    fps = F.revisit_footprints(run.table("dwells"), run.origin, 3)
+    assert len(fps) == 3
+    for fp in fps:  # default sensor: slant 20-36 km from 6 km altitude
+        assert fp["ground_min_m"] == pytest.approx(math.sqrt(20e3 ** 2 - 6e3 ** 2), rel=0.02)
+        assert 0 < fp["az_hi"] - fp["az_lo"] < math.radians(30)
+    n_tracks = len(F._track_lines(run.table("tracks"), 200))
+    black = [ln for ln in fig.axes[1].lines if ln.get_color() == "k" and ln.get_label().startswith("_")]
+    assert len(black) == n_tracks
+    fig = F.map_figure({}, {}, {}, {}, {}, {}, {}, [], run.origin, "© OpenStreetMap contributors")
+    assert any("OpenStreetMap" in t.get_text() for t in fig.axes[1].texts)
+
+
+def test_sensor_figure_histograms_count_unmerged_true_detections(small_run):
+    run = load_run(small_run)
+    det = run.table("detections")
+    fig = F.sensor_figure(run.table("looks"), det, 1e-6)
+    expected = int(np.sum((det["truth_id"] >= 0) & ~det["merged"] & ~det["range_folded"]
+                          & ~det["doppler_wrapped"]))
+    for ax in fig.axes[-3:]:
+        counts = sum(1 for p in ax.patches)  # 40 bins per histogram
+        assert counts == 40
+        assert f"n={expected}" in ax.get_legend().get_texts()[0].get_text()
+
+
+def test_pd_vs_snr_bins_and_swerling_curve():
+    assert F.swerling1_pd(1e-6, 0.0) == pytest.approx(1e-6)
+    assert np.isfinite(F.swerling1_pd(1e-12, 1e9)) and F.swerling1_pd(1e-12, 1e9) > 0.99999
+    looks = {"outcome": np.array([0, 5, 0, 0, 1, 4, 6], np.uint8),
+             "snr_db": np.array([10.2, 10.7, 20.1, 20.4, np.nan, 10.5, 20.9]),
+             "pd": np.array([0.5, 0.5, 0.9, 0.9, 0.0, 0.5, 0.9])}
+    centres, pd, count, model = F.pd_vs_snr(looks, 1.0)
+    assert list(centres) == [10.5, 20.5]
+    assert list(count) == [3, 3]                       # the outside-FoV look is not drawn
+    assert pd == pytest.approx([1 / 3, 1.0])           # merged counts as detected
+    assert model == pytest.approx([0.5, 0.9])
+
+
+def test_timeline_rows_and_outcome_counts(small_run):
+    run = load_run(small_run)
+    looks = run.table("looks")
+    fig = F.timeline_figure(run.table("vehicles"), run.table("truth"), looks)
+    ax, bars = fig.axes[0], fig.axes[1]
+    assert len(ax.get_yticks()) == n(run.table("vehicles"))
+    markers = sum(len(c.get_offsets()) for c in ax.collections if isinstance(c, PathCollection))
+    assert markers == n(looks)
+    widths = sum(p.get_width() for p in bars.patches)
+    assert widths == n(looks)
+    fig = F.timeline_figure(run.table("vehicles"), run.table("truth"), looks, max_vehicles=2)
+    assert len(fig.axes[0].get_yticks()) == 2
+    assert "first 2 of" in fig._suptitle.get_text()
+
+
+def test_track_errors_one_line_per_track(small_run):
+    run = load_run(small_run)
+    te = run.table("metrics/track_errors")
+    assert n(te) > 0
+    fig = F.track_errors_figure(te)
+    assert len(fig.axes[0].lines) == len(np.unique(te["track_id"]))
+    assert sum(len(ln.get_xdata()) for ln in fig.axes[0].lines) == n(te)
+
+
+def test_range_rate_figure_points(small_run):
+    run = load_run(small_run)
+    looks, det = run.table("looks"), run.table("detections")
+    fig = F.range_rate_figure(looks, det, run.table("dwells"))
+    left, right = fig.axes
+    drawn = int(np.isin(looks["outcome"], [0, 4, 5, 6]).sum())
+    assert sum(len(c.get_offsets()) for c in left.collections if isinstance(c, PathCollection)) == drawn
+    assert _points(right, {f"{lab} ({k})" for lab in DET_LABELS for k in range(n(det) + 1)}) == n(det)
+
+
+def test_ospa_figure_series(small_run):
+    run = load_run(small_run)
+    ospa = run.table("metrics/ospa")
+    fig = F.ospa_figure(ospa, run.table("metrics/identity_switches"), run.table("metrics/events"),
+                        cutoff_m=100.0)
+    assert len(fig.axes[0].lines[0].get_xdata()) == n(ospa)
+    assert "OSPA (c = 100 m)" in [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+
+
+def test_every_figure_copes_with_empty_tables():
+    from gmtiflow.frames import Origin
+    e = {}
+    figs = [F.title_figure({}, {}, {}, {}, "x"),
+            F.map_figure(e, e, e, e, e, e, e, [], Origin(0, 0), ""),
+            F.sensor_figure(e, e, 1e-6), F.range_rate_figure(e, e, e),
+            F.timeline_figure(e, e, e), F.track_errors_figure(e, tracker_enabled=False),
+            F.ospa_figure(e, e, e)]
+    for fig in figs:
+        fig.canvas.draw()
+
+
+def test_key_numbers(small_run, empty_run):
+    k = key_numbers(load_run(small_run))
+    assert k["detections"] > 0 and 0 < k["pd_achieved"] <= 1
+    assert abs(k["pd_achieved"] - k["pd_model_mean"]) < 0.25
+    k = key_numbers(load_run(empty_run))
+    assert k["detections"] == 0 and k["tracks"] == 0

@@ -1,0 +1,58 @@
+"""The run report PDF: pages, edge cases, rendering, animation, config."""
+import pytest
+
+from gmtiflow.errors import StoreError
+from gmtiflow.report import ReportConfig, build_run_report
+from gmtiflow.report.run_report import PAGES
+
+from .conftest import page_count, pixel_std, render_png
+
+
+def test_report_has_all_pages_and_renders_non_blank(small_run, tmp_path):
+    out = build_run_report(ReportConfig(), small_run, tmp_path / "report.pdf")
+    assert out == tmp_path / "report.pdf" and out.stat().st_size > 10_000
+    assert page_count(out) == len(PAGES) == 7
+    assert not list(tmp_path.glob(".*partial*"))
+    pngs = render_png(out, tmp_path / "page", 1, 3)
+    assert len(pngs) == 3
+    for png in pngs:
+        assert pixel_std(png) > 0.05, f"{png.name} looks blank"
+
+
+@pytest.mark.parametrize("fixture", ["clutter_run", "empty_run"])
+def test_report_on_runs_without_tracker_or_detections(fixture, request, tmp_path):
+    run = request.getfixturevalue(fixture)
+    out = build_run_report(ReportConfig(), run, tmp_path / "r.pdf")
+    assert page_count(out) == 7
+
+
+def test_missing_run_file_is_a_clear_error_and_leaves_nothing(tmp_path):
+    with pytest.raises(StoreError, match="no such run file"):
+        build_run_report(ReportConfig(), tmp_path / "run.h5", tmp_path / "report.pdf")
+    assert not list(tmp_path.iterdir())
+
+
+def test_animation_gif(small_run, tmp_path):
+    cfg = ReportConfig(animation=True, animation_max_frames=3)
+    out = build_run_report(cfg, small_run, tmp_path / "report.pdf")
+    gif = out.with_suffix(".gif")
+    assert gif.is_file() and gif.read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+
+
+def test_report_config_group_and_validation(tmp_path):
+    from hydra import compose, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+    from gmtiflow import config
+    from gmtiflow.errors import ConfigError
+    for option, enabled in (("default", True), ("none", False)):
+        GlobalHydra.instance().clear()
+        with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
+            cfg = compose(config_name="config", overrides=[f"report={option}"])
+        app = config.to_object(cfg)
+        assert isinstance(app.report, ReportConfig) and app.report.enabled is enabled
+    GlobalHydra.instance().clear()
+    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
+        cfg = compose(config_name="config", overrides=["report.filename=out.png",
+                                                       "report.max_points=0"])
+    with pytest.raises(ConfigError, match="report.filename.*report.max_points|report.max_points.*report.filename"):
+        config.to_object(cfg)
