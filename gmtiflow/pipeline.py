@@ -20,7 +20,9 @@ import numpy as np
 from gmtiflow import config as config_mod
 from gmtiflow.config import AppConfig
 from gmtiflow.evaluate import evaluate, track
+from gmtiflow.errors import GmtiflowError
 from gmtiflow.export import export_run
+from gmtiflow.report import build_run_report
 from gmtiflow.scene.platform import Platform
 from gmtiflow.scene.roadmap import RoadMap, load_roadmap
 from gmtiflow.scene.terrain import Terrain, build_terrain
@@ -144,4 +146,10 @@ def run(cfg: AppConfig, out_dir) -> Path:
         runner.stage("store", writer.commit)
     log.info("wrote %s", path)
     runner.stage("export", export_run, cfg.export, path, out_dir)
+    if cfg.report.enabled:
+        try:
+            runner.stage("report", build_run_report, cfg.report, path,
+                         out_dir / cfg.report.filename)
+        except GmtiflowError as exc:   # the run file is complete and valid; say so and go on
+            log.error("report not written: %s", exc)
     return path
