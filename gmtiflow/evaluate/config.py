@@ -20,7 +20,11 @@ class TrackerConfig:
     enabled: bool = True
     """Run the baseline tracker (``conf/tracker/none.yaml`` switches it off)."""
     accel_sigma_mps2: float = 1.0
-    """White-acceleration σ of the constant-velocity model (discrete white-noise acceleration)."""
+    """White-acceleration σ of the constant-velocity model (per axis; with ``cwna`` the noise
+    density is σ²·1 s)."""
+    process_noise: str = "cwna"
+    """``cwna`` continuous white-noise acceleration (full-rank Q) or ``dwna`` discrete
+    (acceleration constant over a step, rank-1 Q per axis); see :mod:`gmtiflow.evaluate.kalman`."""
     gate_probability: float = 0.999
     """Chi-square gate on the normalised innovation (probability mass inside the gate)."""
     use_range_rate: bool = True
@@ -51,6 +55,9 @@ class TrackerConfig:
                        "default_sigma_range_m",
                        "default_sigma_azimuth_deg", "default_sigma_range_rate_mps")
         out += non_negative(self, "footprint_margin_m")
+        if self.process_noise not in ("cwna", "dwna"):
+            out.append(Problem("process_noise", f"must be 'cwna' or 'dwna', got "
+                                                f"{self.process_noise!r}"))
         out += in_range(self, "gate_probability", 0.0, 1.0, lo_open=True, hi_open=True)
         for name in ("confirm_m", "confirm_n", "delete_misses"):
             value = getattr(self, name)

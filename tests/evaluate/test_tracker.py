@@ -16,7 +16,7 @@ REVISIT_S = 2.0
 ACCEL = 0.5
 
 
-def expected_position_rmse(sigma_m, revisit_s, accel_sigma):
+def expected_position_rmse(sigma_m, revisit_s, accel_sigma, model="cwna"):
     """Steady-state 2-D RMS position error of the CV filter on a truly constant-velocity target.
 
     The filter's gain comes from the Riccati equation with its process noise Q (DARE); the actual
@@ -25,7 +25,10 @@ def expected_position_rmse(sigma_m, revisit_s, accel_sigma):
     """
     T = revisit_s
     F = np.array([[1.0, T], [0.0, 1.0]])
-    Q = accel_sigma ** 2 * np.array([[T ** 4 / 4, T ** 3 / 2], [T ** 3 / 2, T ** 2]])
+    if model == "dwna":
+        Q = accel_sigma ** 2 * np.array([[T ** 4 / 4, T ** 3 / 2], [T ** 3 / 2, T ** 2]])
+    else:
+        Q = accel_sigma ** 2 * np.array([[T ** 3 / 3, T ** 2 / 2], [T ** 2 / 2, T]])
     H = np.array([[1.0, 0.0]])
     R = np.array([[sigma_m ** 2]])
     P = sl.solve_discrete_are(F.T, H.T, Q, R)
@@ -48,12 +51,13 @@ def errors_by_vehicle(scene, tracks, t_from):
     return np.asarray(out)
 
 
-def test_rmse_matches_the_steady_state_filter_and_beats_the_measurement():
-    cfg = TrackerConfig(accel_sigma_mps2=ACCEL, use_range_rate=False)
+@pytest.mark.parametrize("model", ["cwna", "dwna"])
+def test_rmse_matches_the_steady_state_filter_and_beats_the_measurement(model):
+    cfg = TrackerConfig(accel_sigma_mps2=ACCEL, use_range_rate=False, process_noise=model)
     scene = straight_scene(n_vehicles=30, n_revisits=100, revisit_s=REVISIT_S, sigma_m=SIGMA_M,
                            spacing_m=1000.0, seed=3)
     tracks = track(cfg, scene["detections"], scene["dwells"], seed=0)
-    expected, pole = expected_position_rmse(SIGMA_M, REVISIT_S, ACCEL)
+    expected, pole = expected_position_rmse(SIGMA_M, REVISIT_S, ACCEL, model)
     assert expected < SIGMA_M            # the bound the tracker has to meet: better than one plot
     settle = int(np.ceil(np.log(1e-3) / np.log(pole)))          # transient down to 1e-3
     mse = errors_by_vehicle(scene, tracks, t_from=(settle + 3) * REVISIT_S)
@@ -145,6 +149,7 @@ def test_config_problems():
     assert keys == {"confirm_m"}
     keys = {p.key for p in TrackerConfig(gate_probability=1.0, accel_sigma_mps2=-1).problems()}
     assert keys == {"gate_probability", "accel_sigma_mps2"}
+    assert [p.key for p in TrackerConfig(process_noise="singer").problems()] == ["process_noise"]
 
 
 def test_missing_detection_column_is_a_clear_error():
