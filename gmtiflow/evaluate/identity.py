@@ -1,10 +1,20 @@
 """Track-to-truth identity: per-step association, switches, fragmentation, purity, coverage.
 
-**Association.**  At every grid step, truths and tracks are paired by one optimal assignment
-(``linear_sum_assignment`` on ``min(d, g)²``, ``g`` = ``assoc_gate_m``, matrix built by numpy
-broadcasting); pairs at or beyond the gate stay unassociated.  This is GOSPA's assignment with
-the gate as cut-off (it minimises the summed squared distance of the associated pairs and never
-pairs objects farther apart than the gate).
+**Association** (CLEAR-MOT, Bernardin & Stiefelhagen 2008, §2.1.1; as py-motmetrics does it).
+At every grid step, in two passes:
+
+1. *Keep.*  A truth whose last associated track id (from any earlier step) is present at this
+   step and closer than the gate ``g`` = ``assoc_gate_m`` stays with that track.  When two truths
+   claim one track, the closer pair keeps it.
+2. *Assign.*  The truths and tracks left over are paired by one optimal assignment
+   (``linear_sum_assignment`` on ``min(d, g)²``); pairs at or beyond the gate stay unassociated.
+
+Without pass 1 the association is a fresh nearest-pair choice at every step, and two tracks that
+both sit within the gate of one vehicle (or one track between two close vehicles, e.g. a convoy
+25 m apart with tracks tens of metres off) flip the pairing back and forth: every flip would be
+counted as an identity switch although no track changed what it follows.  CLEAR-MOT counts a
+mismatch only when the kept correspondence becomes invalid (the track left the gate or ended) and
+the truth is then picked up by a different track.
 
 **Counting** (CLEAR-MOT style, Bernardin & Stiefelhagen 2008), per truth, over its grid steps:
 
@@ -44,20 +54,46 @@ def unique_pairs(a: np.ndarray, b: np.ndarray, return_counts: bool = False):
 
 def associate(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
               n_steps: int, gate_m: float) -> np.ndarray:
-    """Track id associated with every ``truth_at`` row (-1 when none); one assignment per step."""
+    """Track id associated with every ``truth_at`` row (-1 when none), CLEAR-MOT style: a truth
+    keeps its last track while that track is present and inside the gate; the rest are paired by
+    one optimal assignment per step (see the module docstring)."""
     out = np.full(len(truth_at["step"]), -1, np.int64)
     tb = np.searchsorted(truth_at["step"], np.arange(n_steps + 1))
     kb = np.searchsorted(tracks_at["step"], np.arange(n_steps + 1))
     X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1)
     Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1)
-    tid = tracks_at["track_id"]
+    tid = np.asarray(tracks_at["track_id"], np.int64)
+    vid = np.asarray(truth_at["vehicle_id"], np.int64)
     g2 = float(gate_m) ** 2
+    last: dict = {}                               # vehicle id -> last associated track id
     for s in np.flatnonzero((np.diff(tb) > 0) & (np.diff(kb) > 0)):
         a, b, c, d = tb[s], tb[s + 1], kb[s], kb[s + 1]
         D2 = ((X[a:b, None, 0] - Y[None, c:d, 0]) ** 2 + (X[a:b, None, 1] - Y[None, c:d, 1]) ** 2)
-        r, k = linear_sum_assignment(np.minimum(D2, g2))
-        inside = D2[r, k] < g2
-        out[a + r[inside]] = tid[c + k[inside]]
+        ids = tid[c:d]
+        free_r = np.ones(b - a, bool)
+        free_k = np.ones(d - c, bool)
+        # Pass 1: keep still-valid correspondences, closest first when two truths claim a track.
+        keep = []
+        for r in range(b - a):
+            prev = last.get(int(vid[a + r]))
+            if prev is None:
+                continue
+            k = np.flatnonzero(ids == prev)
+            if len(k) and D2[r, k[0]] < g2:
+                keep.append((D2[r, k[0]], r, k[0]))
+        for _, r, k in sorted(keep):
+            if free_k[k]:
+                out[a + r] = ids[k]
+                free_r[r] = free_k[k] = False
+        # Pass 2: optimal assignment of the rest.
+        rr, kk = np.flatnonzero(free_r), np.flatnonzero(free_k)
+        if len(rr) and len(kk):
+            sub = D2[np.ix_(rr, kk)]
+            r, k = linear_sum_assignment(np.minimum(sub, g2))
+            inside = sub[r, k] < g2
+            out[a + rr[r[inside]]] = ids[kk[k[inside]]]
+        for r in np.flatnonzero(out[a:b] >= 0):
+            last[int(vid[a + r])] = int(out[a + r])
     return out
 
 

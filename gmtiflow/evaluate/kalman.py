@@ -3,12 +3,24 @@
 State ``[x, y, vx, vy]`` (ENU metres, m/s).  Every function works on a batch of tracks at once
 (leading axis ``n``), so one dwell's predictions, gates and updates are a handful of numpy calls.
 
-Motion model: constant velocity with *discrete white-noise acceleration* (Bar-Shalom, Li &
-Kirubarajan 2001, §6.3.3): the acceleration is constant over a step of length ``T`` and white
-between steps, with σ ``accel_sigma_mps2`` per axis, so per axis
+Motion model: constant velocity, per axis ``F = [[1, T], [0, 1]]``, with one of two process
+noises (Bar-Shalom, Li & Kirubarajan 2001, §6.2.2 and §6.3.3), σ_a = ``accel_sigma_mps2``:
 
-.. math::  F = \\begin{pmatrix}1 & T\\\\ 0 & 1\\end{pmatrix},\\qquad
-           Q = σ_a^2 \\begin{pmatrix}T^4/4 & T^3/2\\\\ T^3/2 & T^2\\end{pmatrix}.
+* ``"cwna"`` (default) *continuous* white-noise acceleration with power spectral density
+  q = σ_a²·(1 s) (so σ_a is the acceleration σ averaged over one second):
+
+  .. math::  Q = q \\begin{pmatrix}T^3/3 & T^2/2\\\\ T^2/2 & T\\end{pmatrix}.
+
+* ``"dwna"`` *discrete* white-noise acceleration, constant over the step:
+
+  .. math::  Q = σ_a^2 \\begin{pmatrix}T^4/4 & T^3/2\\\\ T^3/2 & T^2\\end{pmatrix}.
+
+The DWNA ``Q`` has rank 1 per axis: it says the position and velocity errors a step adds are
+exactly tied (δp = δv·T/2).  A GMTI plot measures range to ~0.3 m and range rate to ~0.05 m/s,
+so along the line of sight both are nearly exact and a road vehicle that turned or changed speed
+during a 5–10 s gap breaks that tie: its innovation lands in a direction the DWNA filter holds
+almost certain, and the χ² gate rejects the right plot (on the default scene this lost tracks
+and started duplicates).  The CWNA ``Q`` is full rank (correlation √3/2) and makes no such claim.
 
 The tracker always predicts from a track's *last update* (a missed dwell does not store a
 prediction), so ``T`` is the time since the last measurement and the model is not re-applied in
@@ -33,8 +45,11 @@ from __future__ import annotations
 import numpy as np
 
 
-def cv_predict(x: np.ndarray, P: np.ndarray, dt_s: np.ndarray, accel_sigma_mps2: float):
-    """Predict states ``x`` (n, 4) and covariances ``P`` (n, 4, 4) over ``dt_s`` (n,)."""
+def cv_predict(x: np.ndarray, P: np.ndarray, dt_s: np.ndarray, accel_sigma_mps2: float,
+               model: str = "cwna"):
+    """Predict states ``x`` (n, 4) and covariances ``P`` (n, 4, 4) over ``dt_s`` (n,).
+
+    ``model`` is the process noise, ``"cwna"`` or ``"dwna"`` (module docstring)."""
     dt = np.asarray(dt_s, float)
     n = len(x)
     F = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
@@ -42,7 +57,12 @@ def cv_predict(x: np.ndarray, P: np.ndarray, dt_s: np.ndarray, accel_sigma_mps2:
     F[:, 1, 3] = dt
     q = accel_sigma_mps2 ** 2
     Q = np.zeros((n, 4, 4))
-    pp, pv, vv = q * dt ** 4 / 4.0, q * dt ** 3 / 2.0, q * dt ** 2
+    if model == "cwna":
+        pp, pv, vv = q * dt ** 3 / 3.0, q * dt ** 2 / 2.0, q * dt
+    elif model == "dwna":
+        pp, pv, vv = q * dt ** 4 / 4.0, q * dt ** 3 / 2.0, q * dt ** 2
+    else:
+        raise ValueError(f"process noise model must be 'cwna' or 'dwna', got {model!r}")
     for a, b in ((0, 2), (1, 3)):
         Q[:, a, a] = pp
         Q[:, a, b] = Q[:, b, a] = pv

@@ -171,3 +171,146 @@ def straight_scene(*, n_vehicles: int = 1, n_revisits: int = 60, revisit_s: floa
                 "off_road": np.ones(n_vehicles, bool)}
     return {"truth": truth, "vehicles": vehicles, "dwells": dwells, "detections": dets,
             "looks": looks}
+
+
+def gmti_scene(*, n_vehicles: int = 4, n_revisits: int = 40, revisit_s: float = 5.0,
+               standoff_m: float = 30000.0, height_m: float = 6000.0,
+               sigma_range_m: float = 0.3, sigma_cross_m: float = 74.0,
+               sigma_rr_mps: float = 0.05, speed_mps: float = 20.0,
+               headings_rad: Optional[Sequence[float]] = None,
+               starts_xy: Optional[Sequence[Tuple[float, float]]] = None,
+               spacing_m: float = 2000.0, pd: float = 0.8, n_beams: int = 6,
+               dwell_s: float = 0.032, truth_dt_s: float = 1.0,
+               turns: Optional[Dict[int, Tuple[float, float]]] = None,
+               blind: Optional[Dict[int, Sequence[Tuple[float, float]]]] = None,
+               seed: int = 0) -> Dict[str, Table]:
+    """A scene in the default sensor's geometry, for tracker tests: the same tables as
+    :func:`straight_scene`.
+
+    The platform flies east at 150 m/s, ``standoff_m`` south of the scene and ``height_m`` up.
+    Plots have the GMTI error shape: slant range σ ``sigma_range_m`` (0.3 m), azimuth σ such that
+    the cross-range σ at the scene is ``sigma_cross_m`` (74 m), range rate σ ``sigma_rr_mps``;
+    they are geolocated on flat ground (z = 0), so the measured ground position lies on the
+    measured range circle.  A revisit has ``n_beams`` dwells ``dwell_s`` apart whose beams
+    (half extent = beam spacing) overlap by half: every vehicle is in two adjacent beams and is
+    detected in each independently with probability ``pd`` (the adjacent-beam double detections
+    of the real sensor).  ``turns``: vehicle -> (t, new heading), an instant turn at constant
+    speed.  ``blind``: vehicle -> intervals without detections (outcome 4).
+    """
+    rng = np.random.default_rng(seed)
+    turns = turns or {}
+    blind = blind or {}
+    ids = np.arange(n_vehicles, dtype=np.int64)
+    if headings_rad is None:
+        headings_rad = np.radians(np.linspace(20.0, 160.0, n_vehicles))
+    heading0 = np.asarray(headings_rad, float)
+    if starts_xy is None:
+        starts = np.stack([(ids - (n_vehicles - 1) / 2.0) * spacing_m, np.zeros(n_vehicles)], 1)
+    else:
+        starts = np.asarray(starts_xy, float).reshape(n_vehicles, 2)
+    plat_vel = np.array([150.0, 0.0, 0.0])
+    plat0 = np.array([-plat_vel[0] * n_revisits * revisit_s / 2.0, -standoff_m, height_m])
+
+    def state(t, v):
+        t = np.asarray(t, float)
+        t_turn, h1 = turns.get(int(v), (np.inf, heading0[v]))
+        u0 = np.array([np.sin(heading0[v]), np.cos(heading0[v])])
+        u1 = np.array([np.sin(h1), np.cos(h1)])
+        s0 = speed_mps * np.minimum(t, t_turn)
+        s1 = speed_mps * np.maximum(t - t_turn, 0.0)
+        pos = starts[v] + s0[:, None] * u0 + s1[:, None] * u1
+        vel = np.where((t < t_turn)[:, None], speed_mps * u0, speed_mps * u1)
+        return pos, vel
+
+    grid = np.arange(0.0, (n_revisits - 1) * revisit_s + 1e-9, truth_dt_s)
+    parts = []
+    for v in ids:
+        pos, vel = state(grid, v)
+        n = len(grid)
+        parts.append({
+            "time_s": grid, "vehicle_id": np.full(n, v), "convoy_id": np.full(n, -1),
+            "x_m": pos[:, 0], "y_m": pos[:, 1], "z_m": np.zeros(n),
+            "vx_mps": vel[:, 0], "vy_mps": vel[:, 1], "vz_mps": np.zeros(n),
+            "ax_mps2": np.zeros(n), "ay_mps2": np.zeros(n), "az_mps2": np.zeros(n),
+            "speed_mps": np.hypot(vel[:, 0], vel[:, 1]),
+            "heading_rad": frames.heading_rad(vel[:, 0], vel[:, 1]),
+            "route_s_m": np.zeros(n), "edge_id": np.full(n, -1, np.int64),
+            "mode": np.zeros(n, np.uint8), "invisible": np.zeros(n, bool)})
+    truth = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    order = np.lexsort((truth["vehicle_id"], truth["time_s"]))
+    truth = {k: c[order] for k, c in truth.items()}
+
+    revisit = np.repeat(np.arange(n_revisits), n_beams)
+    index = np.tile(np.arange(n_beams), n_revisits)
+    t_dw = revisit * revisit_s + index * dwell_s
+    plat = plat0[None, :] + t_dw[:, None] * plat_vel[None, :]
+    # Beams tile the sector holding every vehicle's whole course, half-overlapping.
+    every = np.concatenate([state(grid, v)[0] for v in ids])
+    half_width = np.abs(every[:, 0]).max() + 2000.0
+    sector = 2.0 * np.arctan2(half_width, standoff_m)
+    spacing = sector / n_beams
+    beam_az = (frames.heading_rad(-plat[:, 0], -plat[:, 1])
+               + (index - (n_beams - 1) / 2.0) * spacing)
+    nd = len(t_dw)
+    dwells = {
+        "dwell_id": np.arange(nd, dtype=np.int64), "revisit_id": revisit.astype(np.int64),
+        "dwell_index": index.astype(np.int64), "last_dwell": index == n_beams - 1,
+        "time_s": t_dw, "cpi_s": np.full(nd, dwell_s), "beam_scan_rad": np.zeros(nd),
+        "beam_az_rad": beam_az,
+        "platform_x_m": plat[:, 0], "platform_y_m": plat[:, 1], "platform_z_m": plat[:, 2],
+        "platform_vx_mps": np.full(nd, plat_vel[0]), "platform_vy_mps": np.full(nd, plat_vel[1]),
+        "platform_vz_mps": np.full(nd, plat_vel[2]),
+        "angle_half_extent_rad": np.full(nd, spacing),
+        "mdv_mps": np.full(nd, 1.0), "wrap_velocity_mps": np.full(nd, np.nan)}
+
+    sigma_az = sigma_cross_m / np.hypot(standoff_m, height_m)
+    det_parts, look_parts = [], []
+    for v in ids:
+        pos, vel = state(t_dw, v)
+        d = np.concatenate([pos - plat[:, :2], -plat[:, 2:3]], axis=1)
+        rng_m = np.linalg.norm(d, axis=1)
+        az = frames.heading_rad(d[:, 0], d[:, 1])
+        w = np.concatenate([vel - plat_vel[None, :2], np.zeros((nd, 1))], axis=1)
+        rr = np.einsum("ij,ij->i", d, w) / rng_m
+        in_beam = np.abs(frames.wrap_pi(az - beam_az)) <= spacing
+        outcome = np.where(rng.uniform(size=nd) < pd, 0, 5).astype(np.uint8)
+        for t0, t1 in blind.get(int(v), ()):
+            outcome[(t_dw >= t0) & (t_dw <= t1)] = 4
+        outcome[~in_beam] = 1
+        det = outcome == 0
+        n = int(det.sum())
+        r_meas = rng_m[det] + rng.normal(0.0, sigma_range_m, n)
+        az_meas = az[det] + rng.normal(0.0, sigma_az, n)
+        ground = np.sqrt(np.maximum(r_meas ** 2 - plat[det, 2] ** 2, 0.0))
+        det_parts.append({
+            "dwell_id": np.arange(nd)[det], "time_s": t_dw[det], "range_m": r_meas,
+            "azimuth_rad": np.mod(az_meas, 2 * np.pi),
+            "range_rate_mps": rr[det] + rng.normal(0.0, sigma_rr_mps, n),
+            "true_range_m": rng_m[det], "true_azimuth_rad": az[det],
+            "true_range_rate_mps": rr[det], "snr_db": np.full(n, 20.0),
+            "sigma_range_m": np.full(n, sigma_range_m), "sigma_azimuth_rad": np.full(n, sigma_az),
+            "sigma_range_rate_mps": np.full(n, sigma_rr_mps),
+            "x_m": plat[det, 0] + ground * np.sin(az_meas),
+            "y_m": plat[det, 1] + ground * np.cos(az_meas),
+            "z_m": np.zeros(n), "truth_id": np.full(n, v, np.int64)})
+        look_parts.append({"dwell_id": np.flatnonzero(in_beam).astype(np.int64),
+                           "vehicle_id": np.full(int(in_beam.sum()), v, np.int64),
+                           "time_s": t_dw[in_beam], "outcome": outcome[in_beam],
+                           "det_id": np.full(int(in_beam.sum()), -1, np.int64)})
+    dets = {k: np.concatenate([p[k] for p in det_parts]) for k in det_parts[0]}
+    order = np.lexsort((dets["truth_id"], dets["dwell_id"]))
+    dets = {k: c[order] for k, c in dets.items()}
+    nd_rows = len(dets["dwell_id"])
+    dets["det_id"] = np.arange(nd_rows, dtype=np.int64)
+    for name in ("merged", "range_folded", "doppler_wrapped", "implausible"):
+        dets[name] = np.zeros(nd_rows, bool)
+    looks = {k: np.concatenate([p[k] for p in look_parts]) for k in look_parts[0]}
+    order = np.lexsort((looks["vehicle_id"], looks["dwell_id"]))
+    looks = {k: c[order] for k, c in looks.items()}
+    vehicles = {"vehicle_id": ids, "name": np.array([f"v{i}" for i in ids]),
+                "convoy_id": np.full(n_vehicles, -1, np.int64),
+                "vehicle_type": np.array(["car"] * n_vehicles),
+                "start_time_s": np.zeros(n_vehicles), "route_length_m": np.full(n_vehicles, 1e4),
+                "off_road": np.ones(n_vehicles, bool)}
+    return {"truth": truth, "vehicles": vehicles, "dwells": dwells, "detections": dets,
+            "looks": looks}

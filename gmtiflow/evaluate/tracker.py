@@ -256,7 +256,8 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
         else:
             cov = np.ones(n_tr, bool)
         ci = np.flatnonzero(cov)
-        xp, Pp = kalman.cv_predict(tr.x[ci], tr.P[ci], dt[ci], cfg.accel_sigma_mps2)
+        xp, Pp = kalman.cv_predict(tr.x[ci], tr.P[ci], dt[ci], cfg.accel_sigma_mps2,
+                                  cfg.process_noise)
         assigned_track = np.full(len(ci), -1, np.int64)       # detection slot per covered track
         det_taken = np.zeros(len(didx), bool)
         if len(didx):

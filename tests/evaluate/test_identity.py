@@ -96,3 +96,51 @@ def test_perfect_tracks_score_zero():
                  "fragmentations"):
         assert summary_value(out, name) == pytest.approx(0.0, abs=1e-9), name
     assert summary_value(out, "coverage_mean") == 1.0
+
+
+# CLEAR-MOT keeps a still-valid correspondence: a nearer track does not take a held vehicle over.
+
+def test_two_tracks_on_one_vehicle_alternating_nearer_is_no_switch():
+    # Track 1 is always within the gate (offset 10 m); track 2 (offset -16 m, then 4 m, ...)
+    # is nearer on every odd step.  A per-step nearest pairing would flip 1-2-1-2...: 9
+    # "switches" for a vehicle that track 1 never stopped following.
+    v0 = line(T, 0, 0, 10, 0)
+    rows = follow(1, v0, T, offset=(0.0, 10.0))
+    rows += [(2, t, x, y + (-16.0 if int(t) % 2 == 0 else 4.0)) for t, x, y in zip(*v0)]
+    out = evaluate(CFG, truth_table({0: v0}), track_table(rows))
+    assert summary_value(out, "identity_switches") == 0
+    assert summary_value(out, "fragmentations") == 0
+    assert set(out["metrics/association"]["track_id"]) == {1}
+    # Track 2 is a duplicate: unassociated, so it costs GOSPA a false track at every step.
+    assert summary_value(out, "gospa_false_mean") == pytest.approx(100.0 ** 2 / 2)
+
+
+def test_convoy_tracks_crossing_within_the_gate_keep_their_vehicles():
+    # Two vehicles 20 m apart (a convoy); each track wobbles 14 m towards the other vehicle on odd
+    # steps, where the swapped pairing is the cheaper one (2·6² < 2·14²).  Each track still
+    # follows its vehicle: no switch, and neither track hops between convoy members.
+    v0, v1 = line(T, 0, 0, 10, 0), line(T, 0, 20, 10, 0)
+    wob = [0.0 if int(t) % 2 == 0 else 14.0 for t in T]
+    rows = [(1, t, x, y + w) for t, x, y, w in zip(*v0, wob)]
+    rows += [(2, t, x, y - w) for t, x, y, w in zip(*v1, wob)]
+    vehicles = {"vehicle_id": np.array([0, 1]), "convoy_id": np.array([3, 3])}
+    out = evaluate(CFG, truth_table({0: v0, 1: v1}), track_table(rows), vehicles=vehicles)
+    assert summary_value(out, "identity_switches") == 0
+    assert summary_value(out, "convoy_confused_tracks") == 0
+    assert summary_value(out, "track_purity_mean") == 1.0
+
+
+def test_kept_track_leaving_the_gate_hands_over_once():
+    # Track 1 holds the vehicle for t < 4, then drifts 40 m off (beyond the 30 m gate) and comes
+    # back at t >= 7; track 2 (5 m off) is there all along.  CLEAR-MOT: switch 1 -> 2 at t = 4,
+    # and track 2, still valid, keeps the vehicle when track 1 returns: 1 switch, not 2.
+    v0 = line(T, 0, 0, 10, 0)
+    off = [0.0 if (t < 4 or t >= 7) else 40.0 for t in T]
+    rows = [(1, t, x, y + o) for t, x, y, o in zip(*v0, off)]
+    rows += follow(2, v0, T, offset=(0.0, -5.0))
+    out = evaluate(CFG, truth_table({0: v0}), track_table(rows))
+    assert summary_value(out, "identity_switches") == 1
+    sw = out["metrics/identity_switches"]
+    assert list(sw["time_s"]) == [4.0]
+    assert (sw["from_track_id"][0], sw["to_track_id"][0]) == (1, 2)
+    assert summary_value(out, "fragmentations") == 0

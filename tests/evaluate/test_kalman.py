@@ -37,10 +37,29 @@ def test_position_covariance_is_along_and_across_the_los():
 def test_cv_predict_moves_and_grows():
     x = np.array([[0.0, 0.0, 2.0, -1.0]])
     P = np.eye(4)[None]
-    xp, Pp = kalman.cv_predict(x, P, np.array([3.0]), 1.0)
+    xp, Pp = kalman.cv_predict(x, P, np.array([3.0]), 1.0, "dwna")
     np.testing.assert_allclose(xp[0], [6.0, -3.0, 2.0, -1.0])
     # var(x) = P_xx + T² P_vv + σ² T⁴/4 = 1 + 9 + 81/4
     assert Pp[0, 0, 0] == pytest.approx(1 + 9 + 81 / 4)
+    xc, Pc = kalman.cv_predict(x, P, np.array([3.0]), 1.0)          # default: cwna
+    np.testing.assert_allclose(xc[0], xp[0])
+    # var(x) = 1 + 9 + q T³/3, cov(x, vx) = T P_vv + q T²/2, var(vx) = 1 + q T
+    assert Pc[0, 0, 0] == pytest.approx(1 + 9 + 27 / 3)
+    assert Pc[0, 0, 2] == pytest.approx(3 + 9 / 2)
+    assert Pc[0, 2, 2] == pytest.approx(1 + 3)
+
+
+def test_process_noise_rank():
+    # DWNA adds a rank-1 Q per axis (position and velocity errors tied); CWNA a full-rank one.
+    zero = np.zeros((1, 4, 4))
+    _, Qd = kalman.cv_predict(np.zeros((1, 4)), zero, np.array([10.0]), 1.0, "dwna")
+    _, Qc = kalman.cv_predict(np.zeros((1, 4)), zero, np.array([10.0]), 1.0, "cwna")
+    axis = [0, 2]
+    assert np.linalg.matrix_rank(Qd[0][np.ix_(axis, axis)], tol=1e-9) == 1
+    corr = Qc[0, 0, 2] / np.sqrt(Qc[0, 0, 0] * Qc[0, 2, 2])
+    assert corr == pytest.approx(np.sqrt(3) / 2)
+    with pytest.raises(ValueError):
+        kalman.cv_predict(np.zeros((1, 4)), zero, np.array([1.0]), 1.0, "singer")
 
 
 def test_gated_assignment_is_global_and_respects_the_gate():
