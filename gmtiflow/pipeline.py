@@ -24,6 +24,7 @@ need whole tables; they are kept in memory only when ``tracker.enabled`` or
 from __future__ import annotations
 
 import logging
+import os
 import time
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional
@@ -207,6 +208,7 @@ def run(cfg: AppConfig, out_dir) -> Path:
     """Simulate the scene of ``cfg`` and write ``<out_dir>/run.h5``; returns its path."""
     config_mod.validate(cfg)
     out_dir = Path(out_dir)
+    log.info("run pid=%d seed=%d -> %s", os.getpid(), cfg.seed, out_dir)
     runner = Runner()
     scene, fidelity = cfg.scene, cfg.fidelity
     cache = StageCache.from_config(cfg.cache)
