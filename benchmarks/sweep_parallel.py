@@ -11,6 +11,8 @@ worker take some of it back.
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -27,9 +29,13 @@ def sweep(out: Path, launcher_args, seeds, extra):
     cmd = [sys.executable, "-m", "gmtiflow.cli", "-m", f"hydra.sweep.dir={out / 'sweep'}",
            f"cache.dir={out / 'cache'}", f"seed={','.join(map(str, seeds))}", *DEFAULT,
            *launcher_args, *extra]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run(cmd, check=True, capture_output=True, text=True)
-    return time.perf_counter() - start
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu
 
 
 def main(argv=None) -> None:
@@ -40,12 +46,13 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     out = Path(args.out)
     seeds = list(range(1, args.jobs + 1))
-    serial = sweep(out / "serial", [], seeds, args.extra)
-    par = sweep(out / "joblib", ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"], seeds,
-                args.extra)
-    print(f"{args.jobs} jobs ({' '.join(DEFAULT + args.extra)})")
-    print(f"serial (basic launcher)  {serial:7.1f} s")
-    print(f"joblib, 2 workers        {par:7.1f} s")
+    serial, cpu_s = sweep(out / "serial", [], seeds, args.extra)
+    par, cpu_p = sweep(out / "joblib", ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"],
+                       seeds, args.extra)
+    print(f"{args.jobs} jobs ({' '.join(DEFAULT + args.extra)}); load average before: "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print(f"serial (basic launcher)  {serial:7.1f} s wall {cpu_s:7.1f} s CPU")
+    print(f"joblib, 2 workers        {par:7.1f} s wall {cpu_p:7.1f} s CPU")
     print(f"speed-up                 {serial / par:7.2f} x")
 
 
