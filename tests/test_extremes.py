@@ -224,13 +224,9 @@ def test_extreme_dt_range_gives_consistent_distance():
      "platform.waypoints_m=[[0.0,-300.0,1000.0],[300.0,0.0,1000.0],[0.0,300.0,1000.0],[-300.0,0.0,1000.0]]",
      "platform.speed_mps=100", "platform.turn_lead_s=1.5", "fidelity=full"],
 ])
-def test_whole_run_at_extremes_is_finite(tmp_path, overrides):
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).parent))
-    from conftest import compose_app
+def test_whole_run_at_extremes_is_finite(tmp_path, overrides, compose_config):
     from gmtiflow import pipeline, store
-    cfg = compose_app(["scene.duration_s=40", "tracker=none", "cache.enabled=false",
+    cfg = compose_config(["scene.duration_s=40", "tracker=none", "cache.enabled=false",
                        *overrides])
     with raise_all():
         path = pipeline.run(cfg, tmp_path)
