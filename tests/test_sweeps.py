@@ -6,7 +6,6 @@ the real console entry point in a subprocess, as a user would.
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
