@@ -112,8 +112,12 @@ def test_sensor_sweep_computes_truth_once_and_matches_uncached(tmp_path, caplog)
     assert len(n_det) > 1     # the sweep did change the sensor output
 
 
-def test_streamed_run_equals_whole_tables(tmp_path):
-    """Small truth chunks and several sensor chunks give the tables of one-shot evaluation."""
+def test_streamed_run_equals_whole_tables(tmp_path, monkeypatch):
+    """Small truth chunks and many sensor chunks give the tables of one-shot evaluation."""
+    import functools
+    from gmtiflow.sensor import model
+    monkeypatch.setattr(pipeline, "simulate_chunks",
+                        functools.partial(model.simulate_chunks, chunk_pairs=40))
     cfg = compose_app(BASE + ["cache.enabled=false", "chunk_s=7"])
     path = pipeline.run(cfg, tmp_path)
     got = datasets(path)
@@ -190,3 +194,31 @@ def _slow_compute(directory):
     value = cache.get_or_compute("truth", "shared",
                                  lambda: (time.sleep(0.5), os.getpid())[1])
     return value, bool(cache.misses)
+
+
+def test_scale_mode_streams_without_keeping_tables(tmp_path, monkeypatch):
+    """tracker=none metrics.enabled=false: same simulated tables, empty /tracks, no /metrics,
+    and no table is kept in memory (TableSink.table() refuses)."""
+    kept = []
+    real = pipeline.TableSink
+
+    class Spy(real):
+        def __init__(self, *a, **kw):
+            super().__init__(*a, **kw)
+            kept.append(self.keep)
+    monkeypatch.setattr(pipeline, "TableSink", Spy)
+    full = pipeline.run(compose_app(BASE + ["cache.enabled=false"]), tmp_path / "full")
+    assert any(kept)
+    kept.clear()
+    lean = pipeline.run(compose_app(BASE + ["cache.enabled=false", "tracker=none",
+                                            "metrics.enabled=false"]), tmp_path / "lean")
+    assert kept and not any(kept)
+    a, b = datasets(full), datasets(lean)
+    for name in a:
+        if name.split("/")[0] in ("truth", "platform", "dwells", "detections", "looks",
+                                  "detection_ancestors", "vehicles", "roads"):
+            assert np.array_equal(a[name], b[name], equal_nan=a[name].dtype.kind == "f"), name
+    assert not any(n.startswith("metrics") for n in b)
+    assert len(b["tracks/track_id"]) == 0
+    with pytest.raises(RuntimeError):
+        pipeline.TableSink(None, "x").table()
