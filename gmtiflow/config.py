@@ -19,6 +19,7 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from gmtiflow.cache import CacheConfig
 from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.export import ExportConfig
@@ -100,11 +101,22 @@ class AppConfig:
     fidelity: FidelityConfig = MISSING
     export: ExportConfig = MISSING
     report: ReportConfig = field(default_factory=ReportConfig)
+    cache: CacheConfig = field(default_factory=CacheConfig)
+    """Stage cache (gmtiflow.cache): where, and whether, stage outputs are reused."""
+    chunk_s: float = 600.0
+    """Scene time per block of /truth rows built and appended at once (bounds memory)."""
+    sensor_workers: int = 1
+    """Chunks of revisits the sensor computes at once in threads (same output for any value)."""
 
     def problems(self) -> List[Problem]:
+        out = []
         if not (0 <= self.seed < 2 ** 63):
-            return [Problem("seed", f"must be in [0, 2^63), got {self.seed}")]
-        return []
+            out.append(Problem("seed", f"must be in [0, 2^63), got {self.seed}"))
+        out += positive(self, "chunk_s")
+        if not (isinstance(self.sensor_workers, int) and 1 <= self.sensor_workers <= 256):
+            out.append(Problem("sensor_workers", f"must be an integer in [1, 256], got "
+                                                 f"{self.sensor_workers!r}"))
+        return out
 
 
 def register() -> None:

@@ -7,17 +7,33 @@ config; tests call it directly with a composed config and a temporary directory.
 
 Order (DESIGN §1): roads -> terrain (roads draped on it) -> truth -> platform -> sensor (with
 merging, false alarms and ambiguities as the scene requires) -> tracker -> metrics -> run file.
+
+Caching (``cache.*``, :mod:`gmtiflow.cache`): the scene (roads + terrain + drape), the truth
+(the :class:`~gmtiflow.scene.vehicles.Fleet`), the platform and the sensor output are each
+looked up by a key over their config subtrees, their upstream keys, the seed and the code, so
+a sweep over sensor settings computes the truth once.  Cached and uncached runs write
+bit-identical datasets.
+
+Streaming (docs/scale.md): the run file is written while the stages run.  ``/truth`` is built
+and appended ``chunk_s`` seconds of scene time at a time, the sensor's dwells, detections and
+looks are appended per chunk of revisits (:func:`~gmtiflow.sensor.model.simulate_chunks`), so
+memory stays bounded by the Fleet's profiles plus one chunk.  Only the tracker and the metrics
+need whole tables; they are kept in memory only when ``tracker.enabled`` or
+``metrics.enabled`` (big scenes: ``tracker=none metrics.enabled=false``).
 """
 from __future__ import annotations
 
 import logging
+import os
 import time
 from pathlib import Path
-from typing import Any, Callable, Dict
+from typing import Any, Callable, Dict, List, Optional
 
 import numpy as np
+from tqdm import tqdm
 
 from gmtiflow import config as config_mod
+from gmtiflow.cache import StageCache, stage_key
 from gmtiflow.config import AppConfig
 from gmtiflow.evaluate import evaluate, track
 from gmtiflow.errors import GmtiflowError
@@ -28,11 +44,12 @@ from gmtiflow.scene.roadmap import RoadMap, load_roadmap
 from gmtiflow.scene.terrain import Terrain, build_terrain
 from gmtiflow.scene.vehicles import build_fleet
 from gmtiflow.sensor.effects import build_effects
-from gmtiflow.sensor.model import simulate
+from gmtiflow.sensor.model import (DETECTION_COLUMNS, DWELL_COLUMNS, LOOK_COLUMNS, empty_table,
+                                   simulate_chunks)
 from gmtiflow.sensor.outcome import Outcome
 from gmtiflow.sensor.rcs import RcsModels
 from gmtiflow.store import RunWriter
-from gmtiflow.tables import Table
+from gmtiflow.tables import Table, n_rows
 
 log = logging.getLogger(__name__)
 
@@ -72,56 +89,148 @@ def detection_ancestors(detections: Table, looks: Table) -> Table:
     """/detection_ancestors: (det_id, truth_id) of every vehicle folded into a merged report.
 
     The looks of a merged report's ancestors point at it (outcome detected for the strongest,
-    merged for the others), so the table is read off the looks.
+    merged for the others), so the table is read off the looks.  ``detections`` may be one
+    chunk of a run (consecutive ``det_id`` values from any offset) with the looks of that chunk.
     """
     det_id = np.asarray(looks["det_id"], np.int64)
     has = det_id >= 0
     merged = np.zeros(det_id.shape, bool)
-    merged[has] = np.asarray(detections["merged"], bool)[det_id[has]]
+    ids = np.asarray(detections["det_id"], np.int64)
+    first = int(ids[0]) if ids.size else 0
+    merged[has] = np.asarray(detections["merged"], bool)[det_id[has] - first]
     rows = np.flatnonzero(merged)
     order = np.lexsort((looks["vehicle_id"][rows], det_id[rows]))
     return {"det_id": det_id[rows][order],
             "truth_id": np.asarray(looks["vehicle_id"], np.int64)[rows][order]}
 
 
+class TableSink:
+    """Appends the chunks of one run-file table, in blocks of whole HDF5 chunks.
+
+    Rows are buffered until about ``block_rows`` are pending, so appends stay aligned with the
+    dataset's chunks; ``keep=True`` also keeps every row for the stages that need the whole
+    table (tracker, metrics).  :meth:`close` flushes and creates the table even if empty.
+    """
+
+    def __init__(self, writer: RunWriter, name: str, columns: Optional[Dict[str, type]] = None,
+                 *, keep: bool = False, block_rows: int = 4 * 65536):
+        self.writer, self.name, self.columns = writer, name, columns
+        self.keep, self.block_rows = keep, block_rows
+        self._pending: List[Table] = []
+        self._n_pending = 0
+        self._kept: List[Table] = []
+        self._first: Optional[Table] = None
+        self._created = False
+        self.n_rows = 0
+
+    def append(self, table: Table) -> None:
+        if self.columns is not None:
+            table = {c: np.asarray(table[c]).astype(t, copy=False)
+                     for c, t in self.columns.items()}
+        if self._first is None:
+            self._first = {c: v[:0] for c, v in table.items()}
+        rows = n_rows(table)
+        self.n_rows += rows
+        if self.keep:
+            self._kept.append(table)
+        if rows:
+            self._pending.append(table)
+            self._n_pending += rows
+            if self._n_pending >= self.block_rows:
+                self._flush()
+
+    def _flush(self) -> None:
+        if not self._pending:
+            return
+        block = (self._pending[0] if len(self._pending) == 1 else
+                 {c: np.concatenate([p[c] for p in self._pending]) for c in self._pending[0]})
+        self._pending, self._n_pending = [], 0
+        self.writer.append_table(self.name, block)
+        self._created = True
+
+    def close(self) -> None:
+        self._flush()
+        if not self._created:
+            empty = self._first
+            if empty is None:
+                empty = empty_table(self.columns) if self.columns is not None else {}
+            self.writer.write_table(self.name, empty)
+            self._created = True
+
+    def table(self) -> Table:
+        """All rows appended so far (only with ``keep=True``)."""
+        if not self.keep:
+            raise RuntimeError(f"/{self.name} was streamed, not kept")
+        if not self._kept:
+            if self.columns is not None:
+                return empty_table(self.columns)
+            return dict(self._first) if self._first is not None else {}
+        if len(self._kept) == 1:
+            return self._kept[0]
+        return {c: np.concatenate([k[c] for k in self._kept]) for c in self._kept[0]}
+
+
+def time_chunks(times: np.ndarray, chunk_s: float) -> List[np.ndarray]:
+    """Split sorted sample times into consecutive blocks spanning ``chunk_s`` seconds each."""
+    if times.size == 0:
+        return []
+    edges = np.floor((times - times[0]) / chunk_s + 1e-9).astype(np.int64)
+    cut = np.flatnonzero(np.diff(edges)) + 1
+    return np.split(times, cut)
+
+
+def _scene(cfg: AppConfig, runner: Runner):
+    roadmap = runner.stage("roads", load_roadmap, cfg.roadmap)
+    terrain = runner.stage("terrain", build_terrain, cfg.terrain, roadmap.origin)
+    roadmap = runner.stage("drape", drape_roads, roadmap, terrain)
+    return roadmap, terrain
+
+
+def stage_keys(cfg: AppConfig) -> Dict[str, str]:
+    """Cache keys of the cached stages (:mod:`gmtiflow.cache`): which settings each depends on.
+
+    scene    roadmap, terrain (and their input files)
+    truth    scene + vehicles, scene.duration_s, fidelity.time_step_s, seed
+    platform scene (the origin) + platform
+    sensor   truth + platform + sensor, clutter, scene.duration_s, fidelity.dwell_mode,
+             fidelity.terrain_step_m, fidelity.merge_iterate, seed
+    """
+    fid, scene = cfg.fidelity, cfg.scene
+    k_scene = stage_key("scene", seed=None, roadmap=cfg.roadmap, terrain=cfg.terrain)
+    k_truth = stage_key("truth", seed=cfg.seed, upstream=[k_scene], vehicles=cfg.vehicles,
+                        duration_s=scene.duration_s, time_step_s=fid.time_step_s)
+    k_platform = stage_key("platform", seed=None, upstream=[k_scene], platform=cfg.platform)
+    k_sensor = stage_key("sensor", seed=cfg.seed, upstream=[k_truth, k_platform],
+                         sensor=cfg.sensor, clutter=cfg.clutter, duration_s=scene.duration_s,
+                         dwell_mode=fid.dwell_mode, terrain_step_m=fid.terrain_step_m,
+                         merge_iterate=fid.merge_iterate)
+    return {"scene": k_scene, "truth": k_truth, "platform": k_platform, "sensor": k_sensor}
+
+
 def run(cfg: AppConfig, out_dir) -> Path:
     """Simulate the scene of ``cfg`` and write ``<out_dir>/run.h5``; returns its path."""
     config_mod.validate(cfg)
     out_dir = Path(out_dir)
+    log.info("run pid=%d seed=%d -> %s", os.getpid(), cfg.seed, out_dir)
     runner = Runner()
     scene, fidelity = cfg.scene, cfg.fidelity
+    cache = StageCache.from_config(cfg.cache)
+    keys = stage_keys(cfg) if cache.enabled else {k: "" for k in
+                                                  ("scene", "truth", "platform", "sensor")}
     rcs_models = RcsModels.from_config(cfg.sensor.rcs)   # reads RCS tables: fail before work
-    roadmap = runner.stage("roads", load_roadmap, cfg.roadmap)
+    roadmap, terrain = cache.get_or_compute("scene", keys["scene"],
+                                            lambda: _scene(cfg, runner))
     log.info("road map: %d nodes, %d road segments", len(roadmap.nodes["node_id"]),
              len(roadmap.edges["edge_id"]))
-    terrain = runner.stage("terrain", build_terrain, cfg.terrain, roadmap.origin)
-    roadmap = runner.stage("drape", drape_roads, roadmap, terrain)
-    fleet = runner.stage("truth", build_fleet, cfg.vehicles, roadmap, seed=cfg.seed,
-                         duration_s=scene.duration_s, dt_s=fidelity.time_step_s)
-    platform = runner.stage("platform", Platform, cfg.platform, roadmap.origin)
+    fleet = cache.get_or_compute(
+        "truth", keys["truth"],
+        lambda: runner.stage("truth", build_fleet, cfg.vehicles, roadmap, seed=cfg.seed,
+                             duration_s=scene.duration_s, dt_s=fidelity.time_step_s))
+    platform = cache.get_or_compute(
+        "platform", keys["platform"],
+        lambda: runner.stage("platform", Platform, cfg.platform, roadmap.origin))
     times = sample_times(scene.duration_s, fidelity.truth_output_dt_s)
-    truth = runner.stage("truth_table", fleet.truth_table, times)
-    platform_table = runner.stage("platform_table", platform.state_at, times)
-    log.info("truth: %d vehicles, %d samples", len(fleet.vehicles["vehicle_id"]),
-             len(truth["time_s"]))
-
-    effects = build_effects(cfg.sensor, cfg.clutter, cfg.seed, fidelity.merge_iterate)
-    log.info("sensor effects: %s", ", ".join(type(e).__name__ for e in effects) or "none")
-    sensed = runner.stage("sensor", simulate, cfg.sensor, fleet, platform, terrain, cfg.seed,
-                          scene.duration_s, roadmap.origin, effects=effects,
-                          dwell_mode=fidelity.dwell_mode, los_step_m=fidelity.terrain_step_m,
-                          rcs_models=rcs_models, progress=cfg.progress)
-    dwells, detections, looks = sensed["dwells"], sensed["detections"], sensed["looks"]
-    ancestors = detection_ancestors(detections, looks)
-    n_fa = int(np.sum(detections["truth_id"] < 0))
-    log.info("sensor: %d dwells, %d detections (%d false alarms, %d merged), %d looks "
-             "(%d detected)", len(dwells["dwell_id"]), len(detections["det_id"]), n_fa,
-             int(np.sum(detections["merged"])), len(looks["dwell_id"]),
-             int(np.sum(looks["outcome"] == Outcome.DETECTED)))
-    tracks = runner.stage("track", track, cfg.tracker, detections, dwells, cfg.seed,
-                          origin=roadmap.origin)
-    metrics = runner.stage("evaluate", evaluate, cfg.metrics, truth, tracks, looks,
-                           fleet.vehicles, platform_table, origin=roadmap.origin)
+    keep = bool(cfg.tracker.enabled or cfg.metrics.enabled)
 
     attrs = {
         "origin_lat_deg": roadmap.origin.lat_deg, "origin_lon_deg": roadmap.origin.lon_deg,
@@ -134,16 +243,74 @@ def run(cfg: AppConfig, out_dir) -> Path:
         writer.write_table("roads/nodes", roadmap.nodes)
         writer.write_table("roads/edges", roadmap.edges)
         writer.write_table("vehicles", fleet.vehicles)
-        writer.write_table("truth", truth)
+
+        truth_sink = TableSink(writer, "truth", keep=keep)
+        start = time.perf_counter()
+        for tt in time_chunks(times, cfg.chunk_s):
+            truth_sink.append(fleet.truth_table(tt))
+        if not len(times):
+            truth_sink.append(fleet.truth_table(times))
+        truth_sink.close()
+        runner.seconds["truth_table"] = time.perf_counter() - start
+        log.info("stage %-14s %8.3f s", "truth_table", runner.seconds["truth_table"])
+        platform_table = runner.stage("platform_table", platform.state_at, times)
         writer.write_table("platform", platform_table)
-        writer.write_table("dwells", dwells)
-        writer.write_table("detections", detections)
-        writer.write_table("detection_ancestors", ancestors)
-        writer.write_table("looks", looks)
+        log.info("truth: %d vehicles, %d samples", len(fleet.vehicles["vehicle_id"]),
+                 truth_sink.n_rows)
+
+        effects = build_effects(cfg.sensor, cfg.clutter, cfg.seed, fidelity.merge_iterate)
+        log.info("sensor effects: %s", ", ".join(type(e).__name__ for e in effects) or "none")
+        sinks = {"dwells": TableSink(writer, "dwells", DWELL_COLUMNS, keep=keep),
+                 "detections": TableSink(writer, "detections", DETECTION_COLUMNS, keep=keep),
+                 "detection_ancestors": TableSink(writer, "detection_ancestors", {
+                     "det_id": np.int64, "truth_id": np.int64}),
+                 "looks": TableSink(writer, "looks", LOOK_COLUMNS, keep=keep)}
+        counts = {"fa": 0, "merged": 0, "detected": 0}
+
+        def produce():
+            return simulate_chunks(cfg.sensor, fleet, platform, terrain, cfg.seed,
+                                   scene.duration_s, roadmap.origin, effects=effects,
+                                   dwell_mode=fidelity.dwell_mode,
+                                   los_step_m=fidelity.terrain_step_m, rcs_models=rcs_models,
+                                   workers=cfg.sensor_workers)
+
+        start = time.perf_counter()
+        chunks = cache.stream("sensor", keys["sensor"], produce)
+        for dw, det, look in tqdm(chunks, desc="sensor", unit="chunk", leave=False,
+                                  disable=None if cfg.progress else True):
+            sinks["dwells"].append(dw)
+            sinks["detections"].append(det)
+            sinks["detection_ancestors"].append(detection_ancestors(det, look))
+            sinks["looks"].append(look)
+            counts["fa"] += int(np.sum(det["truth_id"] < 0))
+            counts["merged"] += int(np.sum(det["merged"]))
+            counts["detected"] += int(np.sum(look["outcome"] == Outcome.DETECTED))
+        for sink in sinks.values():
+            sink.close()
+        runner.seconds["sensor"] = time.perf_counter() - start
+        log.info("stage %-14s %8.3f s", "sensor", runner.seconds["sensor"])
+        log.info("sensor: %d dwells, %d detections (%d false alarms, %d merged), %d looks "
+                 "(%d detected)", sinks["dwells"].n_rows, sinks["detections"].n_rows,
+                 counts["fa"], counts["merged"], sinks["looks"].n_rows, counts["detected"])
+
+        if keep:
+            detections, dwells = sinks["detections"].table(), sinks["dwells"].table()
+            looks, truth = sinks["looks"].table(), truth_sink.table()
+        else:  # streamed only: the tracker and the metrics are off
+            detections, dwells = empty_table(DETECTION_COLUMNS), empty_table(DWELL_COLUMNS)
+            looks, truth = empty_table(LOOK_COLUMNS), None
+        tracks = runner.stage("track", track, cfg.tracker, detections, dwells, cfg.seed,
+                              origin=roadmap.origin)
         writer.write_table("tracks", tracks)
-        for name, table in metrics.items():
-            writer.write_table(name, table)
+        if cfg.metrics.enabled:
+            metrics = runner.stage("evaluate", evaluate, cfg.metrics, truth, tracks, looks,
+                                   fleet.vehicles, platform_table, origin=roadmap.origin)
+            for name, table in metrics.items():
+                writer.write_table(name, table)
         runner.stage("store", writer.commit)
+    if cache.enabled:
+        log.info("cache: hits %s, misses %s", ",".join(cache.hits) or "-",
+                 ",".join(cache.misses) or "-")
     log.info("wrote %s", path)
     runner.stage("export", export_run, cfg.export, path, out_dir)
     if cfg.report.enabled:

@@ -70,8 +70,13 @@ class RunWriter:
         self._file.create_dataset(name, data=text, dtype=_STR, track_times=False)
 
     def write_table(self, name: str, table: Mapping[str, np.ndarray],
-                    descriptions: Optional[Dict[str, str]] = None) -> None:
-        """Create group ``name`` with one resizable dataset per column."""
+                    descriptions: Optional[Dict[str, str]] = None, *,
+                    growing: bool = False) -> None:
+        """Create group ``name`` with one resizable dataset per column.
+
+        ``growing``: the table will be appended to (streaming), so its HDF5 chunks get the full
+        size rather than the size of this first block.
+        """
         n_rows(table)
         group = self._file.require_group(name)
         for column, values in table.items():
@@ -80,7 +85,9 @@ class RunWriter:
                           track_times=False)
             if data.dtype.kind != "O":
                 kwargs.update(compression="gzip", compression_opts=1, shuffle=True)
-            if len(data) and len(data) < _CHUNK_ROWS:
+            if growing:
+                kwargs["chunks"] = (_CHUNK_ROWS,)
+            elif len(data) and len(data) < _CHUNK_ROWS:
                 kwargs["chunks"] = (len(data),)
             ds = group.create_dataset(column, data=data,
                                       dtype=_STR if data.dtype.kind == "O" else data.dtype,
@@ -92,7 +99,7 @@ class RunWriter:
     def append_table(self, name: str, table: Mapping[str, np.ndarray]) -> None:
         """Append rows to an existing table (for time-chunked streaming), or create it."""
         if name not in self._file:
-            self.write_table(name, table)
+            self.write_table(name, table, growing=True)
             return
         group = self._file[name]
         if set(group.keys()) != set(table.keys()):

@@ -1,0 +1,170 @@
+"""Speed vs accuracy of the fidelity presets, measured against ``fidelity=full``.
+
+    python benchmarks/fidelity_tradeoff.py [--out DIR] [--seeds 1 2 3] [-- extra overrides]
+
+For every preset (fast, standard, full) and seed, the same scene runs end to end in this process
+(stage cache off, ``tracker=none``; metrics off) and is compared with the ``full`` run of the
+same seed:
+
+* wall time of ``pipeline.run`` (mean over seeds, after one warm-up run);
+* truth position error (RMS and max over the (time, vehicle) rows both runs hold): what coarser
+  motion steps change in the vehicles' paths (their speed noise is drawn per step);
+* truth position error with the vehicles' noise and random stops off (the same overrides
+  plus ``NOISE_OFF``): what the motion step alone changes (discretisation);
+* target detection count and scan-level P_D ((vehicle, revisit) pairs seen by some dwell with
+  at least one detection or merge) and their difference to full;
+* measurement statistics: RMS of the normalised range, azimuth and range-rate errors
+  ((measured - true) / sigma, 1 for a consistent simulator) and the mean reported SNR.
+
+Prints a table and writes ``fidelity_tradeoff.png`` (time vs truth error and |ΔP_D|) and
+``fidelity_tradeoff.json`` in ``--out``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+PRESETS = ("fast", "standard", "full")
+SCENE = ["vehicles=random", "vehicles.random.count=200", "vehicles.random.start_time_max_s=120",
+         "scene.duration_s=600", "clutter=urban"]
+NOISE_OFF = ["vehicles.random.speed_noise_mps=0", "vehicles.random.position_noise_m=[0.0,0.0,0.0]",
+             "vehicles.random.random_stop_rate_per_s=0"]
+FIXED = ["tracker=none", "metrics.enabled=false", "cache.enabled=false", "progress=false"]
+
+
+def compose(overrides):
+    from hydra import compose as hcompose, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+    from gmtiflow import config
+    GlobalHydra.instance().clear()
+    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
+        return config.to_object(hcompose(config_name="config", overrides=list(overrides)))
+
+
+def one_run(preset, seed, out, extra):
+    from gmtiflow import pipeline, store
+    cfg = compose(SCENE + FIXED + [f"fidelity={preset}", f"seed={seed}", *extra])
+    start = time.perf_counter()
+    path = pipeline.run(cfg, out / f"{preset}_{seed}")
+    wall = time.perf_counter() - start
+    return wall, {t: store.read_table(path, t)
+                  for t in ("truth", "detections", "looks", "dwells")}
+
+
+def stats(tables):
+    det, looks, dwells = tables["detections"], tables["looks"], tables["dwells"]
+    o = looks["outcome"]
+    hit = np.isin(o, [0, 6])
+    seen = o != 1
+    # Scan-level P_D: (vehicle, revisit) pairs seen by any dwell that gave at least one hit.
+    # (Per look, dwell_resolved counts up to 3 scalloped looks per scan, instant_scan one
+    # beam-centred look, so per-look P_D is not comparable across presets.)
+    order = np.argsort(dwells["dwell_id"])
+    rev = dwells["revisit_id"][order][np.searchsorted(dwells["dwell_id"][order],
+                                                      looks["dwell_id"])]
+    key = rev * 10_000_000 + looks["vehicle_id"]
+    k_seen = np.unique(key[seen])
+    k_hit = np.unique(key[hit])
+    pd_scan = len(k_hit) / len(k_seen) if len(k_seen) else float("nan")
+    target = det["truth_id"] >= 0
+    wrap = lambda a: np.angle(np.exp(1j * a))  # noqa: E731
+    nr = (det["range_m"] - det["true_range_m"])[target] / det["sigma_range_m"][target]
+    na = wrap(det["azimuth_rad"] - det["true_azimuth_rad"])[target] / det["sigma_azimuth_rad"][
+        target]
+    ok = target & ~det["doppler_wrapped"]
+    nrr = (det["range_rate_mps"] - det["true_range_rate_mps"])[ok] / det[
+        "sigma_range_rate_mps"][ok]
+    rms = lambda x: float(np.sqrt(np.mean(x[np.isfinite(x)] ** 2))) if len(x) else float("nan")  # noqa: E731,E501
+    return {"n_target_det": int(target.sum()), "pd": pd_scan, "nerr_range": rms(nr), "nerr_az": rms(na), "nerr_rr": rms(nrr),
+            "snr_mean_db": float(np.mean(det["snr_db"][target])) if target.any() else float("nan")}
+
+
+def truth_error(a, b):
+    """Position differences at the (time, vehicle) rows both truth tables hold."""
+    ka = a["time_s"] * 1e7 + a["vehicle_id"]
+    kb = b["time_s"] * 1e7 + b["vehicle_id"]
+    common, ia, ib = np.intersect1d(ka, kb, return_indices=True)
+    d = np.sqrt(sum((a[c][ia] - b[c][ib]) ** 2 for c in ("x_m", "y_m", "z_m")))
+    return float(np.sqrt(np.mean(d ** 2))), float(np.max(d)), len(common)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="outputs/benchmarks/fidelity_tradeoff")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    ap.add_argument("extra", nargs="*", help="more Hydra overrides for every run")
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    one_run("fast", args.seeds[0], out / "warmup", args.extra)      # imports, caches warm
+    runs = {(p, s): one_run(p, s, out, args.extra) for s in args.seeds for p in PRESETS}
+    quiet = {(p, s): one_run(p, s, out / "noise_off", args.extra + NOISE_OFF)[1]
+             for s in args.seeds for p in PRESETS}
+    rows = []
+    for p in PRESETS:
+        walls, terr, tmax, st, dpd, ddet, qerr, qmax = [], [], [], [], [], [], [], []
+        for s in args.seeds:
+            wall, tab = runs[(p, s)]
+            ref = runs[("full", s)][1]
+            walls.append(wall)
+            e_rms, e_max, _ = truth_error(tab["truth"], ref["truth"])
+            terr.append(e_rms)
+            tmax.append(e_max)
+            q_rms, q_max, _ = truth_error(quiet[(p, s)]["truth"], quiet[("full", s)]["truth"])
+            qerr.append(q_rms)
+            qmax.append(q_max)
+            a, r = stats(tab), stats(ref)
+            st.append(a)
+            dpd.append(a["pd"] - r["pd"])
+            ddet.append((a["n_target_det"] - r["n_target_det"]) / max(r["n_target_det"], 1))
+        mean = lambda k: float(np.mean([x[k] for x in st]))  # noqa: E731
+        rows.append({"preset": p, "wall_s": float(np.mean(walls)),
+                     "truth_rms_m": float(np.mean(terr)), "truth_max_m": float(np.max(tmax)),
+                     "quiet_rms_m": float(np.mean(qerr)), "quiet_max_m": float(np.max(qmax)),
+                     "n_target_det": mean("n_target_det"), "det_diff_pct": 100 * np.mean(ddet),
+                     "pd": mean("pd"), "pd_diff": float(np.mean(dpd)),
+                     "nerr_range": mean("nerr_range"), "nerr_az": mean("nerr_az"),
+                     "nerr_rr": mean("nerr_rr"), "snr_mean_db": mean("snr_mean_db")})
+    full_wall = rows[-1]["wall_s"]
+    print(f"scene: {' '.join(SCENE + FIXED + args.extra)}; seeds {args.seeds}")
+    head = ("| preset | wall s | × full speed | truth err RMS / max (m) | same, noise off | "
+            "target dets | Δdets vs full | scan P_D | ΔP_D | norm. err r / az / ṙ | "
+            "mean SNR dB |")
+    print(head)
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['preset']} | {r['wall_s']:.2f} | {full_wall / r['wall_s']:.1f} | "
+              f"{r['truth_rms_m']:.1f} / {r['truth_max_m']:.1f} | "
+              f"{r['quiet_rms_m']:.2f} / {r['quiet_max_m']:.2f} | {r['n_target_det']:.0f} | "
+              f"{r['det_diff_pct']:+.1f} % | {r['pd']:.3f} | {r['pd_diff']:+.3f} | "
+              f"{r['nerr_range']:.2f} / {r['nerr_az']:.2f} / {r['nerr_rr']:.2f} | "
+              f"{r['snr_mean_db']:.1f} |")
+    (out / "fidelity_tradeoff.json").write_text(json.dumps(rows, indent=1))
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(1, 2, figsize=(9, 3.6))
+    for r in rows:
+        ax[0].plot(r["wall_s"], r["quiet_rms_m"], "o")
+        ax[0].annotate(r["preset"], (r["wall_s"], r["quiet_rms_m"]), textcoords="offset points",
+                       xytext=(5, 5))
+        ax[1].plot(r["wall_s"], abs(r["pd_diff"]), "o")
+        ax[1].annotate(r["preset"], (r["wall_s"], abs(r["pd_diff"])),
+                       textcoords="offset points", xytext=(5, 5))
+    ax[0].set(xlabel="wall time per run (s)", ylabel="truth position error vs full, RMS (m)",
+              title="motion step (noise off)")
+    ax[1].set(xlabel="wall time per run (s)", ylabel="|scan P_D - full|", title="detection")
+    for a in ax:
+        a.grid(alpha=0.3)
+    fig.suptitle("gmtiflow fidelity presets: speed vs accuracy")
+    fig.tight_layout()
+    fig.savefig(out / "fidelity_tradeoff.png", dpi=120)
+    print(f"wrote {out / 'fidelity_tradeoff.png'}")
+
+
+if __name__ == "__main__":
+    main()
