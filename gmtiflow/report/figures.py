@@ -511,6 +511,15 @@ def clutter_range_rate(dwells: Table, dwell_id, azimuth_rad, range_m) -> np.ndar
     return -(vx * lx + vy * ly + vz * lz)
 
 
+def _finite_median(values, default: float) -> float:
+    """Median of the finite values, or ``default`` when there are none (no NaN warning)."""
+    if values is None:
+        return default
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if v.size else default
+
+
 def range_rate_figure(looks: Table, detections: Table, dwells: Table, *,
                       max_points: int = 20000) -> Figure:
     """Range rate vs azimuth off the platform track, with the clutter notch and blind speeds.
@@ -528,9 +537,12 @@ def range_rate_figure(looks: Table, detections: Table, dwells: Table, *,
         return fig
     speed = np.hypot(_col(dwells, "platform_vx_mps"), _col(dwells, "platform_vy_mps"))
     v_p = float(np.median(speed))
-    mdv = float(np.nanmedian(_col(dwells, "mdv_mps"))) if "mdv_mps" in dwells else 0.0
-    wrap = float(np.nanmedian(_col(dwells, "wrap_velocity_mps"))) if "wrap_velocity_mps" in dwells else float("nan")
-    cos_d = float(np.median(np.sqrt(np.clip(1 - (_col(dwells, "platform_z_m") / 28e3) ** 2, 0, 1))))
+    mdv = _finite_median(dwells.get("mdv_mps"), 0.0)
+    wrap = _finite_median(dwells.get("wrap_velocity_mps"), float("nan"))   # NaN: no PRF
+    # depression of a typical look: platform height over the looks' median slant range
+    slant = _finite_median(looks.get("range_m") if n(looks) else None, float("nan"))
+    height = _finite_median(dwells.get("platform_z_m"), 0.0)
+    cos_d = math.sqrt(max(0.0, 1.0 - (height / slant) ** 2)) if slant > 0 else 1.0
 
     def rel_az(table, az_col="azimuth_rad"):
         hd = _dwell_lookup(dwells, _col(table, "dwell_id"), "platform_heading_rad")
