@@ -114,3 +114,24 @@ def test_hills_shadow_the_ridge_road_until_the_aircraft_circles_west(compose_con
                         f.attrs["origin_height_m"])
     ground = build_terrain(cfg.terrain, origin).height_at(nodes["x_m"], nodes["y_m"])
     assert np.allclose(nodes["z_m"], ground) and np.any(np.abs(ground) > 0.1)
+
+
+def test_a_real_osm_extract_runs_with_the_random_fleet(compose_config, tmp_path, shared_data):
+    t = run(compose_config, tmp_path, "roadmap=osm", f"roadmap.path={shared_data}/bautzen.osm",
+            "vehicles.random.count=20", "scene.duration_s=60")
+    assert len(t["vehicles"]["vehicle_id"]) == 20
+    assert len(t["detections"]["det_id"]) > 0
+    with store.open_run(tmp_path / "run.h5") as f:
+        assert f.attrs["attribution"] == "© OpenStreetMap contributors"
+        assert abs(f.attrs["origin_lat_deg"] - 51.19) < 0.01     # centre of the <bounds>
+
+
+def test_the_monaco_experiment_drapes_osm_roads_on_srtm(compose_config, tmp_path, shared_data,
+                                                          monkeypatch):
+    monkeypatch.setenv("GMTIFLOW_DATA_DIR", str(shared_data))
+    t = run(compose_config, tmp_path, "experiment=monaco", "vehicles.random.count=30",
+            "scene.duration_s=60")
+    nodes = store.read_table(tmp_path / "run.h5", "roads/nodes")
+    assert nodes["height_m"].max() > 150.0          # Monaco's roads climb to ~213 m (+ geoid)
+    outcomes = set(np.unique(t["looks"]["outcome"]))
+    assert {Outcome.TERRAIN, Outcome.INVISIBLE_ROAD} <= outcomes   # steep terrain, tunnels
