@@ -40,7 +40,7 @@ def test_default_scene_writes_truth_and_platform(tmp_path):
 def test_same_config_and_seed_give_identical_datasets(tmp_path):
     runs = []
     for name in ("a", "b"):
-        proc = gmtiflow(tmp_path / name, "scene.duration_s=30")
+        proc = gmtiflow(tmp_path / name, "scene.duration_s=30", "cache.enabled=false")
         assert proc.returncode == 0, proc.stderr
         runs.append(tmp_path / name / "run" / "run.h5")
     for table in ("truth", "platform", "vehicles", "roads/nodes"):
