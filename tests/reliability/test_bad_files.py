@@ -89,3 +89,16 @@ def test_csv_integer_beyond_64_bits_is_a_format_error():
     lines[1] = ",".join(cells)
     with pytest.raises(FormatError, match=r"line 2, column 3 \(vehicle_id\).*within 64 bits"):
         read_truth_csv("\n".join(lines).encode())
+
+
+def test_xml_number_the_schema_admits_but_python_cannot_read_is_a_format_error():
+    # libxml2 validates "4e" as xs:double; float("4e") raised ValueError out of read_xml
+    from formats import xmldoc
+    dwells, dets = synthetic.tables(2, 3)
+    doc = xmldoc.encode_xml(dwells, dets, {"epoch_utc": synthetic.EPOCH_UTC}).decode()
+    key = ' snr_db="'
+    i = doc.index(key) + len(key)
+    j = doc.index('"', i)
+    bad = doc[:i] + "4e" + doc[j:]
+    with pytest.raises(FormatError, match=r"line \d+: attribute .*'4e' is not a readable number"):
+        xmldoc.read_xml(bad.encode())
