@@ -23,7 +23,7 @@ from gmtiflow.report import cli as report_cli
 def good_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("good")
     pipeline.run(compose(["scene.duration_s=10", "export=csv", "report=none",
-                          "progress=false"]), d)
+                          "progress=false", "cache.enabled=false"]), d)
     return d
 
 

@@ -25,6 +25,7 @@ from gmtiflow.compose import compose
 from gmtiflow.errors import RoadMapError, StoreError
 
 SCENE = ["scene.duration_s=30", "progress=false", "export=all", "report=default"]
+QUIET = ["report=none", "progress=false", "cache.enabled=false"]
 EXPORT_READERS = {
     "detections.4607": stanag4607.read_4607, "detections.xml": xmldoc.read_xml,
     "scene.geojson": geojson.read_geojson, "detections.csv": csvtable.read_detections_csv,
@@ -40,7 +41,7 @@ def launch(out: Path, seed: int, kill_at: str | float | None):
     cmd = [sys.executable, "-m", "gmtiflow.cli", f"hydra.run.dir={out}", f"seed={seed}", *SCENE]
     launched = time.time()
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
-                            env=dict(os.environ, HYDRA_FULL_ERROR="1"))
+                            cwd=out.parent, env=dict(os.environ, HYDRA_FULL_ERROR="1"))
     started, marker = threading.Event(), threading.Event()
     lines = []
 
@@ -127,12 +128,12 @@ def test_sigkill_at_any_moment_leaves_no_output_that_reads_as_complete(tmp_path)
 
 
 def test_rerun_with_export_none_removes_the_earlier_exports(tmp_path):
-    cfg = compose(["scene.duration_s=10", "export=all", "report=none", "progress=false"])
+    cfg = compose(["scene.duration_s=10", "export=all", *QUIET])
     pipeline.run(cfg, tmp_path)
     (tmp_path / "notes.txt").write_text("mine")
     first = {p.name for p in tmp_path.iterdir()}
     assert {"detections.4607", "detections.xml", "truth.csv", "run.h5"} <= first
-    cfg2 = compose(["scene.duration_s=10", "export=none", "report=none", "progress=false",
+    cfg2 = compose(["scene.duration_s=10", "export=none", *QUIET,
                     "seed=2"])
     pipeline.run(cfg2, tmp_path)
     left = {p.name for p in tmp_path.iterdir()}
@@ -142,11 +143,10 @@ def test_rerun_with_export_none_removes_the_earlier_exports(tmp_path):
 
 
 def test_failed_rerun_leaves_no_run_file_of_the_earlier_run(tmp_path):
-    pipeline.run(compose(["scene.duration_s=10", "export=csv", "report=none",
-                          "progress=false"]), tmp_path)
+    pipeline.run(compose(["scene.duration_s=10", "export=csv", *QUIET]), tmp_path)
     assert (tmp_path / "run.h5").is_file()
     (tmp_path / "empty.osm").write_text("<osm version='0.6'></osm>")
-    bad = compose(["scene.duration_s=10", "export=csv", "report=none", "progress=false",
+    bad = compose(["scene.duration_s=10", "export=csv", *QUIET,
                    "roadmap=osm", f"roadmap.path={tmp_path / 'empty.osm'}"])
     with pytest.raises(RoadMapError):
         pipeline.run(bad, tmp_path)
@@ -156,6 +156,5 @@ def test_failed_rerun_leaves_no_run_file_of_the_earlier_run(tmp_path):
 
 def test_first_run_into_a_folder_leaves_unclaimed_files_alone(tmp_path):
     (tmp_path / "truth.csv").write_text("the user's own truth\n")
-    pipeline.run(compose(["scene.duration_s=5", "export=none", "report=none",
-                          "progress=false"]), tmp_path)
+    pipeline.run(compose(["scene.duration_s=5", "export=none", *QUIET]), tmp_path)
     assert (tmp_path / "truth.csv").read_text() == "the user's own truth\n"
