@@ -146,6 +146,10 @@ def open_run(path: os.PathLike) -> h5py.File:
     except _DAMAGED as exc:
         f.close()
         raise StoreError(f"{path}: damaged HDF5 file, not a complete run ({exc})") from None
+    if version is None:
+        f.close()
+        raise StoreError(f"{path}: an HDF5 file but not a gmtiflow run file (no layout_version "
+                         f"attribute)")
     if version != LAYOUT_VERSION:
         f.close()
         raise StoreError(f"{path}: layout_version {version}, this gmtiflow reads "
