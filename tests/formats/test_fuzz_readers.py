@@ -22,7 +22,7 @@ if fuzz is None:
     _spec.loader.exec_module(fuzz)
 
 READERS = ["4607", "xml", "csv", "csv_truth", "geojson"]
-CI_EXAMPLES = 150          # hypothesis cases per reader in CI; benchmarks/fuzz.py runs the long budget
+CI_EXAMPLES = 150          # hypothesis cases per reader in CI (benchmarks/fuzz.py: long runs)
 CI_MUTATIONS = 400         # seeded mutation cases per reader in CI
 
 edits = st.lists(st.tuples(st.integers(0, 1 << 16), st.integers(0, 64), st.binary(max_size=8)),
