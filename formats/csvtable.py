@@ -135,6 +135,13 @@ def _text(source) -> tuple[str, str | None]:
         raise FormatError(f"{where(name)}line {line}: not UTF-8 text (byte {exc.start})") from None
 
 
+def _too_big(v: str) -> bool:
+    try:
+        return not -2 ** 63 <= int(v.strip()) < 2 ** 63
+    except ValueError:
+        return False
+
+
 def _convert(values: list[str], kind: str, name, col_name, col_no) -> np.ndarray:
     try:
         if kind == F:
@@ -149,7 +156,7 @@ def _convert(values: list[str], kind: str, name, col_name, col_no) -> np.ndarray
         if not ok.all():
             raise ValueError
         return np.isin(low, ["true", "1"])
-    except ValueError:
+    except (ValueError, OverflowError):       # OverflowError: an integer beyond int64
         pass
     for i, v in enumerate(values):            # locate the first bad cell for the message
         try:
@@ -159,10 +166,13 @@ def _convert(values: list[str], kind: str, name, col_name, col_no) -> np.ndarray
                 x = int(v.strip())
                 if kind == U8 and not 0 <= x <= 255:
                     raise ValueError
+                if not -2 ** 63 <= x < 2 ** 63:
+                    raise ValueError
             elif v.strip().lower() not in ("true", "false", "1", "0"):
                 raise ValueError
         except ValueError:
-            expect = {F: "a number", I: "an integer", U8: "an integer 0..255",
+            expect = {F: "a number", I: "an integer" + (" within 64 bits" if _too_big(v) else ""),
+                      U8: "an integer 0..255",
                       B: "True or False"}[kind]
             raise FormatError(f"{where(name)}line {i + 2}, column {col_no} ({col_name}): "
                               f"{v!r} is not {expect}") from None

@@ -275,6 +275,7 @@ def _float(v):
 
 
 def _columns(elements, columns: dict, name) -> dict:
+    elements = list(elements)
     attrs = [dict(el.items()) for el in elements]
     n = len(attrs)
     out = {}
@@ -282,17 +283,30 @@ def _columns(elements, columns: dict, name) -> dict:
         vals = [a.get(col) for a in attrs]
         if vals.count(None) == n:
             continue
-        if kind == _BOOL:
-            out[col] = np.array([v in ("true", "1") for v in vals], dtype=bool)
-        elif kind in (_INT, _U8):
-            fill = -1 if kind == _INT else 0
-            arr = np.fromiter((fill if v is None else int(v) for v in vals), np.int64, n)
-            out[col] = arr.astype(np.uint8) if kind == _U8 else arr
-        else:
-            # xs:double lexical forms that Python's float() reads: INF, -INF, NaN, 1E5, .5
-            conv = float if None not in vals else _float
-            out[col] = np.fromiter(map(conv, vals), np.float64, n)
+        try:
+            out[col] = _column(vals, kind, n)
+        except (ValueError, OverflowError):
+            # libxml2's xs:double admits forms Python's float() does not (e.g. "4e")
+            for el, v in zip(elements, vals):
+                try:
+                    _column([v], kind, 1)
+                except (ValueError, OverflowError):
+                    raise FormatError(f"{where(name)}line {el.sourceline}: attribute {col}="
+                                      f"{v!r} is not a readable number") from None
+            raise FormatError(f"{where(name)}attribute {col}: cannot convert")  # pragma: no cover
     return out
+
+
+def _column(vals: list, kind, n: int) -> np.ndarray:
+    if kind == _BOOL:
+        return np.array([v in ("true", "1") for v in vals], dtype=bool)
+    if kind in (_INT, _U8):
+        fill = -1 if kind == _INT else 0
+        arr = np.fromiter((fill if v is None else int(v) for v in vals), np.int64, n)
+        return arr.astype(np.uint8) if kind == _U8 else arr
+    # xs:double lexical forms that Python's float() reads: INF, -INF, NaN, 1E5, .5
+    conv = float if None not in vals else _float
+    return np.fromiter(map(conv, vals), np.float64, n)
 
 
 def read_xml(source) -> dict:

@@ -53,7 +53,7 @@ from gmtiflow import frames
 from gmtiflow.errors import InputFileError
 from gmtiflow.schema import Problem
 from gmtiflow.sensor import geometry
-from gmtiflow.store import open_run, read_table, read_text
+from gmtiflow.store import open_run, read_attrs, read_table, read_text
 from gmtiflow.tables import Table
 
 log = logging.getLogger(__name__)
@@ -141,7 +141,7 @@ def load_run(run_path) -> RunTables:
     """Read the tables the exports use from a complete run file (StoreError if it is not one)."""
     run_path = Path(run_path)
     with open_run(run_path) as f:
-        attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
+        attrs = read_attrs(f)
         tables = {name: read_table(f, name)
                   for name in ("dwells", "detections", "truth", "tracks", "platform",
                                "roads/nodes", "roads/edges")

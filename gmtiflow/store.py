@@ -26,6 +26,9 @@ from gmtiflow.tables import Table, n_rows, unit_of
 LAYOUT_VERSION = 1
 """Bumped whenever a table, column or attribute changes meaning."""
 
+_DAMAGED = (KeyError, OSError, RuntimeError, ValueError, TypeError, UnicodeDecodeError)
+"""What h5py raises on a damaged or foreign file's objects (reported as StoreError)."""
+
 _CHUNK_ROWS = 65536
 _STR = h5py.string_dtype("utf-8")
 
@@ -137,15 +140,33 @@ def open_run(path: os.PathLike) -> h5py.File:
         f = h5py.File(path, "r")
     except OSError as exc:
         raise StoreError(f"{path}: not a readable HDF5 file ({exc})") from None
-    version = f.attrs.get("layout_version")
+    try:    # a file cut short while being written can open yet fail here (h5py: KeyError)
+        version = f.attrs.get("layout_version")
+        complete = f.attrs.get("complete", False)
+    except _DAMAGED as exc:
+        f.close()
+        raise StoreError(f"{path}: damaged HDF5 file, not a complete run ({exc})") from None
+    if version is None:
+        f.close()
+        raise StoreError(f"{path}: an HDF5 file but not a gmtiflow run file (no layout_version "
+                         f"attribute)")
     if version != LAYOUT_VERSION:
         f.close()
         raise StoreError(f"{path}: layout_version {version}, this gmtiflow reads "
                          f"{LAYOUT_VERSION}")
-    if not bool(f.attrs.get("complete", False)):
+    if not (isinstance(complete, (bool, np.bool_)) and bool(complete)):
         f.close()
         raise StoreError(f"{path}: the run is incomplete (it was interrupted while writing)")
     return f
+
+
+def read_attrs(f: h5py.File) -> dict:
+    """The root attributes of an open run file as plain Python values (StoreError if damaged)."""
+    try:
+        return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
+    except _DAMAGED as exc:
+        raise StoreError(f"{f.filename}: root attributes cannot be read, the file is damaged "
+                         f"({exc})") from None
 
 
 def read_table(source, name: str) -> Table:
@@ -157,25 +178,37 @@ def read_table(source, name: str) -> Table:
 
 
 def _read_group(f: h5py.File, name: str) -> Table:
-    if name not in f or not isinstance(f[name], h5py.Group):
-        raise StoreError(f"{f.filename}: has no table /{name}")
-    out = {}
-    for column, ds in f[name].items():
-        if not isinstance(ds, h5py.Dataset):
-            continue
-        data = ds[()]
-        if h5py.check_string_dtype(ds.dtype) is not None:
-            data = np.asarray([v.decode("utf-8") if isinstance(v, bytes) else v for v in data],
-                              dtype=str)
-        out[column] = data
+    try:
+        if name not in f or not isinstance(f[name], h5py.Group):
+            raise StoreError(f"{f.filename}: has no table /{name}")
+        out = {}
+        for column, ds in f[name].items():
+            if not isinstance(ds, h5py.Dataset):
+                continue
+            data = ds[()]
+            if h5py.check_string_dtype(ds.dtype) is not None:
+                data = np.asarray([v.decode("utf-8") if isinstance(v, bytes) else v
+                                   for v in data], dtype=str)
+            out[column] = data
+    except _DAMAGED as exc:
+        raise StoreError(f"{f.filename}: table /{name} cannot be read, the file is damaged "
+                         f"({exc})") from None
+    lengths = {len(v) for v in out.values() if np.ndim(v) == 1}
+    if len(lengths) > 1 or any(np.ndim(v) != 1 for v in out.values()):
+        raise StoreError(f"{f.filename}: table /{name} has columns of different lengths or "
+                         f"shapes; not a gmtiflow table")
     return out
 
 
 def read_text(source, name: str) -> str:
     """Read a scalar string dataset such as ``/config``."""
-    if isinstance(source, h5py.File):
-        value = source[name][()]
-    else:
-        with open_run(source) as f:
+    def get(f: h5py.File) -> str:
+        try:
             value = f[name][()]
-    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+            return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+        except _DAMAGED as exc:
+            raise StoreError(f"{f.filename}: /{name} cannot be read ({exc})") from None
+    if isinstance(source, h5py.File):
+        return get(source)
+    with open_run(source) as f:
+        return get(f)

@@ -29,6 +29,8 @@ from typing import Any, Dict
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
+from formats._io import write_atomic
+
 log = logging.getLogger(__name__)
 
 TIMING_FILE = "timing.json"
@@ -65,7 +67,8 @@ class SweepReport(Callback):
             if status == "FAILED":
                 info["error"] = repr(getattr(job_return, "_return_value", None))
             out.mkdir(parents=True, exist_ok=True)
-            (out / TIMING_FILE).write_text(json.dumps(info, indent=1) + "\n")
+            # temporary name + rename: a killed job never leaves a torn timing.json
+            write_atomic(out / TIMING_FILE, (json.dumps(info, indent=1) + "\n").encode())
         except Exception as exc:  # bookkeeping must never fail a job
             log.warning("timing.json not written: %s", exc)
 

@@ -13,9 +13,10 @@ from typing import Any, Dict, Iterable, Tuple
 import numpy as np
 import yaml
 
+from gmtiflow.errors import StoreError
 from gmtiflow.frames import Origin
 from gmtiflow.sensor.outcome import Outcome
-from gmtiflow.store import open_run, read_table, read_text
+from gmtiflow.store import open_run, read_attrs, read_table, read_text
 from gmtiflow.tables import Table
 
 TABLES = ("roads/nodes", "roads/edges", "vehicles", "truth", "platform", "dwells", "detections",
@@ -60,12 +61,19 @@ def load_run(run_path, tables: Iterable[str] = TABLES) -> RunData:
     path = Path(run_path)
     names = tuple(tables)
     with open_run(path) as f:
-        attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
-        config = yaml.safe_load(read_text(f, "config")) if "config" in f else {}
+        attrs = read_attrs(f)
+        try:
+            config = yaml.safe_load(read_text(f, "config")) if "config" in f else {}
+        except yaml.YAMLError:      # a foreign or hand-edited /config: use no config values
+            config = {}
+        config = config if isinstance(config, dict) else {}
         tables = {}
         for name in names:
             if name in f:
                 tables[name] = read_table(f, name)
+    if names and not tables:      # e.g. an HDF5 file that only claims to be a complete run
+        raise StoreError(f"{path}: holds none of the tables {', '.join(names)}; not a "
+                         f"gmtiflow run file")
     return RunData(path=path, attrs=attrs, config=config or {}, tables=tables)
 
 

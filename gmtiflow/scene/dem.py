@@ -320,6 +320,8 @@ def read_ascii_grid(path, voids: str = "fill") -> EnuGrid:
         lines = path.read_text().splitlines()
     except UnicodeDecodeError:
         raise InputFileError(f"{path}: not a text file (ESRI ASCII grid expected)") from None
+    except OSError as exc:
+        raise InputFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
     header = {}
     header_line = {}
     lineno = 0
@@ -356,7 +358,7 @@ def read_ascii_grid(path, voids: str = "fill") -> EnuGrid:
                                  f"{axis}llcenter")
     for key in ("ncols", "nrows"):
         v = header[key]
-        if not (v == int(v) and v >= 2):
+        if not (math.isfinite(v) and v == int(v) and v >= 2):
             raise InputFileError(f"{path}, line {header_line[key]}: {key} must be an integer >= 2,"
                                  f" got {v:g}")
     ncols, nrows = int(header["ncols"]), int(header["nrows"])
@@ -364,6 +366,10 @@ def read_ascii_grid(path, voids: str = "fill") -> EnuGrid:
     if not (math.isfinite(cell) and cell > 0):
         raise InputFileError(f"{path}, line {header_line['cellsize']}: cellsize must be > 0, "
                              f"got {cell:g}")
+    for key in ("xllcorner", "xllcenter", "yllcorner", "yllcenter"):
+        if key in header and not math.isfinite(header[key]):
+            raise InputFileError(f"{path}, line {header_line[key]}: {key} must be a finite "
+                                 f"number of metres, got {header[key]:g}")
     rows: List[np.ndarray] = []
     row_line: List[int] = []
     for k in range(lineno, len(lines)):

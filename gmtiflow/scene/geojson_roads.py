@@ -63,6 +63,10 @@ def load_geojson(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         doc = json.loads(p.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise RoadMapError(f"{p}: not valid JSON: {exc}") from None
+    except RecursionError:      # json recurses per nesting level: '[[[[...' exhausts the stack
+        raise RoadMapError(f"{p}: JSON nested too deeply to be a GeoJSON road map") from None
+    except OSError as exc:
+        raise RoadMapError(f"{p}: cannot read ({exc.strerror or exc})") from None
     drivable = set(cfg.drivable_classes)
     lines = []
     for i, geom, props in _features(doc, str(p)):

@@ -74,6 +74,8 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         root = etree.parse(str(p), hardened_parser()).getroot()
     except etree.XMLSyntaxError as exc:
         raise RoadMapError(f"{p}: not well-formed OSM XML (line {exc.lineno}): {exc.msg}") from None
+    except OSError as exc:      # lxml reports bad character encodings and unreadable files so
+        raise RoadMapError(f"{p}: cannot read as OSM XML: {exc}") from None
     if root.tag != "osm":
         raise RoadMapError(f"{p}: root element is <{root.tag}>, expected <osm> (OSM XML 0.6)")
     drivable = set(cfg.drivable_classes)
@@ -96,10 +98,15 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         nid = node.get("id")
         if nid in needed and not _deleted(node):
             try:
-                coords[nid] = (float(node.get("lat")), float(node.get("lon")))
+                lat, lon = float(node.get("lat")), float(node.get("lon"))
             except (TypeError, ValueError):
                 raise RoadMapError(f"{p}: node {nid} (line {node.sourceline}) has no valid "
                                    f"lat/lon") from None
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):   # also NaN, inf
+                raise RoadMapError(f"{p}: node {nid} (line {node.sourceline}): lat {lat!r}, "
+                                   f"lon {lon!r} out of range (lat in [-90, 90], lon in "
+                                   f"[-180, 180] degrees)")
+            coords[nid] = (lat, lon)
     names: List[str] = []
     index: Dict[str, int] = {}
     ef, et, one, lim, inv, cls = [], [], [], [], [], []

@@ -188,12 +188,15 @@ class RandomFleetSpec:
         out += schema.ordered(self, "cruise_speed_min_mps", "cruise_speed_max_mps", strict=False)
         out += schema.ordered(self, "start_time_min_s", "start_time_max_s", strict=False)
         out += schema.ordered(self, "mean_wait_s", "max_wait_s", strict=False)
-        if self.count and (not self.types or any(not (w >= 0) for w in self.types.values())
-                           or sum(self.types.values()) <= 0):
-            out.append(schema.Problem("types", f"needs weights >= 0 with a positive sum, got "
+        bad_weight = any(not (schema.is_number(w) and w >= 0) for w in self.types.values())
+        if bad_weight or (self.count and (not self.types or sum(self.types.values()) <= 0)):
+            out.append(schema.Problem("types", f"needs finite weights >= 0 with a positive sum, got "
                                                f"{dict(self.types)!r}"))
-        if len(self.position_noise_m) != 3 or any(not (v >= 0) for v in self.position_noise_m):
-            out.append(schema.Problem("position_noise_m", "must be 3 values >= 0"))
+        if len(self.position_noise_m) != 3 or any(not (schema.is_number(v) and v >= 0)
+                                                  for v in self.position_noise_m):
+            out.append(schema.Problem("position_noise_m", f"must be 3 finite values >= 0 "
+                                                          f"[σ_along, σ_across, σ_up] in metres, "
+                                                          f"got {list(self.position_noise_m)!r}"))
         return out
 
 

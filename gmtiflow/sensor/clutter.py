@@ -109,7 +109,9 @@ class SnrConfig:
         if self.kind not in SNR_KINDS:
             out.append(Problem("kind", f"must be one of {list(SNR_KINDS)}, got {self.kind!r}"))
         out += schema.in_range(self, "pfa", 0.0, 1.0, lo_open=True, hi_open=True)
-        out += schema.ordered(self, "low_db", "high_db", strict=False)
+        bad_db = [Problem(name, f"must be a finite number of dB, got {getattr(self, name)!r}")
+                  for name in ("low_db", "high_db") if not schema.is_number(getattr(self, name))]
+        out += bad_db or schema.ordered(self, "low_db", "high_db", strict=False)
         return out
 
 

@@ -47,6 +47,9 @@ def load_table(path: str) -> Tuple[np.ndarray, np.ndarray]:
     file = resolve_table_path(path)
     try:
         text = file.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputFileError(f"RCS table {file}: not UTF-8 text (byte {exc.start}); expected a "
+                             "CSV file with columns aspect_deg,rcs_dbsm") from None
     except OSError as exc:
         raise InputFileError(f"RCS table {path!s}: cannot read ({exc.strerror or exc}); "
                              "expected a CSV file with columns aspect_deg,rcs_dbsm") from None

@@ -1,0 +1,150 @@
+"""Every numeric config field, set to NaN, ±inf or a negative number, either gives one
+ConfigError naming that key or is a documented valid value (docs/reliability.md, "Config").
+
+The fields are found by walking the validated dataclass tree of a few preset combinations, so a
+field added later without a check fails here rather than deep inside numpy.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import re
+
+import pytest
+
+from gmtiflow import config
+from gmtiflow.compose import compose
+from gmtiflow.errors import ConfigError
+
+PRESETS = {
+    "default": [],
+    "busy": ["vehicles=random", "clutter=windfarm", "platform=racetrack", "sensor=wide_fov",
+             "terrain=hills"],
+    "urban": ["clutter=urban", "fidelity=full", "export=all"],
+}
+
+SIGNED_OK = {
+    # Signed quantities: a negative value is meaningful (dB below 1, angles left of boresight,
+    # heights below the datum, ENU coordinates west/south of the origin, receding clutter).
+    "clutter.fov_range_rate.mean_mps", "clutter.regions[].centre_m[]",
+    "clutter.regions[].range_rate.mean_mps", "clutter.regions[].snr.low_db",
+    "clutter.regions[].vertices_m[][]", "clutter.snr.low_db", "platform.waypoints_m[][]",
+    "sensor.az_max_deg", "sensor.az_min_deg", "sensor.el_max_deg", "sensor.el_min_deg",
+    "sensor.mount_deg", "sensor.rcs.car.rcs_dbsm", "sensor.rcs.default.rcs_dbsm",
+    "sensor.rcs.truck.rcs_dbsm", "sensor.rcs0_dbsm", "sensor.snr0_db", "terrain.flat_height_m",
+    "terrain.hills[].azimuth_deg", "terrain.hills[].height_m", "terrain.hills[].x_m",
+    "terrain.hills[].y_m", "terrain.hills_base_height_m", "vehicles.vehicles[].off_road[][]",
+}
+
+
+def numeric_leaves(obj, prefix=""):
+    """Full key paths of every int/float leaf (bools excluded) of a config tree."""
+    if dataclasses.is_dataclass(obj):
+        for f in dataclasses.fields(obj):
+            yield from numeric_leaves(getattr(obj, f.name), f"{prefix}{f.name}.")
+    elif isinstance(obj, (list, tuple)):
+        for i, item in enumerate(obj):
+            yield from numeric_leaves(item, f"{prefix[:-1]}[{i}].")
+    elif isinstance(obj, dict):
+        for key, item in obj.items():
+            yield from numeric_leaves(item, f"{prefix}{key}.")
+    elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
+        yield prefix[:-1]
+
+
+def set_leaf(obj, path: str, value) -> None:
+    parts = re.findall(r"[^.\[\]]+|\[\d+\]", path)
+    for part in parts[:-1]:
+        obj = _child(obj, part)
+    last = parts[-1]
+    if last.startswith("["):
+        obj[int(last[1:-1])] = value
+    elif isinstance(obj, dict):
+        obj[last] = value
+    else:
+        object.__setattr__(obj, last, value)
+
+
+def _child(obj, part):
+    if part.startswith("["):
+        return obj[int(part[1:-1])]
+    return obj[part] if isinstance(obj, dict) else getattr(obj, part)
+
+
+def named_in(message: str, key: str, tree) -> bool:
+    """The message names ``key``, or the list/dict field that holds it (``types``, ``[1]``)."""
+    candidates = {key, re.sub(r"(\[\d+\])+$", "", key)}
+    parts = key.split(".")
+    holder = _child_path(tree, parts[:-1])
+    if isinstance(holder, dict):          # a dict entry: the dict's key names it
+        candidates.add(".".join(parts[:-1]))
+    return any(c in message for c in candidates)
+
+
+def _child_path(tree, parts):
+    obj = tree
+    for part in parts:
+        for piece in re.findall(r"[^\[\]]+|\[\d+\]", part):
+            obj = _child(obj, piece)
+    return obj
+
+
+def generic(key: str) -> str:
+    return re.sub(r"\[\d+\]", "[]", key)
+
+
+@pytest.fixture(scope="module", params=sorted(PRESETS))
+def preset(request):
+    return request.param, compose(PRESETS[request.param])
+
+
+def test_every_numeric_field_rejects_nan_and_infinity_by_name(preset):
+    name, base = preset
+    keys = list(numeric_leaves(base))
+    assert len(keys) > 100, keys           # the walk really reaches the whole tree
+    silent, unnamed, tried = [], [], 0
+    for key in keys:
+        for value in (math.nan, math.inf, -math.inf):
+            cfg = copy.deepcopy(base)
+            set_leaf(cfg, key, value)
+            tried += 1
+            try:
+                config.validate(cfg)
+            except ConfigError as exc:
+                if not named_in(str(exc), key, cfg):
+                    unnamed.append((key, value, str(exc)[:200]))
+            else:
+                silent.append((key, value))
+    assert not silent, f"{name}: accepted without a ConfigError: {silent}"
+    assert not unnamed, f"{name}: ConfigError does not name the key: {unnamed}"
+
+
+def test_every_negative_number_is_refused_by_name_or_a_signed_quantity(preset):
+    name, base = preset
+    accepted = []
+    for key in numeric_leaves(base):
+        cfg = copy.deepcopy(base)
+        set_leaf(cfg, key, -1.0)
+        try:
+            config.validate(cfg)
+        except ConfigError:
+            continue
+        accepted.append(generic(key))
+    undocumented = sorted(set(accepted) - SIGNED_OK)
+    assert not undocumented, f"{name}: negative accepted for {undocumented}"
+
+
+@pytest.mark.parametrize("overrides, key", [
+    (["sensor.az_min_deg=30", "sensor.az_max_deg=-30"], "sensor.az_min_deg"),
+    (["sensor.pulse_width_s=0.01", "sensor.pri_s=0.001"], "sensor.pri_s"),
+    (["sensor.revisit_s=0.01"], "sensor.revisit_s"),
+    (["vehicles=random", "vehicles.random.types={car: nan}"], "vehicles.random.types"),
+    (["vehicles=random", "vehicles.random.position_noise_m=[inf,0,0]"],
+     "vehicles.random.position_noise_m"),
+    (["clutter=windfarm", "clutter.snr.kind=uniform_db", "clutter.snr.high_db=inf"],
+     "clutter.snr.high_db"),
+])
+def test_cross_field_rules_through_compose(overrides, key):
+    with pytest.raises(ConfigError, match=re.escape(key)):
+        compose(overrides)
