@@ -1,40 +1,50 @@
-"""Small I/O helpers shared by the writers and readers (not public API)."""
+"""Small I/O helpers shared by the writers and readers; ``atomic_path`` and ``write_atomic``
+are public (``formats.atomic_path``) and used by gmtiflow's own writers too."""
 from __future__ import annotations
 
 import os
 import tempfile
+from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Mapping
+from typing import Iterator, Mapping
 
 import numpy as np
 
 
-def write_atomic(dest, data: bytes) -> None:
-    """Write ``data`` to a path (via a temporary file renamed into place) or a binary file object.
+@contextmanager
+def atomic_path(dest, suffix: str = ".partial") -> Iterator[Path]:
+    """A temporary path beside ``dest`` that becomes ``dest`` only if the block completes.
 
-    A path never holds a partial file that looks complete: the bytes go to a temporary file in
-    the same directory, which is renamed over ``dest`` only once everything is written.
+    ``with atomic_path("out.pdf") as tmp: write(tmp)``: the temporary (``.out.pdf.<random>.partial``
+    in the same directory, so the final rename is atomic on POSIX) is renamed over ``dest``
+    when the block ends normally and deleted when it raises, so a path never holds a partial
+    file that looks complete.  The file gets the mode ``open()`` would give (0666 minus the
+    umask), not ``mkstemp``'s 0600.  ``suffix`` ends the temporary's name, for writers that
+    pick the format from the extension (``".partial.gif"``).
     """
-    if hasattr(dest, "write"):
-        dest.write(data)
-        return
     path = Path(dest)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".part", dir=path.parent or ".")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(name)
     try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        # mkstemp creates the file 0600; give it the mode open() would (0666 minus the umask)
+        yield tmp
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def write_atomic(dest, data: bytes) -> None:
+    """Write ``data`` to a path (through :func:`atomic_path`) or to a binary file object."""
+    if hasattr(dest, "write"):
+        dest.write(data)
+        return
+    with atomic_path(dest) as tmp:
+        tmp.write_bytes(data)
 
 
 def source_name(source) -> str | None:

@@ -36,7 +36,6 @@ import hashlib
 import logging
 import os
 import pickle
-import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from enum import Enum
@@ -45,6 +44,7 @@ from typing import Any, Callable, Iterable, Iterator, List, Optional
 
 from omegaconf import OmegaConf
 
+from formats import atomic_path
 from gmtiflow import __version__
 from gmtiflow.errors import StoreError
 
@@ -176,15 +176,8 @@ class StageCache:
             return _MISSING
 
     def _atomic_write(self, path: Path, write: Callable[[Any], None]) -> None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as f:
-                write(f)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            write(f)
 
     @contextmanager
     def _lock(self, path: Path):
@@ -258,19 +251,13 @@ class StageCache:
                     yield item
         log.info("cache miss %s %s", stage, key)
         self.misses.append(stage)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
         n = 0
-        try:
-            with os.fdopen(fd, "wb") as out:
-                for item in produce():
-                    pickle.dump(item, out, protocol=5)
-                    n += 1
-                    yield item
-                pickle.dump(_End(n), out, protocol=5)
-            os.replace(tmp, path)
-        finally:
-            Path(tmp).unlink(missing_ok=True)
+        with atomic_path(path) as tmp, open(tmp, "wb") as out:
+            for item in produce():
+                pickle.dump(item, out, protocol=5)
+                n += 1
+                yield item
+            pickle.dump(_End(n), out, protocol=5)
 
 
 @dataclass(frozen=True)

@@ -34,12 +34,12 @@ from typing import Any, Callable, Dict, List, Optional
 import numpy as np
 from tqdm import tqdm
 
-from formats import _io as formats_io
+from formats import write_atomic
 from gmtiflow import config as config_mod
 from gmtiflow.cache import StageCache, stage_key
 from gmtiflow.config import AppConfig
-from gmtiflow.evaluate import evaluate, track
 from gmtiflow.errors import GmtiflowError
+from gmtiflow.evaluate import evaluate, track
 from gmtiflow.export import export_run, planned_files
 from gmtiflow.report import build_run_report
 from gmtiflow.scene.platform import Platform
@@ -247,7 +247,7 @@ def _read_manifest(out_dir: Path) -> List[str]:
 
 
 def _write_manifest(out_dir: Path, doc: dict) -> None:
-    formats_io.write_atomic(out_dir / MANIFEST, (json.dumps(doc, indent=1) + "\n").encode())
+    write_atomic(out_dir / MANIFEST, (json.dumps(doc, indent=1) + "\n").encode())
 
 
 def remove_stale_outputs(cfg: AppConfig, out_dir: Path) -> List[Path]:

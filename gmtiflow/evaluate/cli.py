@@ -22,18 +22,16 @@ import argparse
 import csv
 import io
 import logging
-import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import Optional, Sequence
 
 import h5py
-import numpy as np
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 import formats
+from formats import write_atomic
 from gmtiflow import frames
 from gmtiflow.errors import GmtiflowError, InputFileError, StoreError
 from gmtiflow.evaluate import evaluate, validate_tracks
@@ -156,24 +154,9 @@ def summary_csv(summary: dict) -> bytes:
     return out.getvalue().encode("utf-8")
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_metrics(path: Path, tables: dict, as_csv: bool, attrs: dict) -> Path:
     if as_csv:
-        _write_atomic(path, summary_csv(tables["metrics"]))
+        write_atomic(path, summary_csv(tables["metrics"]))
         return path
     with RunWriter(path, seed=-1, attrs=attrs) as w:
         for name, table in tables.items():

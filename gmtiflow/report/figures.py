@@ -11,7 +11,7 @@ Units on the pages: km for map coordinates, degrees for angles, m/s for speeds, 
 from __future__ import annotations
 
 import math
-from typing import Dict, Iterable, List, Optional, Sequence, Tuple
+from typing import Dict, List, Sequence, Tuple
 
 import matplotlib.cm as cm
 import numpy as np

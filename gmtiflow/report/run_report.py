@@ -14,8 +14,6 @@ a temporary name and renamed when complete, so an interrupted report never looks
 from __future__ import annotations
 
 import logging
-import math
-import os
 import time
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Tuple
@@ -24,6 +22,7 @@ import numpy as np
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
+from formats import atomic_path
 from gmtiflow import __version__
 
 from . import figures as F
@@ -39,7 +38,6 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
     """The report's pages in order, as (name, builder) pairs (built lazily, one at a time)."""
     t = run.table
     tracker_on = bool(run.cfg("tracker.enabled", True))
-    name = str(run.path.parent.name + "/" + run.path.name)
     return [
         ("title", lambda: F.title_figure(run.attrs, run.config, key_numbers(run),
                                          summary(t("metrics")), str(run.path))),
@@ -75,21 +73,16 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
     out_pdf = Path(out_pdf)
     start = time.perf_counter()
     run = load_run(run_path)
-    out_pdf.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out_pdf.with_name(f".{out_pdf.name}.{os.getpid()}.partial")
     seconds: Dict[str, float] = {"load": time.perf_counter() - start}
-    try:
-        with PdfPages(tmp, metadata={"Title": f"gmtiflow run report: {run.path}",
-                                     "Creator": f"gmtiflow {__version__}"}) as pdf:
-            for page, builder in run_figures(run, cfg):
-                t0 = time.perf_counter()
-                fig = builder()
-                pdf.savefig(fig, dpi=cfg.dpi)
-                fig.clear()
-                seconds[page] = time.perf_counter() - t0
-        os.replace(tmp, out_pdf)
-    finally:
-        tmp.unlink(missing_ok=True)
+    with atomic_path(out_pdf) as tmp, PdfPages(
+            tmp, metadata={"Title": f"gmtiflow run report: {run.path}",
+                           "Creator": f"gmtiflow {__version__}"}) as pdf:
+        for page, builder in run_figures(run, cfg):
+            t0 = time.perf_counter()
+            fig = builder()
+            pdf.savefig(fig, dpi=cfg.dpi)
+            fig.clear()
+            seconds[page] = time.perf_counter() - t0
     if cfg.animation:
         t0 = time.perf_counter()
         gif = write_animation(run, out_pdf.with_suffix(".gif"), cfg)
@@ -162,10 +155,6 @@ def write_animation(run: RunData, out_gif: Path, cfg: ReportConfig) -> Optional[
         return truth_sc, det_sc, trk_sc, title
 
     anim = animation.FuncAnimation(fig, draw, frames=list(frames), blit=False)
-    tmp = out_gif.with_name(f".{out_gif.name}.{os.getpid()}.partial.gif")
-    try:
+    with atomic_path(out_gif, suffix=".partial.gif") as tmp:
         anim.save(tmp, writer=animation.PillowWriter(fps=cfg.animation_fps), dpi=80)
-        os.replace(tmp, out_gif)
-    finally:
-        tmp.unlink(missing_ok=True)
     return out_gif

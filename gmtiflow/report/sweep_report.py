@@ -36,6 +36,7 @@ import yaml
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
+from formats import atomic_path
 from gmtiflow import __version__
 from gmtiflow.errors import GmtiflowError
 
@@ -402,17 +403,12 @@ def build_sweep_report(paths: Sequence, out_pdf) -> Path:
     """
     out_pdf = Path(out_pdf)
     jobs = collect_jobs(paths)
-    out_pdf.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out_pdf.with_name(f".{out_pdf.name}.{os.getpid()}.partial")
-    try:
-        with PdfPages(tmp, metadata={"Title": "gmtiflow sweep report",
-                                     "Creator": f"gmtiflow {__version__}"}) as pdf:
-            for fig in sweep_figures(jobs, paths):
-                pdf.savefig(fig)
-                fig.clear()
-        os.replace(tmp, out_pdf)
-    finally:
-        tmp.unlink(missing_ok=True)
+    with atomic_path(out_pdf) as tmp, PdfPages(
+            tmp, metadata={"Title": "gmtiflow sweep report",
+                           "Creator": f"gmtiflow {__version__}"}) as pdf:
+        for fig in sweep_figures(jobs, paths):
+            pdf.savefig(fig)
+            fig.clear()
     log.info("sweep report %s: %d jobs (%d failed)", out_pdf, len(jobs),
              sum(not j.ok for j in jobs))
     return out_pdf

@@ -7,7 +7,6 @@ from matplotlib.collections import PathCollection
 
 from gmtiflow.report import figures as F
 from gmtiflow.report.data import key_numbers, load_run, n
-from gmtiflow.sensor.outcome import Outcome
 
 
 def _points(ax, labels):
