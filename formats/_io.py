@@ -11,6 +11,8 @@ from typing import Iterator, Mapping
 
 import numpy as np
 
+from .errors import FormatError, where
+
 
 @contextmanager
 def atomic_path(dest, suffix: str = ".partial") -> Iterator[Path]:
@@ -53,6 +55,20 @@ def source_name(source) -> str | None:
         return str(source)
     name = getattr(source, "name", None)
     return str(name) if isinstance(name, (str, os.PathLike)) else None
+
+
+def read_source(source):
+    """The content of a path, bytes or a file object (``str`` if a text-mode file gave one);
+    an unreadable path is a FormatError naming it."""
+    if isinstance(source, (bytes, bytearray)):
+        return bytes(source)
+    if isinstance(source, (str, os.PathLike)):
+        try:
+            with open(source, "rb") as f:
+                return f.read()
+        except OSError as exc:
+            raise FormatError(f"{where(source_name(source))}cannot read: {exc}") from None
+    return source.read()
 
 
 def parse_epoch(text: str) -> datetime:

@@ -24,12 +24,11 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 from typing import Mapping
 
 import numpy as np
 
-from ._io import iso_utc, n_rows, parse_epoch, source_name, write_atomic
+from ._io import iso_utc, n_rows, parse_epoch, read_source, source_name, write_atomic
 from .errors import FormatError, where
 
 __all__ = ["write_csv", "read_csv", "encode_csv", "write_detections_csv", "read_detections_csv",
@@ -116,16 +115,7 @@ def write_csv(dest, table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: st
 
 def _text(source) -> tuple[str, str | None]:
     name = source_name(source)
-    try:
-        if isinstance(source, (bytes, bytearray)):
-            raw = bytes(source)
-        elif isinstance(source, (str, os.PathLike)):
-            with open(source, "rb") as f:
-                raw = f.read()
-        else:
-            raw = source.read()
-    except OSError as exc:
-        raise FormatError(f"{where(name)}cannot read: {exc}") from None
+    raw = read_source(source)
     if isinstance(raw, str):
         return raw, name
     try:

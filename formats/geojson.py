@@ -23,12 +23,11 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from typing import Mapping, Sequence
 
 import numpy as np
 
-from ._io import iso_utc, n_rows, parse_epoch, source_name, write_atomic
+from ._io import iso_utc, n_rows, parse_epoch, read_source, source_name, write_atomic
 from .csvtable import COLUMNS
 from .errors import FormatError, where
 
@@ -274,17 +273,9 @@ def read_geojson(source) -> dict:
     and column; a malformed feature raises FormatError naming its index.
     """
     name = source_name(source)
+    raw = read_source(source)
     try:
-        if isinstance(source, (bytes, bytearray)):
-            raw = bytes(source)
-        elif isinstance(source, (str, os.PathLike)):
-            with open(source, "rb") as f:
-                raw = f.read()
-        else:
-            raw = source.read()
         doc = json.loads(raw)
-    except OSError as exc:
-        raise FormatError(f"{where(name)}cannot read: {exc}") from None
     except UnicodeDecodeError as exc:
         raise FormatError(f"{where(name)}not UTF-8 text (byte {exc.start})") from None
     except json.JSONDecodeError as exc:

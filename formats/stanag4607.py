@@ -817,6 +817,35 @@ def _range_azimuth(slat, slon, sh, tlat, tlon, th):
     return np.sqrt(dx * dx + dy * dy + dz * dz), np.mod(np.arctan2(east, north), 2 * np.pi)
 
 
+class _MaskedColumns:
+    """Raw fields of many records decoded under different existence masks, scattered into
+    full-length int64 columns, each with a mask of the records that carried the field."""
+
+    def __init__(self, n: int):
+        self.n = n
+        self._raw: dict[str, np.ndarray] = {}
+        self._present: dict[str, np.ndarray] = {}
+
+    def scatter(self, decoded: np.ndarray, rows: np.ndarray) -> None:
+        """Put the fields of ``decoded`` (a structured array) at ``rows``."""
+        for name in decoded.dtype.names:
+            if name not in self._raw:
+                self._raw[name] = np.zeros(self.n, dtype=np.int64)
+                self._present[name] = np.zeros(self.n, dtype=bool)
+            self._raw[name][rows] = decoded[name]
+            self._present[name][rows] = True
+
+    def raw(self, name: str):
+        """(raw values, present) of a field; zeros and False where no record carried it."""
+        return (self._raw.get(name, np.zeros(self.n, np.int64)),
+                self._present.get(name, np.zeros(self.n, bool)))
+
+    def value(self, name: str, conv) -> np.ndarray:
+        """``conv(raw)`` where the field is present, NaN elsewhere."""
+        r, ok = self.raw(name)
+        return np.where(ok, conv(r), np.nan)
+
+
 def read_4607(source, *, epoch_utc: str | None = None,
               max_packet_size: int | None = None) -> dict:
     """Read a 4607 file into tables (dicts of numpy columns).
@@ -1049,25 +1078,11 @@ def _dwell_tables(seg_pkt, seg_job, seg_ref, seg_mask, seg_off, seg_counts, dwel
     counts = np.array(seg_counts, dtype=np.int64)
 
     # Dwell fields of every segment, decoded per mask into full-length raw columns.
-    raw: dict[str, np.ndarray] = {}
-    present: dict[str, np.ndarray] = {}
+    dwell_fields = _MaskedColumns(ns)
     for mask, chunks in dwell_bytes.items():
-        ddt = _mask_layout(mask)[0]
-        a = np.frombuffer(b"".join(chunks), ddt)
-        idx = np.array(dwell_seg_idx[mask], dtype=np.int64)
-        for fname in ddt.names:
-            if fname not in raw:
-                raw[fname] = np.zeros(ns, dtype=np.int64)
-                present[fname] = np.zeros(ns, dtype=bool)
-            raw[fname][idx] = a[fname]
-            present[fname][idx] = True
-
-    def rcol(fname):
-        return raw.get(fname, np.zeros(ns, np.int64)), present.get(fname, np.zeros(ns, bool))
-
-    def fcol(fname, conv):
-        r, ok = rcol(fname)
-        return np.where(ok, conv(r), np.nan)
+        dwell_fields.scatter(np.frombuffer(b"".join(chunks), _mask_layout(mask)[0]),
+                             np.array(dwell_seg_idx[mask], dtype=np.int64))
+    rcol, fcol = dwell_fields.raw, dwell_fields.value
 
     seg_job = np.array(seg_job, dtype=np.int64)
     seg_ref = np.array(seg_ref, dtype=np.int64)
@@ -1143,27 +1158,13 @@ def _dwell_tables(seg_pkt, seg_job, seg_ref, seg_mask, seg_off, seg_counts, dwel
     nt = int(counts.sum())
     seg_tfirst = np.concatenate([[0], np.cumsum(counts)[:-1]]) if ns else np.zeros(0, np.int64)
     t_seg = np.repeat(np.arange(ns), counts)
-    traw: dict[str, np.ndarray] = {}
-    tpresent: dict[str, np.ndarray] = {}
+    target_fields = _MaskedColumns(nt)
     for mask, chunks in target_bytes.items():
-        tdt = _mask_layout(mask)[1]
-        a = np.frombuffer(b"".join(chunks), tdt)
         segs = np.array(target_seg_idx[mask], dtype=np.int64)
         c = counts[segs]
         pos = (np.repeat(seg_tfirst[segs] - (np.cumsum(c) - c), c) + np.arange(int(c.sum())))
-        for fname in tdt.names:
-            if fname not in traw:
-                traw[fname] = np.zeros(nt, dtype=np.int64)
-                tpresent[fname] = np.zeros(nt, dtype=bool)
-            traw[fname][pos] = a[fname]
-            tpresent[fname][pos] = True
-
-    def tr(fname):
-        return traw.get(fname, np.zeros(nt, np.int64)), tpresent.get(fname, np.zeros(nt, bool))
-
-    def tf(fname, conv):
-        r, ok = tr(fname)
-        return np.where(ok, conv(r), np.nan)
+        target_fields.scatter(np.frombuffer(b"".join(chunks), _mask_layout(mask)[1]), pos)
+    tr, tf = target_fields.raw, target_fields.value
 
     # Position: hi-res, else reduced resolution from D24/D25 + delta x scale (GUIDE Annex E).
     hr_lat, hr_ok = tr("hr_lat")
