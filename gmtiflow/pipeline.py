@@ -301,7 +301,8 @@ def run(cfg: AppConfig, out_dir) -> Path:
     fleet = cache.get_or_compute(
         "truth", keys["truth"],
         lambda: runner.stage("truth", build_fleet, cfg.vehicles, roadmap, seed=cfg.seed,
-                             duration_s=scene.duration_s, dt_s=fidelity.time_step_s))
+                             duration_s=scene.duration_s, dt_s=fidelity.time_step_s,
+                             progress=cfg.progress))
     platform = cache.get_or_compute(
         "platform", keys["platform"],
         lambda: runner.stage("platform", Platform, cfg.platform, roadmap.origin))
@@ -322,7 +323,8 @@ def run(cfg: AppConfig, out_dir) -> Path:
 
         truth_sink = TableSink(writer, "truth", keep=keep)
         start = time.perf_counter()
-        for tt in time_chunks(times, cfg.chunk_s):
+        for tt in tqdm(time_chunks(times, cfg.chunk_s), desc="truth table", unit="chunk",
+                       leave=False, disable=None if cfg.progress else True):
             truth_sink.append(fleet.truth_table(tt))
         if not len(times):
             truth_sink.append(fleet.truth_table(times))

@@ -56,6 +56,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from tqdm import tqdm
 
 TRACK, BRAKE_RANDOM, STOPPED, BRAKE_POINT = 0, 1, 2, 4
 MODE_CRUISE, MODE_DECEL, MODE_STOPPED, MODE_ACCEL = 0, 1, 2, 3
@@ -153,8 +154,11 @@ class Profiles:
         return k * dt + min(max(u, 0.0), dt)
 
 
-def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles:
-    """Run the fleet's speed profiles for ``n_steps`` steps of ``dt_s`` (see module docstring)."""
+def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
+                      progress: bool = False) -> Profiles:
+    """Run the fleet's speed profiles for ``n_steps`` steps of ``dt_s`` (see module docstring).
+
+    ``progress`` shows a tqdm bar over the steps (on a terminal only)."""
     P = len(inp.length_m)
     K = int(n_steps)
     dt = float(dt_s)
@@ -208,7 +212,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int) -> Profiles
     S[0] = s
     V[0] = v
     look_a = 0.5 * amax * dt * dt
-    for k in range(K):
+    for k in tqdm(range(K), desc="truth", unit="step", leave=False,
+                  disable=None if progress else True, mininterval=0.5):
         if done.all():
             S[k + 1:] = s
             V[k + 1:] = 0.0

@@ -377,8 +377,9 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
 
 
 def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: float,
-                dt_s: float) -> "Fleet":
-    """Route every vehicle, draw its randomness from its own stream and run the profiles."""
+                dt_s: float, progress: bool = False) -> "Fleet":
+    """Route every vehicle, draw its randomness from its own stream and run the profiles
+    (``progress``: a tqdm bar over the time steps, on a terminal only)."""
     _check(cfg)
     if not (dt_s > 0 and math.isfinite(dt_s)):
         raise ConfigError(f"vehicles: time step dt_s must be > 0, got {dt_s!r}")
@@ -441,7 +442,7 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
         max_wait_steps=np.asarray([int(math.floor(s.max_wait_s / dt + 1e-9)) for s in specs],
                                   dtype=np.int64),
         normal=normal, u_stop=u_stop, u_wait=u_wait)
-    prof = (motion.simulate_profiles(inp, dt, K) if P else None)
+    prof = (motion.simulate_profiles(inp, dt, K, progress=progress) if P else None)
     return Fleet(vehicles, profiles, routes, prof, pos_noise, t0, roadmap)
 
 
