@@ -190,7 +190,8 @@ def convert(args) -> Path:
                                  "geojson")
         cfg = export_mod.ExportConfig(edition=args.edition,
                                       platform_location_packets=args.platform_location,
-                                      platform_id=args.platform_id)
+                                      platform_id=args.platform_id,
+                                      geojson_truth_step_s=0.0)   # a conversion keeps every row
         problems = cfg.problems()
         if problems:
             raise InputFileError("; ".join(f"--{p.key.replace('_', '-')}: {p.message}"

@@ -50,7 +50,7 @@ from omegaconf import OmegaConf
 import formats
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError
-from gmtiflow.schema import Problem
+from gmtiflow.schema import Problem, non_negative
 from gmtiflow.sensor import geometry
 from gmtiflow.store import open_run, read_attrs, read_table, read_text
 from gmtiflow.tables import Table
@@ -70,8 +70,11 @@ class ExportConfig:
 
     formats: List[str] = field(default_factory=lambda: list(FORMATS))
     """Any of stanag4607, xml, csv, geojson; [] writes nothing."""
-    csv_tables: List[str] = field(default_factory=lambda: list(CSV_TABLES))
-    """Tables written as CSV when ``csv`` is selected: detections, truth, tracks."""
+    csv_tables: List[str] = field(default_factory=lambda: ["detections", "tracks"])
+    """Tables written as CSV when ``csv`` is selected: detections, truth, tracks.  Truth is
+    opt-in (``export.csv_tables=[detections,truth,tracks]``): it is in run.h5 already and a
+    1,000-vehicle, 30-min scene makes a 110 MB truth.csv (``gmtiflow-convert RUN.h5 --to csv
+    --table truth`` writes it on demand)."""
     edition: str = "30"
     """4607 P1: "30" (STANAG 4607 Ed. 3; what tshark reads) or "41" (AEDP-4607 Ed. A v1)."""
     platform_location_packets: bool = False
@@ -89,11 +92,15 @@ class ExportConfig:
     pd: Optional[float] = None
     """J25 detection probability statement (0..1, for a 10 m² target); None = No Statement."""
     geojson_truth: bool = True
+    geojson_truth_step_s: float = 5.0
+    """Truth trajectories in the GeoJSON (a map view) every this many seconds, plus each
+    vehicle's first and last sample; 0 = every /truth sample.  Full-rate truth is in run.h5
+    and truth.csv (a 1,000-vehicle, 30-min scene at 1 s makes a 150 MB GeoJSON)."""
     geojson_roads: bool = True
     geojson_clutter: bool = True
 
     def problems(self) -> List[Problem]:
-        out: List[Problem] = []
+        out: List[Problem] = non_negative(self, "geojson_truth_step_s")
         bad = [f for f in self.formats if f not in FORMATS]
         if bad:
             out.append(Problem("formats", f"unknown format(s) {bad}; choose from {list(FORMATS)}"))
@@ -408,7 +415,7 @@ def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
             ok = np.isfinite(np.asarray(det["lat_deg"], float)) & \
                 np.isfinite(np.asarray(det["lon_deg"], float))
             det = {k: np.asarray(v)[ok] for k, v in det.items()}
-        truth = with_geodetic(t["truth"], run.origin) \
+        truth = with_geodetic(thin_truth(t["truth"], cfg.geojson_truth_step_s), run.origin) \
             if cfg.geojson_truth and "truth" in t else None
         nodes = edges = None
         if cfg.geojson_roads and "roads/nodes" in t:
@@ -420,6 +427,22 @@ def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
                               epoch_utc=run.epoch_utc)
     else:
         raise ValueError(f"unknown export format {fmt!r}")
+
+
+def thin_truth(truth: Table, step_s: float) -> Table:
+    """Truth rows on the ``step_s`` grid plus each vehicle's first and last row (0: all)."""
+    if not step_s or not len(truth["time_s"]):
+        return truth
+    t = np.asarray(truth["time_s"], float)
+    v = np.asarray(truth["vehicle_id"])
+    on_grid = np.abs(t / step_s - np.round(t / step_s)) < 1e-6
+    order = np.lexsort((t, v))
+    ends = np.zeros(len(t), bool)
+    first = np.r_[True, v[order][1:] != v[order][:-1]]
+    last = np.r_[v[order][1:] != v[order][:-1], True]
+    ends[order[first | last]] = True
+    keep = on_grid | ends
+    return {k: np.asarray(c)[keep] for k, c in truth.items()}
 
 
 def planned_files(cfg: ExportConfig) -> list:

@@ -59,7 +59,7 @@ def test_default_export_writes_every_file_beside_the_run(lake_run, tmp_path):
     path = _copy(run, tmp_path)
     written = export_run(cfg.export, path)       # the call the runner makes after a run
     names = {p.name for p in written}
-    assert FOUR <= names and {"truth.csv", "tracks.csv"} <= names
+    assert FOUR <= names and "tracks.csv" in names and "truth.csv" not in names   # opt-in
     assert all(p.parent == tmp_path for p in written)
     assert not [p for p in tmp_path.iterdir() if "part" in p.name]   # no temporary files left
     mode = stat.S_IMODE(os.stat(tmp_path / "detections.4607").st_mode)
@@ -177,7 +177,7 @@ def test_unlocated_reports_are_skipped_in_4607_and_geojson_kept_elsewhere(lake_r
 def test_geojson_has_geodetic_truth_roads_and_the_clutter_region(lake_run, tmp_path):
     _, run = lake_run
     path = _copy(run, tmp_path)
-    export_run(ExportConfig(formats=["geojson"]), path)
+    export_run(ExportConfig(formats=["geojson"], geojson_truth_step_s=0.0), path)
     g = formats.read_geojson(tmp_path / "scene.geojson")
     truth = store.read_table(run, "truth")
     with h5py.File(run) as f:
@@ -234,3 +234,15 @@ def test_default_cli_run_leaves_the_four_files_beside_run_h5(tmp_path):
                           capture_output=True, text=True, env=env, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert FOUR | {"run.h5"} <= {p.name for p in tmp_path.iterdir()}
+
+
+def test_geojson_truth_is_thinned_to_its_step_with_each_vehicles_ends():
+    from gmtiflow.export import thin_truth
+    t = np.r_[np.arange(0.0, 21.0), np.arange(3.0, 13.0)]          # vehicle 1 starts at 3 s
+    v = np.r_[np.zeros(21, int), np.ones(10, int)]
+    thin = thin_truth({"time_s": t, "vehicle_id": v, "x_m": t * 2}, 5.0)
+    got = sorted(zip(thin["vehicle_id"].tolist(), thin["time_s"].tolist()))
+    assert got == [(0, 0.0), (0, 5.0), (0, 10.0), (0, 15.0), (0, 20.0),
+                   (1, 3.0), (1, 5.0), (1, 10.0), (1, 12.0)]
+    assert np.array_equal(thin["x_m"], thin["time_s"] * 2)
+    assert thin_truth({"time_s": t, "vehicle_id": v}, 0.0)["time_s"] is t

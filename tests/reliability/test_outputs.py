@@ -128,7 +128,8 @@ def test_sigkill_at_any_moment_leaves_no_output_that_reads_as_complete(tmp_path)
 
 
 def test_rerun_with_export_none_removes_the_earlier_exports(tmp_path):
-    cfg = compose(["scene.duration_s=10", "export=all", *QUIET])
+    cfg = compose(["scene.duration_s=10", "export=all", *QUIET,
+                   "export.csv_tables=[detections,truth,tracks]"])
     pipeline.run(cfg, tmp_path)
     (tmp_path / "notes.txt").write_text("mine")
     first = {p.name for p in tmp_path.iterdir()}
