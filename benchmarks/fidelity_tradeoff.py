@@ -37,12 +37,8 @@ FIXED = ["tracker=none", "metrics.enabled=false", "cache.enabled=false", "progre
 
 
 def compose(overrides):
-    from hydra import compose as hcompose, initialize_config_module
-    from hydra.core.global_hydra import GlobalHydra
-    from gmtiflow import config
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-        return config.to_object(hcompose(config_name="config", overrides=list(overrides)))
+    from gmtiflow.compose import compose as app_compose
+    return app_compose(overrides)
 
 
 def one_run(preset, seed, out, extra):

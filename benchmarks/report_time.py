@@ -15,19 +15,14 @@ import tempfile
 import time
 from pathlib import Path
 
-from hydra import compose, initialize_config_module
-from hydra.core.global_hydra import GlobalHydra
-
-from gmtiflow import config, pipeline
+from gmtiflow import pipeline
+from gmtiflow.compose import compose
 from gmtiflow.report import ReportConfig, build_run_report
 from gmtiflow.report.data import key_numbers, load_run
 
 
 def make_run(out_dir: Path, overrides) -> Path:
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-        cfg = compose(config_name="config", overrides=["progress=false", *overrides])
-    return pipeline.run(config.to_object(cfg), out_dir)
+    return pipeline.run(compose(["progress=false", *overrides]), out_dir)
 
 
 def bench(name: str, overrides, repeats: int = 3) -> None:

@@ -33,10 +33,9 @@ CASES = [  # (vehicles, duration_s, fidelity, evaluation)
 
 
 def child(out: str, overrides) -> None:
-    from hydra import compose, initialize_config_module
-    from gmtiflow import config, pipeline
-    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-        cfg = config.to_object(compose(config_name="config", overrides=list(overrides)))
+    from gmtiflow import pipeline
+    from gmtiflow.compose import compose
+    cfg = compose(overrides)
     start = time.perf_counter()
     path = pipeline.run(cfg, out)
     wall = time.perf_counter() - start

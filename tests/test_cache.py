@@ -8,21 +8,13 @@ import numpy as np
 import pytest
 
 from gmtiflow import pipeline
+from gmtiflow.compose import compose as compose_app
 from gmtiflow.cache import StageCache
 from gmtiflow.scene.vehicles import build_fleet
 from gmtiflow.sensor.effects import build_effects
 from gmtiflow.sensor.model import simulate
 
 
-def compose_app(overrides=()):
-    """The composed, validated app config (as tests/conftest.py's compose_config fixture)."""
-    from hydra import compose, initialize_config_module
-    from hydra.core.global_hydra import GlobalHydra
-    from gmtiflow import config
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-        cfg = compose(config_name="config", overrides=list(overrides))
-    return config.to_object(cfg)
 
 BASE = ["scene.duration_s=40", "vehicles=random", "vehicles.random.count=12",
         "vehicles.random.start_time_max_s=10", "clutter=urban"]

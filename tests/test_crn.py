@@ -5,21 +5,13 @@ import numpy as np
 import pytest
 
 from gmtiflow import pipeline
+from gmtiflow.compose import compose as compose_app
 from gmtiflow.scene.platform import Platform
 from gmtiflow.scene.vehicles import build_fleet
 from gmtiflow.sensor.model import simulate
 from gmtiflow.sensor.outcome import Outcome
 
 
-def compose_app(overrides=()):
-    """The composed, validated app config (as tests/conftest.py's compose_config fixture)."""
-    from hydra import compose, initialize_config_module
-    from hydra.core.global_hydra import GlobalHydra
-    from gmtiflow import config
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-        cfg = compose(config_name="config", overrides=list(overrides))
-    return config.to_object(cfg)
 
 BASE = ["scene.duration_s=120", "vehicles=random", "vehicles.random.count=20",
         "vehicles.random.start_time_max_s=20", "vehicles.random.random_stop_rate_per_s=0"]

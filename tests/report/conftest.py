@@ -5,17 +5,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hydra import compose, initialize_config_module
-from hydra.core.global_hydra import GlobalHydra
 
-from gmtiflow import config, pipeline
+from gmtiflow import pipeline
+from gmtiflow.compose import compose
 
 
 def make_run(out_dir: Path, overrides) -> Path:
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-        cfg = compose(config_name="config", overrides=["progress=false", *overrides])
-    return pipeline.run(config.to_object(cfg), out_dir)
+    return pipeline.run(compose(["progress=false", *overrides]), out_dir)
 
 
 @pytest.fixture(scope="session")

@@ -40,19 +40,10 @@ def test_animation_gif(small_run, tmp_path):
 
 
 def test_report_config_group_and_validation(tmp_path):
-    from hydra import compose, initialize_config_module
-    from hydra.core.global_hydra import GlobalHydra
-    from gmtiflow import config
+    from gmtiflow.compose import compose
     from gmtiflow.errors import ConfigError
     for option, enabled in (("default", True), ("none", False)):
-        GlobalHydra.instance().clear()
-        with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-            cfg = compose(config_name="config", overrides=[f"report={option}"])
-        app = config.to_object(cfg)
+        app = compose([f"report={option}"])
         assert isinstance(app.report, ReportConfig) and app.report.enabled is enabled
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-        cfg = compose(config_name="config", overrides=["report.filename=out.png",
-                                                       "report.max_points=0"])
     with pytest.raises(ConfigError, match="report.filename.*report.max_points|report.max_points.*report.filename"):
-        config.to_object(cfg)
+        compose(["report.filename=out.png", "report.max_points=0"])
