@@ -22,6 +22,37 @@ PLATFORM_START = np.array([-20000.0, -40000.0, 6000.0])
 PLATFORM_VEL = np.array([150.0, 0.0, 0.0])
 
 
+def _truth_table(grid, ids, state, convoy_id, stopped_heading_rad=None) -> Table:
+    """/truth rows (docs/tables.md) of vehicles moving in the ground plane, sorted by time then
+    vehicle.  ``state(t, v) -> (pos (n, 2), vel (n, 2), moving (n,))``; a stopped vehicle keeps
+    ``stopped_heading_rad[v]`` as its heading and has mode 2."""
+    parts = []
+    n = len(grid)
+    for v in ids:
+        pos, vel, moving = state(grid, v)
+        heading = frames.heading_rad(vel[:, 0], vel[:, 1])
+        if stopped_heading_rad is not None:
+            heading = np.where(moving, heading, stopped_heading_rad[v] % (2 * np.pi))
+        parts.append({
+            "time_s": grid, "vehicle_id": np.full(n, v), "convoy_id": np.full(n, convoy_id[v]),
+            "x_m": pos[:, 0], "y_m": pos[:, 1], "z_m": np.zeros(n),
+            "vx_mps": vel[:, 0], "vy_mps": vel[:, 1], "vz_mps": np.zeros(n),
+            "ax_mps2": np.zeros(n), "ay_mps2": np.zeros(n), "az_mps2": np.zeros(n),
+            "speed_mps": np.hypot(vel[:, 0], vel[:, 1]), "heading_rad": heading,
+            "route_s_m": np.zeros(n), "edge_id": np.full(n, -1, np.int64),
+            "mode": np.where(moving, 0, 2).astype(np.uint8), "invisible": np.zeros(n, bool)})
+    truth = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    order = np.lexsort((truth["vehicle_id"], truth["time_s"]))
+    return {k: c[order] for k, c in truth.items()}
+
+
+def _dwell_schedule(n_revisits: int, n_beams: int, revisit_s: float, dwell_s: float):
+    """(revisit, beam index, time) of every dwell: beams back to back from each revisit start."""
+    revisit = np.repeat(np.arange(n_revisits), n_beams)
+    index = np.tile(np.arange(n_beams), n_revisits)
+    return revisit, index, revisit * revisit_s + index * dwell_s
+
+
 def straight_scene(*, n_vehicles: int = 1, n_revisits: int = 60, revisit_s: float = 2.0,
                    sigma_m: float = 10.0, sigma_rr_mps: float = 0.5, speed_mps: float = 10.0,
                    spacing_m: float = 500.0, truth_dt_s: float = 1.0, seed: int = 0,
@@ -61,27 +92,9 @@ def straight_scene(*, n_vehicles: int = 1, n_revisits: int = 60, revisit_s: floa
 
     duration = (n_revisits - 1) * revisit_s
     grid = np.arange(0.0, duration + 1e-9, truth_dt_s)
-    parts = []
-    for v in ids:
-        pos, vel, moving = state(grid, v)
-        n = len(grid)
-        parts.append({
-            "time_s": grid, "vehicle_id": np.full(n, v), "convoy_id": np.full(n, convoy[v]),
-            "x_m": pos[:, 0], "y_m": pos[:, 1], "z_m": np.zeros(n),
-            "vx_mps": vel[:, 0], "vy_mps": vel[:, 1], "vz_mps": np.zeros(n),
-            "ax_mps2": np.zeros(n), "ay_mps2": np.zeros(n), "az_mps2": np.zeros(n),
-            "speed_mps": np.hypot(vel[:, 0], vel[:, 1]),
-            "heading_rad": np.where(moving, frames.heading_rad(vel[:, 0], vel[:, 1]),
-                                    headings[v] % (2 * np.pi)),
-            "route_s_m": np.zeros(n), "edge_id": np.full(n, -1, np.int64),
-            "mode": np.where(moving, 0, 2).astype(np.uint8), "invisible": np.zeros(n, bool)})
-    truth = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    order = np.lexsort((truth["vehicle_id"], truth["time_s"]))
-    truth = {k: c[order] for k, c in truth.items()}
+    truth = _truth_table(grid, ids, state, convoy, headings)
 
-    revisit = np.repeat(np.arange(n_revisits), n_beams)
-    index = np.tile(np.arange(n_beams), n_revisits)
-    t_dw = revisit * revisit_s + index * dwell_s
+    revisit, index, t_dw = _dwell_schedule(n_revisits, n_beams, revisit_s, dwell_s)
     plat = PLATFORM_START[None, :] + t_dw[:, None] * PLATFORM_VEL[None, :]
     centre = np.array([n_vehicles * spacing_m / 2.0, 500.0])
     half = np.radians(30.0) / n_beams
@@ -223,26 +236,10 @@ def gmti_scene(*, n_vehicles: int = 4, n_revisits: int = 40, revisit_s: float = 
         return pos, vel
 
     grid = np.arange(0.0, (n_revisits - 1) * revisit_s + 1e-9, truth_dt_s)
-    parts = []
-    for v in ids:
-        pos, vel = state(grid, v)
-        n = len(grid)
-        parts.append({
-            "time_s": grid, "vehicle_id": np.full(n, v), "convoy_id": np.full(n, -1),
-            "x_m": pos[:, 0], "y_m": pos[:, 1], "z_m": np.zeros(n),
-            "vx_mps": vel[:, 0], "vy_mps": vel[:, 1], "vz_mps": np.zeros(n),
-            "ax_mps2": np.zeros(n), "ay_mps2": np.zeros(n), "az_mps2": np.zeros(n),
-            "speed_mps": np.hypot(vel[:, 0], vel[:, 1]),
-            "heading_rad": frames.heading_rad(vel[:, 0], vel[:, 1]),
-            "route_s_m": np.zeros(n), "edge_id": np.full(n, -1, np.int64),
-            "mode": np.zeros(n, np.uint8), "invisible": np.zeros(n, bool)})
-    truth = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    order = np.lexsort((truth["vehicle_id"], truth["time_s"]))
-    truth = {k: c[order] for k, c in truth.items()}
+    truth = _truth_table(grid, ids, lambda t, v: (*state(t, v), np.ones(len(t), bool)),
+                         np.full(len(ids), -1, np.int64))
 
-    revisit = np.repeat(np.arange(n_revisits), n_beams)
-    index = np.tile(np.arange(n_beams), n_revisits)
-    t_dw = revisit * revisit_s + index * dwell_s
+    revisit, index, t_dw = _dwell_schedule(n_revisits, n_beams, revisit_s, dwell_s)
     plat = plat0[None, :] + t_dw[:, None] * plat_vel[None, :]
     # Beams tile the sector holding every vehicle's whole course, half-overlapping.
     every = np.concatenate([state(grid, v)[0] for v in ids])
