@@ -16,7 +16,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from formats import csvtable, geojson, stanag4607, synthetic, xmldoc  # noqa: E402
+from gmtiflow.formats import csvtable, geojson, stanag4607, synthetic, xmldoc  # noqa: E402
 
 
 def best(fn, repeat):

@@ -45,8 +45,8 @@ def _instrumented():
 
 
 with _instrumented():
-    from formats import csvtable, geojson, stanag4607, synthetic, xmldoc  # noqa: E402
-    from formats.errors import FormatError  # noqa: E402
+    from gmtiflow.formats import csvtable, geojson, stanag4607, synthetic, xmldoc  # noqa: E402
+    from gmtiflow.formats.errors import FormatError  # noqa: E402
     from gmtiflow.errors import InputFileError  # noqa: E402
     from gmtiflow.scene.dem import read_ascii_grid  # noqa: E402
     from gmtiflow.scene.geojson_roads import load_geojson  # noqa: E402

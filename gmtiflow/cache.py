@@ -44,7 +44,7 @@ from typing import Any, Callable, Iterable, Iterator, List, Optional
 
 from omegaconf import OmegaConf
 
-from formats import atomic_path
+from gmtiflow.formats import atomic_path
 from gmtiflow import __version__
 from gmtiflow.errors import StoreError
 

@@ -22,7 +22,7 @@ from typing import Dict, Optional, Sequence
 
 import numpy as np
 
-import formats
+from gmtiflow import formats
 from gmtiflow import export as export_mod
 from gmtiflow import frames
 from gmtiflow.errors import GmtiflowError, InputFileError

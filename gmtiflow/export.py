@@ -47,7 +47,7 @@ import numpy as np
 import pymap3d
 from omegaconf import OmegaConf
 
-import formats
+from gmtiflow import formats
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError
 from gmtiflow.schema import Problem, non_negative

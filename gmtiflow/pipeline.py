@@ -34,7 +34,7 @@ from typing import Any, Callable, Dict, List, Optional
 import numpy as np
 from tqdm import tqdm
 
-from formats import write_atomic
+from gmtiflow.formats import write_atomic
 from gmtiflow import config as config_mod
 from gmtiflow.cache import StageCache, stage_key
 from gmtiflow.config import AppConfig

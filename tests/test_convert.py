@@ -147,7 +147,7 @@ def test_geojson_round_trip_is_exact(run, tmp_path):
 
 def test_a_foreign_4607_file_without_gmtiflow_free_text(run, tmp_path):
     """Another producer's file: no epoch free text, so time counts from the mission day."""
-    import formats
+    from gmtiflow import formats
     from gmtiflow.export import ExportConfig, load_run, meta_for, to_4607_tables
     r = load_run(run)
     dw, det = to_4607_tables(r)

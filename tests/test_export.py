@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 import pytest
 
-import formats
+from gmtiflow import formats
 from gmtiflow import export, frames, pipeline, store
 from gmtiflow.export import ExportConfig, export_run
 from tests.conftest import compose_app

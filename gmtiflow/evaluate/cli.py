@@ -30,8 +30,8 @@ import h5py
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-import formats
-from formats import write_atomic
+from gmtiflow import formats
+from gmtiflow.formats import write_atomic
 from gmtiflow import frames
 from gmtiflow.errors import GmtiflowError, InputFileError, StoreError
 from gmtiflow.evaluate import evaluate, validate_tracks

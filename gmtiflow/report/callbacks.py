@@ -29,7 +29,7 @@ from typing import Any, Dict
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from formats import write_atomic
+from gmtiflow.formats import write_atomic
 
 log = logging.getLogger(__name__)
 

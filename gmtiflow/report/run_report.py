@@ -22,7 +22,7 @@ import numpy as np
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
-from formats import atomic_path
+from gmtiflow.formats import atomic_path
 from gmtiflow import __version__
 
 from . import figures as F

@@ -36,7 +36,7 @@ import yaml
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
-from formats import atomic_path
+from gmtiflow.formats import atomic_path
 from gmtiflow import __version__
 from gmtiflow.errors import GmtiflowError
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from formats import csvtable, synthetic
-from formats.errors import FormatError
+from gmtiflow.formats import csvtable, synthetic
+from gmtiflow.formats.errors import FormatError
 
 EPOCH = synthetic.EPOCH_UTC
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from formats import stanag4607 as s4607, synthetic
-from formats.errors import FormatError
+from gmtiflow.formats import stanag4607 as s4607, synthetic
+from gmtiflow.formats.errors import FormatError
 
 BA32_Q = 360.0 / 2**32
 SA32_Q = 180.0 / 2**32

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from formats import csvtable, geojson, synthetic, xmldoc
-from formats.errors import FormatError
+from gmtiflow.formats import csvtable, geojson, synthetic, xmldoc
+from gmtiflow.formats.errors import FormatError
 
 META = {"epoch_utc": synthetic.EPOCH_UTC}
 

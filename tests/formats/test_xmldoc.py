@@ -8,8 +8,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 from lxml import etree
 
-from formats import synthetic, xmldoc
-from formats.errors import FormatError
+from gmtiflow.formats import synthetic, xmldoc
+from gmtiflow.formats.errors import FormatError
 
 META = {"epoch_utc": synthetic.EPOCH_UTC}
 

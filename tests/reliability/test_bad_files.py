@@ -7,9 +7,9 @@ import json
 
 import pytest
 
-from formats.csvtable import encode_csv, read_truth_csv
-from formats.errors import FormatError
-from formats import synthetic
+from gmtiflow.formats.csvtable import encode_csv, read_truth_csv
+from gmtiflow.formats.errors import FormatError
+from gmtiflow.formats import synthetic
 from gmtiflow.errors import InputFileError, RoadMapError
 from gmtiflow.scene.dem import read_ascii_grid
 from gmtiflow.scene.geojson_roads import load_geojson
@@ -93,7 +93,7 @@ def test_csv_integer_beyond_64_bits_is_a_format_error():
 
 def test_xml_number_the_schema_admits_but_python_cannot_read_is_a_format_error():
     # libxml2 validates "4e" as xs:double; float("4e") raised ValueError out of read_xml
-    from formats import xmldoc
+    from gmtiflow.formats import xmldoc
     dwells, dets = synthetic.tables(2, 3)
     doc = xmldoc.encode_xml(dwells, dets, {"epoch_utc": synthetic.EPOCH_UTC}).decode()
     key = ' snr_db="'

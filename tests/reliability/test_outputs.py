@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from formats import csvtable, geojson, stanag4607, xmldoc
+from gmtiflow.formats import csvtable, geojson, stanag4607, xmldoc
 from gmtiflow import pipeline, store
 from gmtiflow.compose import compose
 from gmtiflow.errors import RoadMapError, StoreError

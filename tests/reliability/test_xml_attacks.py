@@ -15,8 +15,8 @@ import time
 
 import pytest
 
-from formats import xmldoc
-from formats.errors import FormatError
+from gmtiflow.formats import xmldoc
+from gmtiflow.formats.errors import FormatError
 from gmtiflow import convert, pipeline
 from gmtiflow.compose import compose
 from gmtiflow.errors import GmtiflowError, RoadMapError
