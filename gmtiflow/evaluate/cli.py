@@ -36,6 +36,7 @@ from gmtiflow import frames
 from gmtiflow.errors import GmtiflowError, InputFileError, StoreError
 from gmtiflow.evaluate import evaluate, validate_tracks
 from gmtiflow.evaluate.config import MetricsConfig
+from gmtiflow.paths import refuse_same_file
 from gmtiflow.store import RunWriter, open_run, read_table, read_text
 
 PROG = "gmtiflow-evaluate"
@@ -172,8 +173,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     out = args.output or args.tracks.with_name(
         args.tracks.stem + (".metrics.csv" if as_csv else ".metrics.h5"))
     try:
-        if out.resolve() in (args.tracks.resolve(), args.run.resolve()):
-            raise InputFileError(f"{out}: output would overwrite an input")
+        refuse_same_file(out, [args.tracks, args.run])
         tables = score(args.tracks, args.run, args.include_unconfirmed)
         if not tables:
             raise InputFileError("metrics are disabled")   # pragma: no cover (forced on)
