@@ -2,40 +2,85 @@
 
 The Hydra wrapper only converts the config and calls :func:`gmtiflow.pipeline.run` with the run
 directory Hydra chose; errors a user can cause are printed as one line naming what is wrong and
-exit with status 1, leaving no run file behind.
+exit with status 1, leaving no run file behind.  Ctrl-C prints one line and exits with 130; the
+run directory's ``outputs.json`` then still says ``complete: false``.
+
+The run directory (:mod:`gmtiflow.rundir`) is locked for the run, refused if Hydra's outputs in
+it are symlinks, and Hydra's ``.hydra/*.yaml`` are written only after the previous run's outputs
+are gone (the packaged config sets ``hydra.output_subdir: null``).
 """
 from __future__ import annotations
 
 import logging
 import sys
+from pathlib import Path
+from typing import Dict
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
-from gmtiflow import config, pipeline
+from gmtiflow import config, pipeline, rundir
 from gmtiflow.errors import GmtiflowError
 
 log = logging.getLogger("gmtiflow")
 
 
+def _hydra_files(cfg: DictConfig) -> Dict[str, str]:
+    """What Hydra writes to ``.hydra/`` when ``hydra.output_subdir`` is set (same content)."""
+    hc = HydraConfig.get()
+    return {"config.yaml": OmegaConf.to_yaml(cfg),
+            "hydra.yaml": OmegaConf.to_yaml(HydraConfig.instance().cfg),
+            "overrides.yaml": OmegaConf.to_yaml(hc.overrides.task)}
+
+
+def _run_job(cfg: DictConfig, out_dir: Path) -> None:
+    hc = HydraConfig.get()
+    ours = hc.output_subdir is None    # else Hydra wrote its files itself (user's choice)
+    files = _hydra_files(cfg) if ours else {}
+    with rundir.claim(out_dir):
+        rundir.check_hydra_outputs(out_dir, [f"{hc.job.name}.log"])
+        prepared = []
+
+        def on_prepared() -> None:
+            prepared.append(True)
+            if files:
+                rundir.write_hydra_files(out_dir, files)
+
+        try:
+            app = config.to_object(cfg)
+            pipeline.run(app, out_dir, on_prepared=on_prepared)
+        except GmtiflowError:
+            # A run that failed before touching the directory leaves an earlier run's files and
+            # config together; a fresh directory (a sweep job) gets the config that failed.
+            if files and not prepared and not rundir.holds_earlier_run(out_dir):
+                rundir.write_hydra_files(out_dir, files)
+            raise
+
+
 @hydra.main(version_base="1.3", config_path="pkg://gmtiflow.conf", config_name="config")
 def _hydra_main(cfg: DictConfig) -> None:
-    out_dir = HydraConfig.get().runtime.output_dir
+    out_dir = Path(HydraConfig.get().runtime.output_dir)
     try:
-        app = config.to_object(cfg)
-        pipeline.run(app, out_dir)
+        _run_job(cfg, out_dir)
     except GmtiflowError as exc:
         if HydraConfig.get().mode == RunMode.MULTIRUN:
             raise  # let the launcher record this job as failed
         log.error("%s", exc)    # console (stderr) and the run's log file, once
+        if not logging.getLogger().handlers:    # hydra/job_logging=disabled: still say it
+            print(f"gmtiflow: error: {exc}", file=sys.stderr)
         sys.exit(1)
 
 
 def main() -> None:
     """Console script ``gmtiflow``."""
-    _hydra_main()
+    try:
+        _hydra_main()
+    except KeyboardInterrupt:
+        print("gmtiflow: interrupted; the run directory's outputs.json says complete: false",
+              file=sys.stderr)
+        sys.exit(130)
 
 
 if __name__ == "__main__":

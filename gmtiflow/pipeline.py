@@ -23,8 +23,6 @@ need whole tables; they are kept in memory only when ``tracker.enabled`` or
 """
 from __future__ import annotations
 
-import glob
-import json
 import logging
 import os
 import time
@@ -34,8 +32,8 @@ from typing import Any, Callable, Dict, List, Optional
 import numpy as np
 from tqdm import tqdm
 
-from gmtiflow.formats import write_atomic
 from gmtiflow import config as config_mod
+from gmtiflow import rundir
 from gmtiflow.cache import StageCache, stage_key
 from gmtiflow.config import AppConfig
 from gmtiflow.errors import GmtiflowError
@@ -56,7 +54,7 @@ from gmtiflow.tables import Table, n_rows
 
 log = logging.getLogger(__name__)
 
-RUN_FILE = "run.h5"
+RUN_FILE = rundir.RUN_FILE
 
 
 class Runner:
@@ -210,9 +208,7 @@ def stage_keys(cfg: AppConfig) -> Dict[str, str]:
     return {"scene": k_scene, "truth": k_truth, "platform": k_platform, "sensor": k_sensor}
 
 
-MANIFEST = "outputs.json"
-"""Written first (``complete: false``, the files the run may write) and last (``complete: true``,
-the files it wrote, with sizes); docs/reliability.md, "Re-runs"."""
+MANIFEST = rundir.MANIFEST
 
 
 def planned_names(cfg: AppConfig) -> List[str]:
@@ -225,68 +221,24 @@ def planned_names(cfg: AppConfig) -> List[str]:
     return list(dict.fromkeys(names))
 
 
-def _temporaries(out_dir: Path, name: str) -> List[Path]:
-    """Temporaries a killed writer of ``name`` leaves: RunWriter/report, formats' writers."""
-    return sorted(out_dir.glob(f".{glob.escape(name)}.*.partial*")) + \
-        sorted(out_dir.glob(f"{glob.escape(name)}.*.part"))
-
-
-def _read_manifest(out_dir: Path) -> List[str]:
-    """File names an earlier run's manifest claims (plain names inside ``out_dir`` only)."""
-    path = out_dir / MANIFEST
-    if not path.is_file():
-        return []
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-        names = list(doc.get("planned", [])) + [f.get("name") for f in doc.get("files", [])]
-    except (ValueError, AttributeError, TypeError, OSError) as exc:
-        log.warning("%s: unreadable manifest of an earlier run (%s); ignored", path, exc)
-        return []
-    return [n for n in names if isinstance(n, str) and n and Path(n).name == n
-            and n not in (".", "..")]
-
-
-def _write_manifest(out_dir: Path, doc: dict) -> None:
-    write_atomic(out_dir / MANIFEST, (json.dumps(doc, indent=1) + "\n").encode())
-
-
-def remove_stale_outputs(cfg: AppConfig, out_dir: Path) -> List[Path]:
-    """Delete what an earlier run left in ``out_dir``, so nothing there mixes two runs.
-
-    Hydra rewrites ``.hydra/config.yaml`` at the start of every run into a directory; an old
-    ``run.h5`` or old exports kept beside it would look like the output of the new config
-    (a re-run with ``export=none``, or one that fails or is killed before it commits).  Removed:
-    ``run.h5``, the files the earlier run's manifest lists, and writers' temporaries.  Files of
-    other names, and files no gmtiflow manifest claims (a first run into a user's folder), stay.
-    """
-    claimed = _read_manifest(out_dir)
-    paths = [out_dir / n for n in dict.fromkeys([RUN_FILE, *claimed])]
-    for name in dict.fromkeys([*planned_names(cfg), *claimed]):
-        paths += _temporaries(out_dir, name)
-    paths.append(out_dir / MANIFEST)
-    removed = []
-    for path in dict.fromkeys(paths):
-        if path.is_file() or path.is_symlink():
-            path.unlink()
-            removed.append(path)
-    if len(removed) > 1 or (removed and removed[0].name != MANIFEST):
-        log.info("removed %d output(s) of an earlier run in %s: %s", len(removed), out_dir,
-                 ", ".join(p.name for p in removed))
-    return removed
-
-
-def run(cfg: AppConfig, out_dir) -> Path:
+def run(cfg: AppConfig, out_dir, *, on_prepared: Optional[Callable[[], None]] = None) -> Path:
     """Simulate the scene of ``cfg`` and write ``<out_dir>/run.h5``; returns its path.
 
-    Outputs an earlier run left in ``out_dir`` are removed first (:func:`remove_stale_outputs`).
+    The run directory is locked for the run and outputs an earlier run left there are removed
+    first (:mod:`gmtiflow.rundir`); ``on_prepared`` is called after that, before any work (the
+    CLI writes Hydra's config files there).
     """
     config_mod.validate(cfg)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    remove_stale_outputs(cfg, out_dir)
+    with rundir.claim(out_dir):
+        rundir.prepare(out_dir, planned_names(cfg), cfg.seed)
+        if on_prepared is not None:
+            on_prepared()
+        return _run(cfg, out_dir)
+
+
+def _run(cfg: AppConfig, out_dir: Path) -> Path:
     planned = planned_names(cfg)
-    _write_manifest(out_dir, {"complete": False, "seed": cfg.seed, "planned": planned,
-                              "files": []})
     log.info("run pid=%d seed=%d -> %s", os.getpid(), cfg.seed, out_dir)
     runner = Runner()
     scene, fidelity = cfg.scene, cfg.fidelity
@@ -398,7 +350,7 @@ def run(cfg: AppConfig, out_dir) -> Path:
         except GmtiflowError as exc:   # the run file is complete and valid; say so and go on
             log.error("report not written: %s", exc)
     written = [n for n in planned if (out_dir / n).is_file()]
-    _write_manifest(out_dir, {"complete": True, "seed": cfg.seed, "planned": planned,
-                              "files": [{"name": n, "bytes": (out_dir / n).stat().st_size}
-                                        for n in written]})
+    rundir.write_manifest(out_dir, {"complete": True, "seed": cfg.seed, "planned": planned,
+                                    "files": [{"name": n, "bytes": (out_dir / n).stat().st_size}
+                                              for n in written]})
     return path
