@@ -67,10 +67,20 @@ def _hydra_main(cfg: DictConfig) -> None:
     except GmtiflowError as exc:
         if HydraConfig.get().mode == RunMode.MULTIRUN:
             raise  # let the launcher record this job as failed
-        log.error("%s", exc)    # console (stderr) and the run's log file, once
-        if not logging.getLogger().handlers:    # hydra/job_logging=disabled: still say it
-            print(f"gmtiflow: error: {exc}", file=sys.stderr)
+        _say(f"{exc}")
         sys.exit(1)
+    except MemoryError:     # a backstop: gmtiflow.budget refuses what it can foresee
+        _say("out of memory; reduce scene.duration_s, vehicles.random.count, "
+             "fidelity.time_step_s or fidelity.truth_output_dt_s, or set tracker=none "
+             "metrics.enabled=false")
+        sys.exit(1)
+
+
+def _say(message: str) -> None:
+    """One error line on the console and in the run's log (or on stderr without logging)."""
+    log.error("%s", message)
+    if not logging.getLogger().handlers:    # hydra/job_logging=disabled: still say it
+        print(f"gmtiflow: error: {message}", file=sys.stderr)
 
 
 def main() -> None:

@@ -10,8 +10,9 @@ check, raising one :class:`~gmtiflow.errors.ConfigError` that names each full ke
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timezone
 from enum import Enum
 from typing import List
 
@@ -50,6 +51,17 @@ class SceneConfig:
         if parsed.utcoffset() is None:
             out.append(Problem("epoch_utc", f"must carry a time zone (Z for UTC), got "
                                             f"{self.epoch_utc!r}"))
+            return out
+        # Exports write dates with 4-digit years: the whole scene must end within year 9999.
+        last = datetime(9999, 12, 31, 23, 59, 59, tzinfo=timezone.utc)
+        first = datetime(1970, 1, 1, tzinfo=timezone.utc)
+        if parsed < first:
+            out.append(Problem("epoch_utc", f"must be 1970-01-01 or later, got "
+                                            f"{self.epoch_utc!r}"))
+        elif not out and (last - parsed).total_seconds() < self.duration_s:
+            out.append(Problem("epoch_utc", f"the scene ({self.duration_s:g} s from "
+                                            f"{self.epoch_utc}) must end by "
+                                            f"9999-12-31T23:59:59Z"))
         return out
 
 
@@ -159,10 +171,37 @@ def problems_of(obj, prefix: str = "") -> List[Problem]:
     return out
 
 
+MAX_MAGNITUDE = 1e12
+"""No numeric setting may exceed this in magnitude in its own unit (1e12 m, s, Hz, W ...):
+such values are typos, and their products overflow float64 deep in the physics.  ``seed`` is
+the one exception (any integer in [0, 2^63))."""
+
+_MAGNITUDE_EXEMPT = {"seed"}
+
+
+def magnitude_problems(obj, prefix: str = "") -> List[Problem]:
+    """A Problem for every numeric leaf of the tree beyond ±:data:`MAX_MAGNITUDE`."""
+    out: List[Problem] = []
+    if dataclasses.is_dataclass(obj):
+        for f in dataclasses.fields(obj):
+            out += magnitude_problems(getattr(obj, f.name), f"{prefix}{f.name}.")
+    elif isinstance(obj, (list, tuple)):
+        for i, item in enumerate(obj):
+            out += magnitude_problems(item, f"{prefix[:-1]}[{i}].")
+    elif isinstance(obj, dict):
+        for key, item in obj.items():
+            out += magnitude_problems(item, f"{prefix}{key}.")
+    elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
+        key = prefix[:-1]
+        if key not in _MAGNITUDE_EXEMPT and math.isfinite(obj) and abs(obj) > MAX_MAGNITUDE:
+            out.append(Problem(key, f"must be within ±{MAX_MAGNITUDE:g}, got {obj!r}"))
+    return out
+
+
 def validate(obj: AppConfig) -> None:
     """Raise one ConfigError listing every invalid value by its full key path."""
     # A group's problems() may already report its nested items; list each problem once.
-    found = list(dict.fromkeys(problems_of(obj)))
+    found = list(dict.fromkeys(problems_of(obj) + magnitude_problems(obj)))
     if found:
         lines = [f"{p.key}: {p.message}" for p in found]
         raise ConfigError("invalid config: " + "; ".join(lines))

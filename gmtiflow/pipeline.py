@@ -33,7 +33,7 @@ import numpy as np
 from tqdm import tqdm
 
 from gmtiflow import config as config_mod
-from gmtiflow import rundir
+from gmtiflow import budget, rundir
 from gmtiflow.cache import StageCache, stage_key
 from gmtiflow.config import AppConfig
 from gmtiflow.errors import GmtiflowError
@@ -229,6 +229,7 @@ def run(cfg: AppConfig, out_dir, *, on_prepared: Optional[Callable[[], None]] = 
     CLI writes Hydra's config files there).
     """
     config_mod.validate(cfg)
+    budget.check(cfg)                  # refuse what cannot fit before touching the directory
     out_dir = Path(out_dir)
     with rundir.claim(out_dir):
         rundir.prepare(out_dir, planned_names(cfg), cfg.seed)

@@ -141,7 +141,7 @@ class ClutterRegionConfig:
             out.append(Problem("name", "must be a non-empty string (it names the region's random stream)"))
         elif self.name == FOV_STREAM:
             out.append(Problem("name", f"{FOV_STREAM!r} is reserved for the FoV-wide false alarms"))
-        out += schema.non_negative(self, "density_per_km2")
+        out += schema.in_range(self, "density_per_km2", 0.0, MAX_DENSITY_PER_KM2)
         if self.shape not in SHAPES:
             out.append(Problem("shape", f"must be one of {list(SHAPES)}, got {self.shape!r}"))
         elif self.shape in ("circle", "ring"):
@@ -201,6 +201,11 @@ def _default_fov_range_rate() -> RangeRateConfig:
     return RangeRateConfig(kind="uniform", mean_mps=0.0, sigma_mps=0.0, half_width_mps=30.0)
 
 
+MAX_DENSITY_PER_KM2 = 1e4
+"""One false alarm per 100 m² per dwell is already far beyond any radar's clutter: the cap
+bounds the Poisson draws (issue 17, item 11)."""
+
+
 @dataclass
 class ClutterConfig:
     """False-alarm configuration (config group ``clutter``).
@@ -217,7 +222,7 @@ class ClutterConfig:
     regions: List[ClutterRegionConfig] = field(default_factory=list)
 
     def problems(self) -> List[Problem]:
-        out = schema.non_negative(self, "fov_density_per_km2")
+        out = schema.in_range(self, "fov_density_per_km2", 0.0, MAX_DENSITY_PER_KM2)
         out += schema.prefixed("fov_range_rate", self.fov_range_rate.problems())
         out += schema.prefixed("snr", self.snr.problems())
         seen = {}
