@@ -69,6 +69,11 @@ def _hydra_main(cfg: DictConfig) -> None:
             raise  # let the launcher record this job as failed
         _say(f"{exc}")
         sys.exit(1)
+    except OSError as exc:  # a full disk or an unwritable output: one line
+        if HydraConfig.get().mode == RunMode.MULTIRUN:
+            raise
+        _say(f"{exc.filename or out_dir}: {exc.strerror or exc}")
+        sys.exit(1)
     except MemoryError:     # a backstop: gmtiflow.budget refuses what it can foresee
         _say("out of memory; reduce scene.duration_s, vehicles.random.count, "
              "fidelity.time_step_s or fidelity.truth_output_dt_s, or set tracker=none "

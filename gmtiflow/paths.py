@@ -58,13 +58,13 @@ def check_input_file(path: os.PathLike, what: str, max_bytes: int,
     return st.st_size
 
 
-_SAFE_TOKEN = re.compile(r"^[A-Za-z0-9_.+\- ]{1,24}$")
+_SAFE_TOKEN = re.compile(r"^[A-Za-z0-9_.,+\- ]{1,24}$")
 
 
 def excerpt(text: str) -> str:
     """A short quoted excerpt of file content for an error message, or ``(not shown)``.
 
-    Only a short token of letters, digits and ``_.+-`` (plausibly the user's own header key
+    Only a short token of letters, digits, spaces and ``_.,+-`` (plausibly the user's own header key
     or number) is echoed; anything else (a line of ``/etc/shadow``, control characters,
     long lines) is not, so an error never leaks a file's content into a log.
     """

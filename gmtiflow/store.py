@@ -87,17 +87,36 @@ def _as_storable(col: np.ndarray) -> np.ndarray:
     return col
 
 
+MIN_FREE_BYTES = 16 * 2**20
+"""Free space the run file's disk must keep beyond each block written (HDF5 metadata, close)."""
+
+
+def free_bytes(directory: os.PathLike) -> Optional[int]:
+    """Bytes available to this user on the file system of ``directory`` (None if unknown)."""
+    try:
+        st = os.statvfs(directory)
+    except (OSError, AttributeError):
+        return None
+    return int(st.f_bavail) * int(st.f_frsize)
+
+
 class RunWriter:
     """Writes a run file atomically: ``with RunWriter(path) as w: ...; w.commit()``.
 
     Leaving the ``with`` block without :meth:`commit` (an exception, an early return) deletes the
     temporary file; nothing appears at ``path``.
+
+    A full disk: HDF5 buffers its writes and, on ``ENOSPC``, prints errors from object
+    destructors and can crash the process.  So before each block the writer checks that the
+    disk keeps :data:`MIN_FREE_BYTES` beyond twice the block, and otherwise raises StoreError
+    (the temporary is deleted; one clear message instead of a segfault).
     """
 
     def __init__(self, path: os.PathLike, *, seed: int, attrs: Optional[Mapping] = None):
         self.path = Path(path)
         self.tmp_path = self.path.with_name(f".{self.path.name}.{os.getpid()}.partial")
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._check_space(0)
         self._file = h5py.File(self.tmp_path, "w", track_order=True)
         root = self._file.attrs
         root["layout_version"] = LAYOUT_VERSION
@@ -110,6 +129,14 @@ class RunWriter:
 
     def __enter__(self) -> "RunWriter":
         return self
+
+    def _check_space(self, n_bytes: int) -> None:
+        free = free_bytes(self.path.parent)
+        if free is not None and free < MIN_FREE_BYTES + 2 * n_bytes:
+            raise StoreError(f"{self.path}: the disk is full ({human_bytes(free)} free in "
+                             f"{self.path.parent}; writing the run file needs at least "
+                             f"{human_bytes(MIN_FREE_BYTES + 2 * n_bytes)}); free space or "
+                             f"choose another run directory")
 
     def __exit__(self, exc_type, exc, tb) -> None:
         if not self._committed:
@@ -128,6 +155,7 @@ class RunWriter:
         size rather than the size of this first block.
         """
         n_rows(table)
+        self._check_space(sum(np.asarray(v).nbytes for v in table.values()))
         group = self._file.require_group(name)
         for column, values in table.items():
             data = _as_storable(values)
@@ -156,6 +184,7 @@ class RunWriter:
             raise ValueError(f"append to /{name}: columns {sorted(table)} differ from "
                              f"{sorted(group.keys())}")
         rows = n_rows(table)
+        self._check_space(sum(np.asarray(v).nbytes for v in table.values()))
         for column, values in table.items():
             ds = group[column]
             old = ds.shape[0]
@@ -164,6 +193,7 @@ class RunWriter:
 
     def commit(self) -> Path:
         """Mark the file complete, close it and rename it into place."""
+        self._check_space(0)
         self._file.attrs["complete"] = True
         self._file.close()
         os.replace(self.tmp_path, self.path)
