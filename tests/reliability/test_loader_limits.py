@@ -197,3 +197,14 @@ def test_epoch_whose_scene_leaves_years_1970_9999_is_refused(epoch):
 
 def test_epoch_late_in_9999_with_a_short_scene_is_accepted():
     config.validate(compose(["scene.duration_s=60", "scene.epoch_utc=9999-12-31T23:00:00Z"]))
+
+
+# ---- gmtiflow-convert: an empty file --------------------------------------------------------
+@pytest.mark.parametrize("suffix", [".4607", ".xml", ".csv", ".geojson"])
+def test_empty_file_does_not_convert_to_an_empty_run(tmp_path, capsys, suffix):
+    from gmtiflow import convert
+    src = tmp_path / f"empty{suffix}"
+    src.write_bytes(b"")
+    code = convert.main([str(src), "--to", "h5", "-o", str(tmp_path / "out.h5")])
+    assert code == 1 and "empty file" in capsys.readouterr().err
+    assert not (tmp_path / "out.h5").exists()
