@@ -151,7 +151,7 @@ class RunTables:
 def load_run(run_path) -> RunTables:
     """Read the tables the exports use from a complete run file (StoreError if it is not one)."""
     run_path = Path(run_path)
-    with open_run(run_path) as f:
+    with open_run(run_path, require_columns=True) as f:
         attrs = read_attrs(f)
         tables = {name: read_table(f, name)
                   for name in ("dwells", "detections", "truth", "tracks", "platform",

@@ -53,7 +53,10 @@ TEXT_COLUMNS = {"roads/nodes": {"name"}, "roads/edges": {"road_class"},
                 "vehicles": {"name", "vehicle_type"}, "metrics": {"name", "unit"},
                 "metrics/events": {"kind"}}
 """The string columns gmtiflow writes into its known tables; any other column of these tables,
-and any column with a unit or an ``_id`` in any table, must be numeric or boolean."""
+and any column with a unit suffix in any table, must be numeric or boolean."""
+
+_KNOWN_TABLES = {"dwells", "detections", "looks", "tracks", "truth", "platform", "vehicles",
+                 "roads/nodes", "roads/edges", "detection_ancestors", "metrics/events"}
 
 _PLATFORM_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "lat_deg",
                      "lon_deg", "height_m", "heading_rad")
@@ -208,8 +211,13 @@ class RunWriter:
             self.tmp_path.unlink(missing_ok=True)
 
 
-def open_run(path: os.PathLike) -> h5py.File:
-    """Open a complete run file of this layout version for reading, or raise StoreError."""
+def open_run(path: os.PathLike, *, require_columns: bool = False) -> h5py.File:
+    """Open a complete run file of this layout version for reading, or raise StoreError.
+
+    ``require_columns``: the caller reads the simulator's tables (export, report, evaluate):
+    in a simulation run (``seed >= 0``; conversions have -1) every table gmtiflow writes must
+    hold the columns its writer defines (:func:`check_columns`).
+    """
     path = Path(path)
     if not path.is_file():
         raise StoreError(f"{path}: no such run file")
@@ -235,11 +243,12 @@ def open_run(path: os.PathLike) -> h5py.File:
         f.close()
         raise StoreError(f"{path}: the run is incomplete (it was interrupted while writing)")
     try:
-        check_structure(f, path)
+        layout = require_columns and int(_scalar(f.attrs.get("seed", -1))) >= 0
+        check_structure(f, path, layout=layout)
         check_attrs(f, path)
         if "config" in f:
             read_text(f, "config")
-        if int(_scalar(f.attrs.get("seed", -1))) >= 0:     # a simulation run, not a conversion
+        if layout:
             check_columns(f, path)
     except StoreError:
         f.close()
@@ -250,13 +259,16 @@ def open_run(path: os.PathLike) -> h5py.File:
     return f
 
 
-def check_structure(f: h5py.File, path) -> None:
+def check_structure(f: h5py.File, path, *, layout: bool = False) -> None:
     """StoreError unless every object of ``f`` is a group or a sane 1-D dataset inside it.
 
     Refused: external links (they open other files), soft links, virtual datasets, datasets
     with external raw storage, datasets of more than one dimension (the scalar ``/config``
     aside), columns that claim more bytes than :data:`MAX_EXPANSION` times what they store,
     and a table bigger than this machine's memory (a run file that cannot be read whole).
+    A text column whose name has a unit suffix is refused; with ``layout`` (a simulation run
+    read by a consumer of its tables) so is any text column of a known table but its
+    :data:`TEXT_COLUMNS`.
     """
     memory = available_memory_bytes()
     count = 0
@@ -280,10 +292,10 @@ def check_structure(f: h5py.File, path) -> None:
             if isinstance(obj, h5py.Group):
                 stack.append((where, obj))
             elif isinstance(obj, h5py.Dataset):
-                _check_dataset(obj, where, path, memory)
+                _check_dataset(obj, where, path, memory, layout)
 
 
-def _check_dataset(ds: h5py.Dataset, where: str, path, memory: int) -> None:
+def _check_dataset(ds: h5py.Dataset, where: str, path, memory: int, layout: bool) -> None:
     if ds.is_virtual:
         raise StoreError(f"{path}: {where} is a virtual dataset (it maps other files); "
                          f"refused")
@@ -307,9 +319,10 @@ def _check_dataset(ds: h5py.Dataset, where: str, path, memory: int) -> None:
                          f"({human_bytes(memory)}; GMTIFLOW_MEMORY_BYTES)")
     table, _, column = where[1:].rpartition("/")
     is_text = h5py.check_string_dtype(ds.dtype) is not None or ds.dtype.kind in "SUO"
-    if is_text:
-        numeric = bool(unit_of(column)) or column.endswith("_id") or \
-            (table in TEXT_COLUMNS and column not in TEXT_COLUMNS[table])
+    if is_text:    # known tables: only their text columns; any table: no text with a unit
+        known = layout and (table in TEXT_COLUMNS or table in _KNOWN_TABLES)
+        numeric = bool(unit_of(column)) or \
+            (known and column not in TEXT_COLUMNS.get(table, ()))
         if numeric:
             raise StoreError(f"{path}: column {where} holds text; gmtiflow stores numbers "
                              f"there")
@@ -374,7 +387,9 @@ def check_attrs(f: h5py.File, path) -> None:
                     v = None
             if not isinstance(v, str) or len(v) > 10_000:
                 raise StoreError(f"{path}: root attribute {key} must be a text value")
-            if key == "scene_epoch_utc" and v and not _ISO_UTC.match(v.strip()):
+            simulated = isinstance(_scalar(attrs.get("seed", -1)), int) and \
+                _scalar(attrs.get("seed", -1)) >= 0
+            if key == "scene_epoch_utc" and simulated and v and not _ISO_UTC.match(v.strip()):
                 raise StoreError(f"{path}: root attribute scene_epoch_utc is not an ISO 8601 "
                                  f"UTC time (YYYY-MM-DDTHH:MM:SSZ)")
 

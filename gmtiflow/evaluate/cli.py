@@ -118,7 +118,7 @@ def metrics_config(run_file: h5py.File, include_unconfirmed: bool = False) -> Me
 def score(tracks_path: Path, run_path: Path, include_unconfirmed: bool = False) -> dict:
     """Metrics tables of the tracks in ``tracks_path`` against the run ``run_path``."""
     raw = read_tracks(tracks_path)
-    with open_run(run_path) as f:
+    with open_run(run_path, require_columns=True) as f:
         attrs = f.attrs
         if "origin_lat_deg" in attrs:
             origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),

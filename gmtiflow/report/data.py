@@ -60,7 +60,7 @@ def load_run(run_path, tables: Iterable[str] = TABLES) -> RunData:
     otherwise)."""
     path = Path(run_path)
     names = tuple(tables)
-    with open_run(path) as f:
+    with open_run(path, require_columns=True) as f:
         attrs = read_attrs(f)
         try:
             config = yaml.safe_load(read_text(f, "config")) if "config" in f else {}
