@@ -242,8 +242,8 @@ def to_4607_tables(run: RunTables):
                                             np.cos(dw["platform_heading_rad"]), 0.0)
         dw = dict(dw, platform_vx_mps=ve, platform_vy_mps=vn, platform_vz_mps=vu,
                   platform_heading_rad=frames.heading_rad(he, hn))
-    if len(det.get("det_id", ())) and "range_rate_mps" in det:
-        det["range_rate_mps"] = det["range_rate_mps"] - ground_range_rate_scene(
+    if len(det.get("det_id", ())) and "range_rate_mps" in det and "los_velocity_mps" not in det:
+        det["los_velocity_mps"] = det["range_rate_mps"] - ground_range_rate_scene(
             run.tables["dwells"], det)
     # Columns 4607 has no field for are not needed by the writer (it ignores them).
     return dw, det
@@ -262,8 +262,7 @@ def from_4607_tables(tables: dict, origin: Optional[frames.Origin] = None) -> di
     dw = dict(out["dwells"])
     det = dict(out["detections"])
     if len(det.get("det_id", ())):
-        los = np.asarray(det["range_rate_mps"], float)
-        det["los_velocity_mps"] = los
+        los = np.asarray(det["los_velocity_mps"], float)
         det["range_rate_mps"] = los + ground_range_rate_geodetic(dw, det)
     if origin is not None:
         h = np.asarray(det.get("height_m", np.zeros(len(det["det_id"]))), float)

@@ -57,8 +57,11 @@ def by(table, *keys):
 def assert_close(a, b, quanta, what, nan_as_zero=()):
     for col, tol in quanta.items():
         x, y = np.asarray(a[col], float), np.asarray(b[col], float)
-        if col in nan_as_zero:            # 4607 has no per-report "absent": NaN is sent as 0
-            x = np.where(np.isnan(x), 0.0, x)
+        if col in nan_as_zero:
+            # 4607's "absent" is per dwell (the existence mask): a dwell where no report has the
+            # value leaves the field out and it reads back as NaN; a report without it in a
+            # dwell where others have it is sent as 0
+            x = np.where(np.isnan(x) & ~np.isnan(y), 0.0, x)
         assert x.shape == y.shape, (what, col)
         err = np.abs(x - y)
         assert np.array_equal(np.isnan(x), np.isnan(y)), (what, col)
