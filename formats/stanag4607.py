@@ -541,8 +541,8 @@ def decode_4607(data: bytes, name=None, *, epoch_utc: str | None = None,
     npk = len(fr.packet_offset)
     hdr = np.frombuffer(gather(buf, fr.packet_offset, 32).tobytes(), PACKET_HEADER)
     packets = {
-        "offset": fr.packet_offset, "version": np.char.decode(hdr["version"], "ascii")
-        if npk else np.zeros(0, str), "size": fr.packet_size,
+        "offset": fr.packet_offset, "version": dec_text_array(hdr["version"]),
+        "size": fr.packet_size,
         "nationality": dec_text_array(hdr["nationality"]),
         "classification": hdr["classification"].astype(np.uint8),
         "classification_system": dec_text_array(hdr["class_system"]),

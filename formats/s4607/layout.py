@@ -133,6 +133,8 @@ def dec_text_array(a: np.ndarray) -> np.ndarray:
     """:func:`dec_text` of every element of a fixed-width bytes array (decoded once per value)."""
     if len(a) == 0:
         return np.zeros(0, dtype=str)
+    if np.all(a == a[0]):                     # the usual case: one platform, one mission
+        return np.full(len(a), dec_text(bytes(a[0])))
     uniq, inv = np.unique(a, return_inverse=True)
     text = np.array([dec_text(bytes(u).ljust(a.dtype.itemsize, b"\x00")) for u in uniq],
                     dtype=str)

@@ -176,64 +176,69 @@ class Framing:
 
 
 _U32 = struct.Struct(">I")
-_SEG = struct.Struct(">BI")
 
 
 def frame(data: bytes, name=None, *, max_packet_size: int | None = None) -> Framing:
     """Find every packet and segment boundary of ``data`` in one linear pass.
 
     Checks what :func:`iter_packets` checks (version id, P2 range, S2 fit, fixed segment sizes,
-    truncation) and raises the same FormatErrors naming the byte offset.
+    truncation) and raises the same FormatErrors naming the byte offset.  The Python loop does
+    only what is sequential (following P2 and S2); types, sizes and the checks that need no
+    order are read vectorised afterwards.
     """
     n = len(data)
     limit = max_packet_size if max_packet_size is not None else 2**32 - 1
-    p_off, p_size = [], []
-    s_off, s_type, s_size, s_pkt = [], [], [], []
-    u32, seg = _U32.unpack_from, _SEG.unpack_from
-    fixed_sizes = {k: v + 5 for k, v in FIXED_BODY_SIZES.items()}
+    p_off: list = []
+    s_off: list = []
+    p_append, s_append = p_off.append, s_off.append
+    u32 = _U32.unpack_from
     pos = 0
-    k = 0
     while pos < n:
         if n - pos < 32:
             raise FormatError(f"{where(name)}truncated packet header at byte offset {pos}: "
                               f"expected 32 bytes, the file holds {n - pos}")
         size = u32(data, pos + 2)[0]
-        if size < 32 or size > limit:
+        end = pos + size
+        if size < 32 or size > limit or end > n:
             _check_version(data[pos:pos + 2], data[pos:pos + 32], pos, name)
+            if end > n and 32 <= size <= limit:
+                raise FormatError(f"{where(name)}truncated packet body at byte offset {pos + 32}: "
+                                  f"expected {size - 32} bytes, the file holds {n - pos - 32}")
             raise FormatError(f"{where(name)}byte offset {pos + 2}: P2 packet size {size} "
                               f"outside 32..{max_packet_size or 2**32 - 1}")
-        end = pos + size
-        if end > n:
-            _check_version(data[pos:pos + 2], data[pos:pos + 32], pos, name)
-            raise FormatError(f"{where(name)}truncated packet body at byte offset {pos + 32}: "
-                              f"expected {size - 32} bytes, the file holds {n - pos - 32}")
-        p_off.append(pos)
-        p_size.append(size)
+        p_append(pos)
         s = pos + 32
         while s < end:
-            left = end - s
-            if left < 5:
-                raise _segment_error(name, s, 0, 0, left)
-            stype, ssize = seg(data, s)
-            if ssize < 5 or ssize > left or fixed_sizes.get(stype, ssize) != ssize:
-                raise _segment_error(name, s, stype, ssize, left)
-            s_off.append(s)
-            s_type.append(stype)
-            s_size.append(ssize)
-            s_pkt.append(k)
+            if end - s < 5:
+                raise _segment_error(name, s, 0, 0, end - s)
+            ssize = u32(data, s + 1)[0]
+            if ssize < 5 or ssize > end - s:
+                raise _segment_error(name, s, data[s], ssize, end - s)
+            s_append(s)
             s += ssize
         pos = end
-        k += 1
-    as_i8 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
-    fr = Framing(as_i8(p_off), as_i8(p_size), as_i8(s_off), as_i8(s_type), as_i8(s_size),
-                 as_i8(s_pkt))
-    if k:   # version ids, vectorised: the first bad one is reported like iter_packets does
-        buf = np.frombuffer(data, np.uint8)
-        v = buf[fr.packet_offset[:, None] + np.arange(2)]
+    buf = np.frombuffer(data, np.uint8)
+    po = np.array(p_off, dtype=np.int64)
+    so = np.array(s_off, dtype=np.int64)
+    psize = gather(buf, po + 2, 4).view(">u4").astype(np.int64)
+    stype = buf[so].astype(np.int64) if len(so) else np.zeros(0, np.int64)
+    ssize = gather(buf, so + 1, 4).view(">u4").astype(np.int64)
+    spkt = np.searchsorted(po, so, side="right") - 1
+    fr = Framing(po, psize, so, stype, ssize, spkt)
+    if len(po):   # version ids: the first bad one is reported like iter_packets does
+        v = gather(buf, po, 2).reshape(-1, 2)
         bad = np.flatnonzero(~np.all((v >= 0x30) & (v <= 0x39), axis=1))
         if len(bad):
-            o = int(fr.packet_offset[bad[0]])
+            o = int(po[bad[0]])
             _check_version(data[o:o + 2], data[o:o + 32], o, name)
+    fixed = np.full(256, -1, np.int64)
+    for t, body in FIXED_BODY_SIZES.items():
+        fixed[t] = body + 5
+    bad = np.flatnonzero((fixed[stype] >= 0) & (fixed[stype] != ssize))
+    if len(bad):
+        i = bad[0]
+        left = int(po[spkt[i]] + psize[spkt[i]] - so[i])
+        raise _segment_error(name, int(so[i]), int(stype[i]), int(ssize[i]), left)
     return fr
 
 
@@ -241,7 +246,8 @@ def gather(buf: np.ndarray, starts: np.ndarray, length: int) -> np.ndarray:
     """Fixed-length records at ``starts`` of a uint8 buffer, as one contiguous uint8 array."""
     if len(starts) == 0 or length == 0:
         return np.zeros(0, np.uint8)
-    return buf[np.asarray(starts, np.int64)[:, None] + np.arange(length)].reshape(-1)
+    window = np.lib.stride_tricks.sliding_window_view(buf, length)
+    return window[np.asarray(starts, np.int64)].reshape(-1)
 
 
 def gather_var(buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:

@@ -74,10 +74,10 @@ def target(i):
             18: -13 + i}
 
 
-def fixture_file(mask):
+def fixture_file(mask, text=b"hello analyst"):
     """Mission + Free Text, Job Definition, four revisit dwells (one empty, one split over two
     packets), like the AFRL sample's stream."""
-    out = [packet([mission(), free_text()]), packet([job()])]
+    out = [packet([mission(), free_text(text)]), packet([job()])]
     for d in range(4):
         v = {**DWELL_VALUES, 3: d, 4: int(d == 3), 6: 1_000_000 + 3500 * d}
         if d == 1:
