@@ -565,23 +565,29 @@ def decode_4607(data: bytes, name=None, *, epoch_utc: str | None = None,
     # Missions and the reference day in force at every segment
     mi = of_type(MISSION)
     mt = decode_missions(gather(buf, so[mi] + 5, MISSION_BODY.itemsize))
-    ref_days = np.zeros(len(mi), np.int64)
-    ref_dates = []
-    for r in range(len(mi)):
-        y, mo, d = int(mt["year"][r]), int(mt["month"][r]), int(mt["day"][r])
+    ymd = mt["year"] * 10000 + mt["month"] * 100 + mt["day"]
+    uniq, first, inv = np.unique(ymd, return_index=True, return_inverse=True)
+    u_days = np.zeros(len(uniq), np.int64)
+    u_text = []
+    for u, (r, v) in enumerate(zip(first.tolist(), uniq.tolist())):
+        y, mo, d = v // 10000, v // 100 % 100, v % 100
         try:
             ref = date(y, mo, d)
         except ValueError as exc:
-            raise FormatError(f"{where(name)}byte offset {int(so[mi[r]]) + 5 + 36}: mission "
+            bad = int(np.flatnonzero(ymd == v)[0])
+            raise FormatError(f"{where(name)}byte offset {int(so[mi[bad]]) + 5 + 36}: mission "
                               f"reference date {y}-{mo}-{d} is not a date ({exc})") from None
-        ref_days[r] = (ref - date(1970, 1, 1)).days
-        ref_dates.append(ref.isoformat())
+        u_days[u] = (ref - date(1970, 1, 1)).days
+        u_text.append(ref.isoformat())
+    inv = inv.reshape(-1)
+    ref_days = u_days[inv] if len(mi) else np.zeros(0, np.int64)
+    ref_dates = np.array(u_text, dtype=str)[inv] if len(mi) else np.zeros(0, dtype=str)
     k = np.searchsorted(mi, np.arange(nseg), side="right") - 1
     seg_ref = np.where(k >= 0, ref_days[np.maximum(k, 0)] if len(mi) else -1, -1)
     missions = {"packet": sp[mi], "mission_plan": mt["mission_plan"],
                 "flight_plan": mt["flight_plan"], "platform_type": mt["platform_type"],
                 "platform_configuration": mt["platform_configuration"],
-                "reference_date": np.array(ref_dates, dtype=str)}
+                "reference_date": ref_dates}
 
     # Free texts (the epoch text)
     fi = of_type(FREE_TEXT)
