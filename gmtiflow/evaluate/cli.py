@@ -39,7 +39,7 @@ from gmtiflow.errors import GmtiflowError, InputFileError, StoreError
 from gmtiflow.evaluate import evaluate, validate_tracks
 from gmtiflow.evaluate.config import MetricsConfig
 from gmtiflow.evaluate.external import check_times, read_track_csv
-from gmtiflow.store import RunWriter, open_run, read_table, read_text
+from gmtiflow.store import RunWriter, open_run, read_attrs, read_table, read_text
 
 PROG = "gmtiflow-evaluate"
 
@@ -121,7 +121,7 @@ def metrics_config(run_file: h5py.File, include_unconfirmed: bool = False) -> Me
 def score(tracks_path: Path, run_path: Path, include_unconfirmed: bool = False) -> dict:
     """Metrics tables of the tracks in ``tracks_path`` against the run ``run_path``."""
     with open_run(run_path) as f:
-        attrs = f.attrs
+        attrs = read_attrs(f)           # a damaged file: StoreError naming it
         if "origin_lat_deg" in attrs:
             origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
                                    float(attrs.get("origin_height_m", 0.0)))
@@ -137,9 +137,11 @@ def score(tracks_path: Path, run_path: Path, include_unconfirmed: bool = False) 
         looks = read_table(f, "looks") if "looks" in f else None
         vehicles = read_table(f, "vehicles") if "vehicles" in f else None
         platform = read_table(f, "platform") if "platform" in f else None
-        last_dwell_s = None
-        if "dwells" in f and "time_s" in f["dwells"] and f["dwells"]["time_s"].shape[0]:
-            last_dwell_s = float(np.max(f["dwells"]["time_s"][()]))
+        last_dwell_s = None          # scored up to the last dwell (docs/evaluation.md)
+        if "dwells" in f:
+            dwell_t = read_table(f, "dwells").get("time_s")
+            if dwell_t is not None and len(dwell_t):
+                last_dwell_s = float(np.max(dwell_t))
     tt = np.asarray(truth["time_s"], float)
     if len(tt):
         check_times(tracks, float(tt.min()), float(tt.max()), epoch, str(tracks_path))
