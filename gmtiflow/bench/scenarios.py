@@ -26,3 +26,16 @@ def shipped() -> List[str]:
 def override(name: str) -> str:
     """The ``experiment=`` value of a scenario name."""
     return f"{GROUP}/{name}"
+
+#: One line per scenario: the challenge it isolates (report pages, docs/benchmark.md).
+CHALLENGE_TEXT = {
+    "crossing": "two trucks cross at an X junction; merged plots around the crossing (identity)",
+    "overtake": "a faster truck overtakes a slower one; ambiguous, then merged, then split plots",
+    "convoy": "five trucks 15 m apart; fewer, merged plots that change from dwell to dwell",
+    "stop_and_go": "trucks stop at junctions for up to 45 s and vanish in the clutter notch",
+    "tangential": "moving trucks Doppler-blind for ~50 s because the road is broadside to the radar",
+    "tunnel": "trucks out of sight for 20 s and 40 s in tunnels",
+    "terrain_shadow": "a truck hidden behind a ridge for about a minute",
+    "offroad": "trucks leave the road and cross fields, or join the road from them",
+    "dense_clutter": "about 50 false alarms per scan around three trucks in a town",
+}
