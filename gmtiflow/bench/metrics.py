@@ -23,6 +23,12 @@ class Metric:
     unit: str
     higher_is_better: bool
 
+    @property
+    def bounds(self) -> tuple:
+        """The values the metric can take: fractions in [0, 1], everything else >= 0."""
+        fraction = self.name.endswith(("_fraction", "coverage_mean", "purity_mean"))
+        return (0.0, 1.0) if fraction else (0.0, float("inf"))
+
 
 _ALL = [
     Metric("identity_switches", "identity switches", "", False),

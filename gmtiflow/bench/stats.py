@@ -6,7 +6,8 @@ deviation; no interval for n < 2).  A comparison with the reference tracker uses
 differences d_s = value(tracker, seed s) − value(reference, seed s) over the seeds where both
 are finite, and the same interval on their mean: common random numbers (docs/scale.md) give
 both trackers the same truth and the same plots in a seed, so the paired interval is much
-narrower than the two unpaired ones.  A tracker is *better* (*worse*) than the reference on a
+narrower than the two unpaired ones.  A tracker's own interval is cut to the values its metric
+can take (fractions [0, 1], counts and errors >= 0); paired intervals are not cut.  A tracker is *better* (*worse*) than the reference on a
 metric when the paired interval lies entirely on the good (bad) side of 0, else the two are
 *not distinguishable* with these seeds.
 """
@@ -41,6 +42,14 @@ def estimate(values) -> Estimate:
         return Estimate(mean, np.nan, np.nan, 1)
     half = float(sps.t.ppf(0.5 + LEVEL / 2, n - 1) * np.std(x, ddof=1) / np.sqrt(n))
     return Estimate(mean, mean - half, mean + half, n)
+
+
+def clip(e: Estimate, low: float, high: float) -> Estimate:
+    """The interval cut to the values the metric can take (a t-interval over few seeds of a
+    fraction can reach past 0 or 1); the mean is unchanged."""
+    if not np.isfinite(e.low):
+        return e
+    return Estimate(e.mean, max(e.low, low), min(e.high, high), e.n)
 
 
 def paired(values: Mapping[int, float], reference: Mapping[int, float]) -> Estimate:

@@ -95,7 +95,8 @@ def compare(records: List[JobRecord], reference: Optional[str] = None) -> Compar
                 by_seed = table.get((scenario, metric, tracker))
                 if by_seed is None:
                     continue
-                cell = Cell(scenario, metric, tracker, by_seed, stats.estimate(list(by_seed.values())))
+                est = stats.clip(stats.estimate(list(by_seed.values())), *METRICS[metric].bounds)
+                cell = Cell(scenario, metric, tracker, by_seed, est)
                 if tracker != reference and ref is not None:
                     cell.delta = stats.paired(by_seed, ref)
                     cell.verdict = stats.verdict(cell.delta, METRICS[metric].higher_is_better)
