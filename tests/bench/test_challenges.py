@@ -30,3 +30,13 @@ def test_challenge_occurs_in_every_seed(tmp_path, name):
     for seed in SEEDS:
         result = challenges.check(name, run_scenario(tmp_path, name, seed))
         assert result.occurred, f"{name} seed {seed}: {result.summary}"
+
+
+def test_scene_picture_is_drawn_from_the_run(tmp_path):
+    import matplotlib.image as mpimg
+    import numpy as np
+    from gmtiflow.bench.figures import save_scene_png
+    run = run_scenario(tmp_path, "tunnel", 1, "scene.duration_s=60")
+    png = save_scene_png(run, "tunnel", tmp_path / "tunnel.png", dpi=40)
+    img = mpimg.imread(png)
+    assert img.shape[0] > 200 and float(np.std(img[..., :3])) > 0.05
