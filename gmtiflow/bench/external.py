@@ -11,8 +11,8 @@ The command is a shell command line with placeholders (``str.format``), run with
 its working directory:
 
 ``{detections}``  ``detections.csv``: the formats detection CSV (docs/exports.md) restricted to
-                  :data:`BLIND_COLUMNS` (no ``truth_id``, no ``true_*``, no ``merged``, no
-                  folding/wrapping flags, no RCS: only what a radar reports);
+                  :data:`BLIND_COLUMNS` (the tracker protocol's blind columns: no ``truth_id``,
+                  ``true_*``, ``merged``, folding/wrapping flags or RCS);
 ``{dwells}``      ``dwells.csv``: the /dwells table (time, beam, footprint, platform state);
 ``{scene}``       ``scene.json``: ENU origin, epoch, scenario and seed;
 ``{tracks}``      where to write the track CSV (``time_s track_id x_m y_m`` + optional columns);
@@ -34,6 +34,7 @@ import numpy as np
 
 from gmtiflow import formats, store
 from gmtiflow.errors import GmtiflowError
+from gmtiflow.evaluate.protocol import BLIND_DETECTION_COLUMNS
 from gmtiflow.formats import write_atomic
 
 from .collect import EXTERNAL_FILE, RUN_FILE, collect
@@ -41,11 +42,10 @@ from .metrics import derived_values
 
 log = logging.getLogger(__name__)
 
-#: Detection columns an external tracker receives: the radar's report, nothing from the truth.
-BLIND_COLUMNS = ("time_s", "det_id", "dwell_id", "lat_deg", "lon_deg", "height_m", "x_m", "y_m",
-                 "z_m", "range_m", "azimuth_rad", "range_rate_mps", "sigma_range_m",
-                 "sigma_azimuth_rad", "sigma_range_rate_mps", "snr_db", "implausible",
-                 "wrap_velocity_mps")
+#: Detection columns an external tracker receives: what the tracker protocol's batches carry
+#: (the radar's report, nothing from the truth) that the detection CSV has.
+BLIND_COLUMNS = tuple(c for c in BLIND_DETECTION_COLUMNS
+                      if c in formats.csvtable.COLUMNS["detections"])
 
 
 class ExternalTrackerError(GmtiflowError):
