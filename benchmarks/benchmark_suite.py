@@ -55,6 +55,8 @@ def main(argv=None) -> int:
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--update-docs", action="store_true")
     p.add_argument("--figures", type=Path, default=None)
+    p.add_argument("--no-run", action="store_true",
+                   help="reuse the sweep and run_info.txt an earlier run left in --out")
     args = p.parse_args(argv)
     trackers = args.trackers or ",".join(default_trackers())
     sweep = args.out / "sweep"
@@ -62,6 +64,8 @@ def main(argv=None) -> int:
            "-o", str(sweep), f"tracker={trackers}", f"cache.dir={args.out / 'cache'}"]
     if args.seeds:
         cmd.append(f"seed={args.seeds}")
+    if args.no_run:
+        return report(args, sweep, (args.out / "run_info.txt").read_text().strip(), trackers)
     before = load()
     start_utc = datetime.now(timezone.utc)
     t0 = time.perf_counter()
@@ -74,13 +78,18 @@ def main(argv=None) -> int:
     if proc.returncode != 0:
         print(f"gmtiflow-bench failed (exit {proc.returncode})", file=sys.stderr)
         return proc.returncode
-    md = (sweep / "bench_results.md").read_text()
     shown = " ".join(c if " " not in c and "(" not in c else f"'{c}'" for c in cmd)
     shown = shown.replace(str(args.out), "OUT")
     info = (f"Command: `{shown}` (via `python benchmarks/benchmark_suite.py"
             f"{' --quick' if args.quick else ''}`), {start_utc:%Y-%m-%d %H:%M} UTC, "
             f"{os.cpu_count()} cores; wall {wall:.0f} s, CPU {cpu.ru_utime + cpu.ru_stime:.0f} s; "
             f"{before} before, {after} after (a shared machine: read the times as rough).")
+    (args.out / "run_info.txt").write_text(info + "\n")
+    return report(args, sweep, info, trackers)
+
+
+def report(args, sweep: Path, info: str, trackers: str) -> int:
+    md = (sweep / "bench_results.md").read_text()
     print(info)
     print(md)
     if args.figures:
