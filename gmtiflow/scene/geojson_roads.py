@@ -23,7 +23,8 @@ from gmtiflow import frames
 from gmtiflow.errors import InputFileError, RoadMapError
 from gmtiflow.paths import check_input_file
 from gmtiflow.scene.osm import parse_maxspeed
-from gmtiflow.scene.roadmap import RoadMap, RoadmapConfig
+from gmtiflow.scene.road_network import RoadMap
+from gmtiflow.scene.roadmap_config import RoadmapConfig
 
 
 MAX_GEOJSON_BYTES = 2 * 2**30

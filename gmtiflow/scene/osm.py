@@ -33,7 +33,8 @@ from lxml import etree
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError, RoadMapError
 from gmtiflow.paths import check_input_file
-from gmtiflow.scene.roadmap import OSM_ATTRIBUTION, RoadMap, RoadmapConfig
+from gmtiflow.scene.road_network import RoadMap
+from gmtiflow.scene.roadmap_config import OSM_ATTRIBUTION, RoadmapConfig
 
 MAX_OSM_BYTES = 4 * 2**30
 """OSM XML is parsed in memory (about 5 times its size): larger extracts are refused."""
