@@ -225,7 +225,7 @@ def convert(args) -> Path:
         raise InputFileError(f"{args.input}: a {fmt} file converts to HDF5 tables only "
                              f"(--to h5); to change format, convert the run file")
     if args.input.is_file() and args.input.stat().st_size == 0:
-        raise InputFileError(f"{args.input}: empty file (0 bytes); nothing to convert")
+        raise InputFileError(f"{args.input}: empty (0 bytes); nothing to convert")
     tables, attrs, texts = read_any(args.input, fmt, table=args.table,
                                     origin=_origin(args.origin), epoch=args.epoch)
     out = args.output or args.input.with_suffix(".h5")

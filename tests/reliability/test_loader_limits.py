@@ -206,5 +206,5 @@ def test_empty_file_does_not_convert_to_an_empty_run(tmp_path, capsys, suffix):
     src = tmp_path / f"empty{suffix}"
     src.write_bytes(b"")
     code = convert.main([str(src), "--to", "h5", "-o", str(tmp_path / "out.h5")])
-    assert code == 1 and "empty file" in capsys.readouterr().err
+    assert code == 1 and "empty (0 bytes)" in capsys.readouterr().err
     assert not (tmp_path / "out.h5").exists()
