@@ -11,7 +11,7 @@ Units on the pages: km for map coordinates, degrees for angles, m/s for speeds, 
 from __future__ import annotations
 
 import math
-from typing import Dict, List, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import matplotlib.cm as cm
 import numpy as np
@@ -434,9 +434,19 @@ def normalised_errors(det: Table) -> Dict[str, np.ndarray]:
     return {k: v[ok & np.isfinite(v)] for k, v in out.items()}
 
 
-def sensor_figure(looks: Table, detections: Table, pfa: float, *, snr_bin_db: float = 1.0) -> Figure:
-    """Empirical P_D vs model SNR against Swerling I; normalised measurement errors vs N(0, 1)."""
+def sensor_figure(looks: Table, detections: Table, pfa: float, *, snr_bin_db: float = 1.0,
+                  expected_false_alarms: Optional[float] = None) -> Figure:
+    """Empirical P_D vs model SNR against Swerling I; normalised measurement errors vs N(0, 1);
+    with ``expected_false_alarms`` (the detector's P_FA × cells × dwells) the run's false-alarm
+    count against it."""
     fig = new_figure()
+    if expected_false_alarms is not None:
+        n_fa = int(np.sum(_col(detections, "truth_id") < 0)) if n(detections) else 0
+        e = float(expected_false_alarms)
+        fig.text(0.05, 0.93, f"False alarms: {n_fa} in the run; the detector's expectation "
+                 f"P_FA × range × Doppler cells × dwells = {e:.4g} ± {math.sqrt(max(e, 0.0)):.2g} "
+                 "(Poisson; fewer where the horizon or terrain masks cells, more with clutter "
+                 "regions)", fontsize=9, color="0.2")
     gs = fig.add_gridspec(2, 3, height_ratios=[1.25, 1], left=0.07, right=0.93, top=0.88,
                           bottom=0.08, hspace=0.42, wspace=0.28)
     ax = fig.add_subplot(gs[0, :])

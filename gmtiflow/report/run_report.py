@@ -49,7 +49,8 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
                                      max_track_lines=cfg.max_track_lines)),
         ("sensor", lambda: F.sensor_figure(t("looks"), t("detections"),
                                            float(run.cfg("sensor.pfa", 1e-6)),
-                                           snr_bin_db=cfg.snr_bin_db)),
+                                           snr_bin_db=cfg.snr_bin_db,
+                                           expected_false_alarms=_expected_false_alarms(run))),
         ("range_rate", lambda: F.range_rate_figure(t("looks"), t("detections"), t("dwells"),
                                                    max_points=cfg.max_points)),
         ("timeline", lambda: F.timeline_figure(t("vehicles"), t("truth"), t("looks"),
@@ -62,6 +63,23 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
                                        cutoff_m=float(run.cfg("metrics.cutoff_m", float("nan"))),
                                        tracker_enabled=tracker_on)),
     ]
+
+
+def _expected_false_alarms(run: RunData) -> Optional[float]:
+    """The detector's expected noise false alarms of the run (P_FA × cells per dwell × dwells),
+    None when the run's config does not say (an older run) or they were switched off."""
+    from gmtiflow.sensor.config import SensorConfig
+    sensor = run.cfg("sensor", None)
+    if not isinstance(sensor, dict):
+        return None
+    names = set(SensorConfig.__dataclass_fields__) - {"rcs", "merge"}
+    try:
+        cfg = SensorConfig(**{k: v for k, v in sensor.items() if k in names})
+        if not cfg.noise_false_alarms or "noise_false_alarms" not in sensor:
+            return None
+        return cfg.expected_false_alarms_per_dwell * n(run.table("dwells"))
+    except (TypeError, ValueError):
+        return None
 
 
 def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:

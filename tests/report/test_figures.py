@@ -149,3 +149,20 @@ def test_key_numbers(small_run, empty_run):
     assert abs(k["pd_achieved"] - k["pd_model_mean"]) < 0.25
     k = key_numbers(load_run(empty_run))
     assert k["detections"] == 0 and k["tracks"] == 0
+
+
+def test_physics_page_shows_false_alarms_against_their_expectation(small_run):
+    """The run's false-alarm count next to the detector's P_FA x cells x dwells."""
+    from gmtiflow.report.run_report import _expected_false_alarms
+    from gmtiflow.sensor.config import SensorConfig
+    run = load_run(small_run)
+    expected = _expected_false_alarms(run)
+    sensor = SensorConfig(pfa=float(run.cfg("sensor.pfa")))
+    assert expected == pytest.approx(sensor.expected_false_alarms_per_dwell
+                                     * n(run.table("dwells")))
+    det = run.table("detections")
+    fig = F.sensor_figure(run.table("looks"), det, float(run.cfg("sensor.pfa")),
+                          expected_false_alarms=expected)
+    text = " ".join(t.get_text() for t in fig.texts)
+    n_fa = int(np.sum(det["truth_id"] < 0))
+    assert f"False alarms: {n_fa} in the run" in text and f"{expected:.4g}" in text
