@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from enum import Enum
-from typing import Dict, List, Optional
+from typing import Any, Dict, List, Optional
 
 from gmtiflow import schema
 from gmtiflow.schema import Problem
@@ -137,7 +137,7 @@ class SensorConfig:
     beamwidth_factor: float = 1.0           # k in BW = k λ / d_a
     mount_deg: float = 90.0                 # φ_d, boresight vs flight direction; 90 = right
     stap: bool = True                       # apply the STAP clutter notch (eq. 10)
-    mdv_mps: float = 2.0                    # v_MDV, minimum detectable (radial) velocity
+    mdv_mps: Any = 2.0                      # v_MDV (m/s), or "auto": from v_p, λ, d_a, scan
 
     # --- field of view (antenna frame) and scan ---------------------------------------------
     az_min_deg: float = -10.0               # scan sector, + clockwise from boresight
@@ -195,6 +195,11 @@ class SensorConfig:
     def doppler_cell_hz(self) -> float:
         """Δf_D = k_D / CPI."""
         return self.k_d / self.cpi_s
+
+    @property
+    def mdv_auto(self) -> bool:
+        """``mdv_mps: auto``: the notch width follows the main-lobe clutter spread per dwell."""
+        return isinstance(self.mdv_mps, str) and self.mdv_mps == "auto"
 
     @property
     def blind_speed_mps(self) -> Optional[float]:
@@ -266,7 +271,13 @@ class SensorConfig:
                              "revisit_s", "dwell_spacing_beamwidths", "footprint_beamwidths",
                              "r0_m", "gamma_az", "gamma_r", "gamma_rr",
                              "kappa_az", "kappa_r", "kappa_rr", "range_resolution_factor", "k_d")
-        p += schema.non_negative(self, "noise_figure_db", "losses_db", "mdv_mps", "range_min_m")
+        p += schema.non_negative(self, "noise_figure_db", "losses_db", "range_min_m")
+        if isinstance(self.mdv_mps, str):
+            if self.mdv_mps != "auto":
+                p.append(Problem("mdv_mps", f"must be a number of m/s or 'auto', got "
+                                            f"{self.mdv_mps!r}"))
+        else:
+            p += schema.non_negative(self, "mdv_mps")
         p += schema.positive(self, "range_max_m")
         if not (isinstance(self.n_elements, int) and not isinstance(self.n_elements, bool)
                 and self.n_elements >= 1):
@@ -308,9 +319,9 @@ class SensorConfig:
         if self.beamwidth_sine >= 1.0:
             p.append(Problem("aperture_m", f"beamwidth k*lambda/d_a = {self.beamwidth_sine:.3g} "
                                            "must be < 1 (aperture too small for the wavelength)"))
-        if self.stap and self.mdv_mps <= 0:
+        if self.stap and not self.mdv_auto and self.mdv_mps <= 0:
             p.append(Problem("mdv_mps", f"must be > 0 when stap is true, got {self.mdv_mps!r}"))
-        if self.stap and self.blind_speed_mps is not None and \
+        if self.stap and not self.mdv_auto and self.blind_speed_mps is not None and \
                 self.mdv_mps >= self.blind_speed_mps / 2.0:
             p.append(Problem("mdv_mps", f"must be < half the blind speed lambda*PRF/2 "
                                         f"({self.blind_speed_mps / 2.0:.4g} m/s), got "

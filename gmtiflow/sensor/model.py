@@ -176,6 +176,7 @@ class _Poses:
     h: tuple
     u: tuple
     state: Table
+    mdv: Optional[np.ndarray] = None   # per dwell: the notch half-width (set with the dwell table)
 
 
 def _poses(cfg: SensorConfig, platform, time_s: np.ndarray) -> _Poses:
@@ -201,8 +202,9 @@ def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, o
     else:
         plat, plon, ph = frames.enu_to_geodetic(origin, *poses.pos)
     r_centre = np.full(n, 0.5 * (cfg.range_min_m + cfg.range_max_m))
-    centre, _, _ = geolocate.geolocate(poses.pos, r_centre, beam, poses.b, poses.h, poses.u,
-                                       terrain)
+    centre, el_centre, _ = geolocate.geolocate(poses.pos, r_centre, beam, poses.b, poses.h,
+                                               poses.u, terrain)
+    poses.mdv = _mdv_per_dwell(cfg, poses, beam, el_centre)
     alat, alon, _ = frames.enu_to_geodetic(origin, *centre)
     return {
         "dwell_id": dwell_ids.astype(np.int64),
@@ -223,9 +225,22 @@ def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, o
         "area_lat_deg": alat, "area_lon_deg": alon,
         "range_half_extent_m": np.full(n, 0.5 * (cfg.range_max_m - cfg.range_min_m)),
         "angle_half_extent_rad": 0.5 * scan.broadened_beamwidth_rad(cfg, beam),
-        "mdv_mps": np.full(n, cfg.mdv_mps if cfg.stap else 0.0),
+        "mdv_mps": poses.mdv,
         "wrap_velocity_mps": np.full(n, cfg.wrap_velocity_mps),
     }
+
+
+def _mdv_per_dwell(cfg, poses, beam, el_rad):
+    """The clutter notch's half-width per dwell (m/s): ``mdv_mps``, or with ``auto``: with STAP
+    half the main-beam clutter spread across the 3-dB beam (:func:`gain.mainlobe_clutter_halfwidth_mps`,
+    Δu = half a beamwidth in sine space).  Without STAP the Doppler filter must reject the
+    whole main-lobe clutter band, to the first nulls (Δu = the footprint, one beamwidth): its
+    half-width, twice the STAP value, centred on the beam centre's clutter."""
+    if not cfg.mdv_auto:     # a fixed width (without STAP, 0 = no clutter: the paper's case)
+        return np.full(len(beam), float(cfg.mdv_mps))
+    half = (0.5 if cfg.stap else cfg.footprint_beamwidths) * cfg.beamwidth_sine
+    return gain.mainlobe_clutter_halfwidth_mps(poses.vel, beam, el_rad, poses.b, poses.h,
+                                                poses.u, half)
 
 
 def _azimuth(east, north):
@@ -580,8 +595,18 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     f_mis = 1.0 if instant else gain.mismatch(geo.at("sin_az", vis), np.sin(beam[vis]),
                                               cfg.beamwidth_sine)
     g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis)
-    own_rr = geo.at("own_rr", vis) if cfg.stap else None              # ṙ − ṙ_MLC
-    g_r = g_t * gain.stap_notch(own_rr, cfg.mdv_mps, cfg.blind_speed_mps) if cfg.stap else g_t
+    mdv = poses.mdv[dl[vis]]
+    if cfg.stap:
+        own_rr = geo.at("own_rr", vis)                                 # ṙ − ṙ_MLC at the target
+    else:   # no STAP: the Doppler filter rejects the main-lobe clutter around the beam centre's
+        dv = dl[vis]
+        l_bc = antenna.direction(scan_angle, el[vis], antenna.take(poses.b, dv),
+                                 antenna.take(poses.h, dv), antenna.take(poses.u, dv))
+        own_rr = rr[vis] + antenna.dot(antenna.take(poses.vel, dv), l_bc)
+    if cfg.stap:
+        g_r = g_t * gain.stap_notch(own_rr, mdv, cfg.blind_speed_mps)
+    else:
+        g_r = g_t * gain.clutter_band_gain(own_rr, mdv, cfg.blind_speed_mps)
     rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo.at("heading_rad", vis),
                                 geo.at("los_e", vis), geo.at("los_n", vis))
     s_db = snr.snr_db(cfg, rng_m[vis], g_t, g_r, rcs_v)
@@ -592,10 +617,7 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     snr_db_col[vis] = s_db
     pd_col[vis] = np.exp(lpd)
     miss = vis[~hit]
-    if cfg.stap:
-        blind = np.abs(gain.blind_offset(own_rr[~hit], cfg.blind_speed_mps)) < cfg.mdv_mps
-    else:
-        blind = np.zeros(miss.size, bool)
+    blind = np.abs(gain.blind_offset(own_rr[~hit], cfg.blind_speed_mps)) < mdv[~hit]
     outcome[miss] = np.where(blind, Outcome.DOPPLER_BLIND, Outcome.PD_MISS)
 
     # --- detections: reported SNR, errors, geolocation ----------------------------------

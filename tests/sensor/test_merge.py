@@ -277,10 +277,20 @@ def test_kdtree_equals_brute_force(n, n_dwells, spread, mode, threshold, iterate
                             seed=seed, iterate=iterate, circular_azimuth=False)
     slow = _brute_force(dwell, r, az, snr, tid, mode=mode, threshold=threshold, seed=seed, iterate=iterate)
     assert np.array_equal(fast.group, slow)
+    # no chaining: every ancestor within one cell of its merged report
+    if n:
+        sep2 = ((r - fast.range_m[fast.group]) / DR) ** 2 + ((az - fast.azimuth_rad[fast.group]) / DAZ) ** 2
+        assert np.all(sep2 <= 1.0 + 1e-9)
     if iterate and mode == "threshold" and len(fast.range_m) > 1:
-        # Dense mode leaves no pair of output reports in a dwell at or above the threshold.
-        same = fast.dwell_id[:, None] == fast.dwell_id[None, :]
-        p = mg.merge_probability(fast.range_m[:, None] - fast.range_m[None, :],
-                                 fast.azimuth_rad[:, None] - fast.azimuth_rad[None, :], DR, DAZ)
-        np.fill_diagonal(p, 0.0)
-        assert not np.any((p >= threshold * (1 + 1e-9)) & same)
+        # Dense mode leaves no pair of output reports in a dwell at or above the threshold
+        # whose merge would keep every ancestor within one cell (the rounds end when none is left)
+        for a in range(len(fast.range_m)):
+            for b in range(a + 1, len(fast.range_m)):
+                if fast.dwell_id[a] != fast.dwell_id[b]:
+                    continue
+                p = mg.merge_probability(fast.range_m[a] - fast.range_m[b],
+                                         fast.azimuth_rad[a] - fast.azimuth_rad[b], DR, DAZ)
+                m = (fast.group == a) | (fast.group == b)
+                cr, ca = r[m].mean(), az[m].mean()
+                ok = np.all(((r[m] - cr) / DR) ** 2 + ((az[m] - ca) / DAZ) ** 2 <= 1.0 + 1e-9)
+                assert not (p >= threshold * (1 + 1e-9) and ok), (a, b, p)

@@ -17,7 +17,7 @@ from sensor_fakes import (ORIGIN, FlatTerrain, LevelPlatform, LineFleet, WallTer
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "tables.md"
 H = 6_000.0            # platform height; platform at y = -30 km flying west, looking north
 HOVER = LevelPlatform(speed_mps=0.0)
-NO_STAP = SensorConfig(stap=False)
+NO_STAP = SensorConfig(stap=False, mdv_mps=0.0)   # no clutter at all (the paper)
 
 
 def documented_columns(table):

@@ -179,7 +179,8 @@ def test_nothing_beyond_the_radar_horizon():
     window from 30 to 60 km nothing beyond that, target or false alarm."""
     low = LevelPlatform(p0=(0.0, -45_000.0, 100.0))
     cfg = SensorConfig(pfa=1e-5, range_min_m=30_000.0, range_max_m=60_000.0, pri_s=None,
-                       integration_gain_db=21.0, el_min_deg=-10.0, el_max_deg=0.0, stap=False)
+                       integration_gain_db=21.0, el_min_deg=-10.0, el_max_deg=0.0, stap=False,
+                       mdv_mps=0.0)
     horizon = math.sqrt(2 * 4 / 3 * 6_371_000.0 * 100.0 + 100.0 ** 2)
     assert 41_000 < horizon < 41_300
     targets = still([[0.0, -45_000.0 + 35_000.0], [0.0, -45_000.0 + 50_000.0]])
