@@ -218,3 +218,29 @@ def test_terrain_shadow_masks_noise_and_clutter_false_alarms():
     assert not np.any(behind & (det["y_m"] < 27_000.0))
     flat = _run(cfg, grid_fleet(0), duration_s=10.0, effects=effects)
     assert np.any((flat["detections"]["y_m"] > 0) & (flat["detections"]["y_m"] < 4000))
+
+
+@pytest.mark.parametrize("altitude_m", [10.0, 1_000.0, 20_000.0])
+def test_altitude_extremes_false_alarms_within_horizon_and_fov(altitude_m):
+    """At 10 m the ground is seen to 13.0 km (4/3 earth): nothing from a 5-30 km window beyond
+    it; at 20 km up the elevation limits cut the window; all columns finite."""
+    plat = LevelPlatform(p0=(0.0, -20_000.0, altitude_m))
+    cfg = SensorConfig(pfa=1e-5, range_min_m=5_000.0, range_max_m=30_000.0, el_min_deg=-60.0,
+                       el_max_deg=0.0)
+    out = _run(cfg, grid_fleet(0), platform=plat, duration_s=20.0)
+    det, dw = out["detections"], out["dwells"]
+    k = det["dwell_id"] - dw["dwell_id"][0]
+    d = np.hypot(det["x_m"] - dw["platform_x_m"][k], det["y_m"] - dw["platform_y_m"][k])
+    horizon = math.sqrt(altitude_m * (2 * 4 / 3 * 6_371_000.0 + altitude_m))
+    assert np.all(d <= horizon)
+    for c in ("range_m", "azimuth_rad", "range_rate_mps", "snr_db", "sigma_range_m", "x_m"):
+        assert np.all(np.isfinite(det[c])), c
+    el = np.degrees(np.arctan2(det["z_m"] - altitude_m, d))
+    assert np.all((el >= -60.0 - 1e-6) & (el <= 1e-6))
+    n_dw = len(dw["dwell_id"])
+    if altitude_m == 10.0:       # visible window 5..13 km of 25 km: a third of the cells
+        frac = (horizon - 5_000.0) / 25_000.0
+        mean = cfg.expected_false_alarms_per_dwell * n_dw * frac
+        assert abs(len(d) - mean) < _count_bound(mean) + 0.01 * mean
+    if altitude_m == 20_000.0:   # slant 5..20 km cannot reach the ground: only 20..30 km does
+        assert np.all(det["range_m"] >= 20_000.0)
