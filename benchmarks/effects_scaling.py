@@ -34,13 +34,13 @@ from gmtiflow.sensor.model import simulate
 DR, DAZ = 15.0, 0.005
 
 
-def _best_time(fn, repeats):
+def _best_time(fn, repeats, clock=time.perf_counter):
     best = np.inf
     out = None
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = clock()
         out = fn()
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, clock() - t0)
     return best, out
 
 
@@ -122,15 +122,16 @@ def bench_stage(pfas, densities, revisits, repeats):
                         effects=effects, chunk_pairs=10**9)
 
     base_cfg = SensorConfig(noise_false_alarms=False)
-    t0, _ = _best_time(lambda: run(base_cfg, []), repeats)
+    cpu = time.process_time     # CPU time: steadier than wall time on a shared machine
+    t0, _ = _best_time(lambda: run(base_cfg, []), repeats, cpu)
     rows = []
     for pfa in pfas:
         cfg = SensorConfig(pfa=pfa)
-        t, out = _best_time(lambda: run(cfg, [NoiseFalseAlarms(cfg, 3)]), repeats)
+        t, out = _best_time(lambda: run(cfg, [NoiseFalseAlarms(cfg, 3)]), repeats, cpu)
         rows.append((f"noise, P_FA {pfa:g}", len(out["detections"]["det_id"]), t - t0))
     for dens in densities:
         ccfg = cl.ClutterConfig(fov_density_per_km2=dens)
-        t, out = _best_time(lambda: run(base_cfg, [FalseAlarms(base_cfg, ccfg, 3)]), repeats)
+        t, out = _best_time(lambda: run(base_cfg, [FalseAlarms(base_cfg, ccfg, 3)]), repeats, cpu)
         rows.append((f"FoV density {dens:g}/km²", len(out["detections"]["det_id"]), t - t0))
     return t0, rows
 
@@ -143,11 +144,15 @@ def main(argv=None):
     ap.add_argument("--pfas", type=float, nargs="+", default=[1e-6, 1e-5, 1e-4, 1e-3])
     ap.add_argument("--fa-densities", type=float, nargs="+", default=[0.1, 1.0, 10.0])
     ap.add_argument("--fa-revisits", type=int, default=20)
+    ap.add_argument("--stage-only", action="store_true",
+                    help="only the false alarms in the sensor stage")
     args = ap.parse_args(argv)
+    worst = 0.0
+    if args.stage_only:
+        return _print_stage(args)
 
     print("## Merging (cells 15 m x 5 mrad)\n")
     print("| layout | mode | n | time (s) | merged reports |\n|---|---|---|---|---|")
-    worst = 0.0
     for layout, label, n, t, merged in bench_merge(args.sizes, args.repeats):
         if n == "slope":
             print(f"| {layout} | {label} | **log-log slope** | **{t:.3f}** | |")
@@ -160,15 +165,19 @@ def main(argv=None):
     print("| FoV density (/km²/dwell) | false alarms | time (s) | µs per false alarm |\n|---|---|---|---|")
     for dens, nd, count, t in bench_clutter(args.densities, args.repeats):
         print(f"| {dens:g} | {count:,} | {t:.4f} | {1e6 * t / max(count, 1):.2f} |")
+    _print_stage(args)
+    return 0 if worst <= 1.1 else 1
 
+
+def _print_stage(args) -> int:
     t0, rows = bench_stage(args.pfas, args.fa_densities, args.fa_revisits, args.repeats)
     n_dw = args.fa_revisits * 14
     print(f"\n## False alarms in the sensor stage ({n_dw} dwells of the default sensor; "
-          f"{t0 * 1e3:.1f} ms without false alarms subtracted)\n")
-    print("| source | false alarms | time (s) | µs per false alarm |\n|---|---|---|---|")
+          f"{t0 * 1e3:.1f} ms CPU without false alarms subtracted)\n")
+    print("| source | false alarms | CPU s | µs CPU per false alarm |\n|---|---|---|---|")
     for label, count, t in rows:
         print(f"| {label} | {count:,} | {t:.4f} | {1e6 * t / max(count, 1):.2f} |")
-    return 0 if worst <= 1.1 else 1
+    return 0
 
 
 if __name__ == "__main__":
