@@ -17,7 +17,8 @@ from pathlib import Path
 
 from gmtiflow import pipeline
 from gmtiflow.compose import compose
-from gmtiflow.report import ReportConfig, build_run_report
+from gmtiflow.report import ReportConfig
+from gmtiflow.report.run_report import build_run_report
 from gmtiflow.report.data import key_numbers, load_run
 
 

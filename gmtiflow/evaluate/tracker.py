@@ -44,7 +44,6 @@ from __future__ import annotations
 from typing import Mapping, Optional
 
 import numpy as np
-from scipy.stats import chi2
 
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError
@@ -231,6 +230,7 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
         last_of_revisit = np.ones(n_dw, bool)
     use_rr = cfg.use_range_rate and "range_rate_mps" in detections
     m = 3 if use_rr else 2
+    from scipy.stats import chi2    # imported here: scipy.stats costs ~1 s at start-up
     gate = float(chi2.ppf(cfg.gate_probability, m))
     init_var_v = cfg.init_speed_sigma_mps ** 2
 

@@ -20,6 +20,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 from matplotlib.backends.backend_pdf import PdfPages
+from tqdm import tqdm
 from matplotlib.figure import Figure
 
 from gmtiflow.formats import atomic_path
@@ -77,7 +78,9 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
     with atomic_path(out_pdf) as tmp, PdfPages(
             tmp, metadata={"Title": f"gmtiflow run report: {run.path}",
                            "Creator": f"gmtiflow {__version__}"}) as pdf:
-        for page, builder in run_figures(run, cfg):
+        pages = run_figures(run, cfg)
+        for page, builder in tqdm(pages, desc="report", unit="page", leave=False, delay=2.0,
+                                  disable=None):   # a bar on a terminal when it takes > 2 s
             t0 = time.perf_counter()
             fig = builder()
             pdf.savefig(fig, dpi=cfg.dpi)

@@ -34,6 +34,7 @@ from typing import Dict, Iterable, List, Optional, Sequence
 import numpy as np
 import yaml
 from matplotlib.backends.backend_pdf import PdfPages
+import matplotlib.cm as cm
 from matplotlib.figure import Figure
 
 from gmtiflow.formats import atomic_path
@@ -286,7 +287,7 @@ def parameter_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Fi
         values.sort(key=float)
     pos = {v: (float(v) if numeric else i) for i, v in enumerate(values)}
     groups = _groups(ok, param, others)
-    colours = F.cm.tab10(np.arange(len(groups)) % 10)
+    colours = cm.tab10(np.arange(len(groups)) % 10)
     repeats = max((len(js) for g in groups.values() for js in g.values()), default=1)
     for ax, (key, label, unit) in zip(axes.ravel(), results):
         for (g, by_x), c in zip(groups.items(), colours):
@@ -331,7 +332,7 @@ def speed_accuracy_figure(jobs: Sequence[Job], param: str = "fidelity") -> Figur
     fig = F.new_figure()
     axes = fig.subplots(2, 2, squeeze=False, gridspec_kw=dict(left=0.08, right=0.98, top=0.86,
                                                                bottom=0.08, hspace=0.35, wspace=0.25))
-    colours = F.cm.tab10(np.arange(len(presets)) % 10)
+    colours = cm.tab10(np.arange(len(presets)) % 10)
     labels = {k: (lab, u) for k, lab, u in RESULTS}
     for ax, key in zip(axes.ravel(), ACCURACY):
         for p, c in zip(presets, colours):

@@ -24,14 +24,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any, Dict, List, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Sequence
 
-import networkx as nx
 import numpy as np
 
 from gmtiflow import frames, schema
 from gmtiflow.errors import RoadMapError
 from gmtiflow.tables import Table
+
+if TYPE_CHECKING:     # networkx is imported where a graph is built (start-up time)
+    import networkx as nx
 
 OSM_ATTRIBUTION = "© OpenStreetMap contributors"
 
@@ -263,6 +265,7 @@ class RoadMap:
 
     def largest_component(self) -> np.ndarray:
         """Node ids of the largest strongly connected component (sorted)."""
+        import networkx as nx
         comps = nx.strongly_connected_components(self.graph)
         best = max(comps, key=lambda c: (len(c), -min(c)))
         return np.asarray(sorted(best), dtype=np.int64)
@@ -270,6 +273,7 @@ class RoadMap:
 
 def _build_graph(nodes: Table, edges: Table) -> nx.DiGraph:
     """Directed routing graph: both directions unless oneway; the first road between a pair wins."""
+    import networkx as nx
     g = nx.DiGraph()
     g.add_nodes_from(range(len(nodes["node_id"])))
     for eid, f, t, length, one in zip(edges["edge_id"].tolist(), edges["from_node"].tolist(),

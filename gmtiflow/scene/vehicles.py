@@ -34,8 +34,6 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
 import numpy as np
-from scipy.signal import lfilter
-from scipy.special import ndtri
 
 from gmtiflow import frames, rng, schema
 from gmtiflow.errors import ConfigError, RoadMapError
@@ -380,6 +378,9 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
                 dt_s: float, progress: bool = False) -> "Fleet":
     """Route every vehicle, draw its randomness from its own stream and run the profiles
     (``progress``: a tqdm bar over the time steps, on a terminal only)."""
+    from scipy.signal import lfilter   # imported here: scipy.signal/special cost ~1 s at start-up
+    from scipy.special import ndtri
+
     _check(cfg)
     if not (dt_s > 0 and math.isfinite(dt_s)):
         raise ConfigError(f"vehicles: time step dt_s must be > 0, got {dt_s!r}")
