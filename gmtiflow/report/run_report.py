@@ -86,6 +86,12 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
             pdf.savefig(fig, dpi=cfg.dpi)
             fig.clear()
             seconds[page] = time.perf_counter() - t0
+    if cfg.viewer:
+        from .viewer import build_viewer
+        t0 = time.perf_counter()
+        build_viewer(run.path, out_pdf.parent / cfg.viewer_filename,
+                     max_frames=cfg.viewer_max_frames, max_labels=cfg.viewer_max_labels)
+        seconds["viewer"] = time.perf_counter() - t0
     if cfg.animation:
         t0 = time.perf_counter()
         gif = write_animation(run, out_pdf.with_suffix(".gif"), cfg)
