@@ -46,8 +46,9 @@ def range_rate_figure(looks: Table, detections: Table, dwells: Table, *,
 
     Left: every look on a visible target (true range rate), by outcome; the notch is
     ṙ_MLC ± MDV with ṙ_MLC = −|v_p| cos(Δaz) cos δ for the median speed and depression, and the
-    blind speeds are the notch shifted by ± λ·PRF/2.  Right: the reports (measured range rate,
-    wrapped into ± λ·PRF/4 where the radar is Doppler-ambiguous).
+    blind speeds are the notch shifted by ± λ·PRF/2.  Right: the reports (measured range rate);
+    where the radar is Doppler-ambiguous the processor wraps the range rate relative to the
+    clutter, so the reports lie between the wrap limits ṙ_MLC ± λ·PRF/4 drawn around the notch.
     """
     fig = new_figure()
     axl, axr = fig.subplots(1, 2, sharex=True, gridspec_kw=dict(left=0.07, right=0.98, top=0.86,
@@ -111,9 +112,6 @@ def range_rate_figure(looks: Table, detections: Table, dwells: Table, *,
         shifts = [0.0] if (wrapped or not math.isfinite(blind)) else [0.0, -blind, blind]
         for k, s in enumerate(shifts):
             c = notch + s
-            if wrapped and math.isfinite(wrap):
-                c = np.mod(c + wrap, 2 * wrap) - wrap
-                c = np.where(np.abs(np.diff(c, prepend=c[0])) > wrap, np.nan, c)
             label = ("clutter notch $\\dot r_{MLC}$ ± MDV" if k == 0
                      else "blind speeds $\\dot r_{MLC}$ ± λ·PRF/2" if k == 1 else None)
             a.plot(grid, c, color="k" if k == 0 else "0.3", lw=1.0, ls="-" if k == 0 else "--",
@@ -122,9 +120,12 @@ def range_rate_figure(looks: Table, detections: Table, dwells: Table, *,
                 a.fill_between(grid, c - mdv, c + mdv, color="0.6" if k == 0 else "0.8", alpha=0.35,
                                lw=0)
         if wrapped and math.isfinite(wrap):
+            # The processor wraps the range rate relative to the ground clutter at the report's
+            # position (sensor/effects.py Ambiguities): reports lie in [ṙ_MLC − v_w, ṙ_MLC + v_w).
             for w in (-wrap, wrap):
-                a.axhline(w, color="#b2182b", lw=0.8, ls=":")
-            a.plot([], [], color="#b2182b", lw=0.8, ls=":", label=f"wrap limits ±λ·PRF/4 = ±{wrap:.1f} m/s")
+                a.plot(grid, notch + w, color="#b2182b", lw=0.9, ls=":")
+            a.plot([], [], color="#b2182b", lw=0.9, ls=":",
+                   label=f"wrap limits $\\dot r_{{MLC}}$ ± λ·PRF/4 (± {wrap:.1f} m/s)")
         a.set_xlabel("azimuth relative to platform heading (deg, + = right)")
         a.grid(alpha=0.3)
         a.legend(fontsize=7, loc="upper right")
