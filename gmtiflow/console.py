@@ -5,9 +5,9 @@
   ``hydra.verbose`` was given.
 * :func:`run_summary` — the end-of-run block: detections (targets / false alarms / merged),
   P_D achieved, tracks, OSPA/GOSPA and the files written, read back from the finished run file.
-* :func:`discard_failed_run_dir` — a run that failed before doing any work (a config range
-  error, a missing map file) leaves no empty run directory behind; a log that records stages
-  that ran is worth keeping and stays.
+* :func:`discard_failed_run_dir` — a run that failed before finishing any stage (a config
+  range error, a missing map file) leaves no empty run directory behind; a log that records
+  finished stages is worth keeping and stays.
 
 Kept apart from :mod:`gmtiflow.cli` so the entry point stays a thin Hydra wrapper; nothing
 here imports the pipeline, matplotlib or scipy (``gmtiflow --help`` must start fast).
@@ -175,14 +175,17 @@ def run_summary(run_path, out_dir, written: Sequence[Path] = ()) -> str:
     return "\n".join(lines)
 
 
-def discard_failed_run_dir(out_dir, keep_if_log_lines_over: int = 1) -> bool:
-    """After a failed run: remove ``out_dir`` when it holds nothing but Hydra's ``.hydra/`` and
-    a log of at most ``keep_if_log_lines_over`` lines (the error itself), then its parent
-    (Hydra's default ``outputs/<date>``) when that became empty.  Returns True when removed.
+def discard_failed_run_dir(out_dir) -> bool:
+    """After a failed run: remove ``out_dir`` when the run did no work worth keeping — it holds
+    only Hydra's ``.hydra/``, the run's manifest still saying ``complete: false`` and a log
+    that records no finished stage (no ``stage`` line) — then its parent when that is Hydra's
+    ``outputs/<date>`` and became empty.  Returns True when removed.
 
     A run that failed after doing work (its log records stages) keeps its directory: the log
     tells what happened.
     """
+    import json
+
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         return False
@@ -190,9 +193,15 @@ def discard_failed_run_dir(out_dir, keep_if_log_lines_over: int = 1) -> bool:
         if p.name == ".hydra" and p.is_dir():
             continue
         if p.suffix == ".log" and p.is_file():
-            with open(p, "rb") as fh:
-                if sum(1 for line in fh if line.strip()) <= keep_if_log_lines_over:
+            with open(p, "r", encoding="utf-8", errors="replace") as fh:
+                if not any("] - stage " in line for line in fh):
                     continue
+        if p.name == "outputs.json" and p.is_file():
+            try:
+                if json.loads(p.read_text(encoding="utf-8")).get("complete") is False:
+                    continue
+            except (OSError, ValueError, AttributeError):
+                pass
         return False    # output, a partial file or a log worth keeping
     root = logging.getLogger()
     for h in list(root.handlers):    # release the run's log file before removing it

@@ -60,6 +60,16 @@ def test_summary_counts_match_the_run_file(tmp_path):
     assert nums["merged"] == np.sum(det["merged"])
 
 
+def test_missing_map_names_the_key_and_the_data_dir_and_leaves_no_run_dir(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "GMTIFLOW_DATA_DIR"}
+    proc = subprocess.run([sys.executable, "-m", "gmtiflow.cli", "experiment=monaco",
+                           "hydra.run.dir=outputs/2026-01-02/00-00-00"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1
+    assert "roadmap.path" in proc.stderr and "GMTIFLOW_DATA_DIR" in proc.stderr, proc.stderr
+    assert not (tmp_path / "outputs" / "2026-01-02").exists()
+
+
 def test_config_error_leaves_no_run_directory(tmp_path):
     proc = _cli(tmp_path, "hydra.run.dir=outputs/2026-01-01/00-00-00", "sensor.peak_power_w=-1")
     assert proc.returncode == 1
@@ -70,8 +80,14 @@ def test_config_error_leaves_no_run_directory(tmp_path):
 def test_discard_keeps_a_directory_with_a_log_worth_keeping(tmp_path):
     run = tmp_path / "run"
     (run / ".hydra").mkdir(parents=True)
-    (run / "gmtiflow.log").write_text("[..][INFO] - stage roads 0.1 s\n[..][ERROR] - boom\n")
+    (run / "outputs.json").write_text('{"complete": false, "planned": ["run.h5"]}')
+    (run / "gmtiflow.log").write_text("[..][gmtiflow.pipeline][INFO] - stage roads   0.1 s\n"
+                                      "[..][gmtiflow][ERROR] - boom\n")
     assert not console.discard_failed_run_dir(run) and run.is_dir()
-    (run / "gmtiflow.log").write_text("[..][ERROR] - boom\n")
+    (run / "gmtiflow.log").write_text("[..][gmtiflow.pipeline][INFO] - run pid=1 seed=1\n"
+                                      "[..][gmtiflow][ERROR] - boom\n")
+    (run / "notes.txt").write_text("mine")
+    assert not console.discard_failed_run_dir(run) and run.is_dir()      # a file of the user's
+    (run / "notes.txt").unlink()
     assert console.discard_failed_run_dir(run) and not run.exists()
     assert tmp_path.is_dir()          # not a Hydra date dir: the parent stays
