@@ -82,7 +82,7 @@ class RoadSpec:
     def problems(self) -> List[schema.Problem]:
         out = schema.positive(self, "speed_limit_mps")
         for i, point in enumerate(self.via):
-            out += schema.point_problems(f"via[{i}]", point)
+            out += schema.point_problems(f"via[{i}]", point, geodetic=True)
         return out
 
 
@@ -134,7 +134,7 @@ class RoadmapConfig:
                 out.append(schema.Problem("roads", "an inline road map needs at least one node "
                                                    "and one road"))
             for name, xyz in self.nodes.items():
-                out += schema.point_problems(f"nodes.{name}", xyz)
+                out += schema.point_problems(f"nodes.{name}", xyz, geodetic=True)
             for i, road in enumerate(self.roads):
                 out += schema.prefixed(f"roads[{i}]", road.problems())
                 for end in ("from_node", "to_node"):
@@ -237,9 +237,16 @@ class RoadMap:
         return self._xyz[np.asarray(node_ids, dtype=np.int64)]
 
     def node_index(self, ref: Any) -> int:
-        """Node id of a reference: a node name, an OSM id (int), or [x, y] (nearest node)."""
+        """Node id of a reference: a node name, an OSM id (int), [x, y] metres or
+        {lat_deg, lon_deg} (nearest node)."""
         if ref is None:
             raise RoadMapError(f"{self.source}: a node reference is missing (null)")
+        if hasattr(ref, "keys"):
+            try:
+                ref = frames.point_to_enu(ref, self.origin)[:2]
+            except (KeyError, TypeError, ValueError):
+                raise RoadMapError(f"{self.source}: node reference {dict(ref)!r} must be "
+                                   f"{{lat_deg, lon_deg}}") from None
         if isinstance(ref, (list, tuple)) or (hasattr(ref, "__len__") and
                                                 not isinstance(ref, str)):
             vals = list(ref)
@@ -325,9 +332,14 @@ def from_inline(cfg: RoadmapConfig, source: str = "roadmap (inline)") -> RoadMap
     names: List[str] = []
     xyz: List[List[float]] = []
     index: Dict[str, int] = {}
+    origin = _origin(cfg, DEFAULT_ORIGIN)
 
     def add_node(name: str, point) -> int:
-        vals = [float(c) for c in point]
+        try:        # [x, y(, z)] metres or {lat_deg, lon_deg, height_m} (frames.point_to_enu)
+            vals = frames.point_to_enu(point, origin)
+        except (KeyError, TypeError, ValueError):
+            raise RoadMapError(f"{source}: node {name!r} must be [x, y], [x, y, z] in metres or "
+                               f"{{lat_deg, lon_deg, height_m}}, got {point!r}") from None
         if len(vals) == 2:
             vals.append(0.0)
         if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
@@ -360,7 +372,7 @@ def from_inline(cfg: RoadmapConfig, source: str = "roadmap (inline)") -> RoadMap
             lim.append(road.speed_limit_mps)
             inv.append(bool(road.invisible))
             cls.append(road.road_class)
-    return RoadMap.from_lists(_origin(cfg, DEFAULT_ORIGIN), names, np.asarray(xyz), ef, et, one,
+    return RoadMap.from_lists(origin, names, np.asarray(xyz), ef, et, one,
                               lim, inv, cls, source=source)
 
 
