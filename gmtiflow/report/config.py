@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import List
 
-from gmtiflow.schema import Problem, positive
+from gmtiflow.schema import Problem, non_negative, positive
 
 
 @dataclass
@@ -49,8 +49,7 @@ class ReportConfig:
         out = positive(self, "max_points", "max_footprints", "max_timeline_vehicles",
                        "max_track_lines", "snr_bin_db", "dpi", "animation_max_frames",
                        "animation_fps", "viewer_max_frames")
-        if self.viewer_max_labels < 0:
-            out.append(Problem("viewer_max_labels", f"must be >= 0, got {self.viewer_max_labels}"))
+        out += non_negative(self, "viewer_max_labels")
         if not self.viewer_filename.endswith(".html") or "/" in self.viewer_filename:
             out.append(Problem("viewer_filename", f"must be a file name ending in .html, got "
                                                   f"{self.viewer_filename!r}"))
