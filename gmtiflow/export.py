@@ -98,6 +98,11 @@ class ExportConfig:
     and truth.csv (a 1,000-vehicle, 30-min scene at 1 s makes a 150 MB GeoJSON)."""
     geojson_roads: bool = True
     geojson_clutter: bool = True
+    blind: bool = False
+    """Exports without truth, for handing to a tracker under test: no truth.csv, no truth in
+    the GeoJSON, and the detections without ``truth_id``, ``true_*``, ``merged``, the
+    ambiguity flags and ``rcs_dbsm`` (so no 4607 truth tag D32.16/17 nor RCS D32.18).  Truth
+    stays in run.h5 for scoring."""
 
     def problems(self) -> List[Problem]:
         out: List[Problem] = non_negative(self, "geojson_truth_step_s")
@@ -164,6 +169,49 @@ def load_run(run_path) -> RunTables:
                            float(attrs.get("origin_height_m", 0.0)))
     return RunTables(run_path, attrs, origin, str(attrs["scene_epoch_utc"]),
                      config if isinstance(config, dict) else {}, tables)
+
+
+def is_converted_4607(run_path) -> bool:
+    """Whether ``run_path`` was converted from a 4607 file (``gmtiflow-convert X.4607 --to h5``)
+    and holds every table :func:`formats.stanag4607.encode_read_tables` needs."""
+    with open_run(run_path) as f:
+        attrs = read_attrs(f)
+        return (str(attrs.get("source_format", "")) == "4607"
+                and all(name in f for name in formats.stanag4607.READ_TABLES))
+
+
+def rewrite_converted_4607(run_path, dest) -> None:
+    """Write a run file converted from 4607 back to 4607, losslessly.
+
+    Packets, segments, existence masks and every field come from the stored tables; a file that
+    was converted with ``--origin`` has its dwells in the scene frame, and they are rotated back
+    to the sensor's local frame first.  A valid input file comes back byte for byte.
+    """
+    with open_run(run_path) as f:
+        attrs = read_attrs(f)
+        tables = {name: read_table(f, name) for name in formats.stanag4607.READ_TABLES}
+    if "origin_lat_deg" in attrs:
+        origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
+                               float(attrs.get("origin_height_m", 0.0)))
+        tables["dwells"] = local_frame_dwells(tables["dwells"], origin)
+    data = formats.stanag4607.encode_read_tables(tables)
+    formats.write_atomic(dest, data)
+
+
+def local_frame_dwells(dwells: Table, origin: frames.Origin) -> Table:
+    """Dwells with platform velocity and heading rotated from the scene ENU frame to the local
+    ENU at the platform (true north at the sensor, as 4607 D15-D17 and D21 are defined)."""
+    dw = {k: np.asarray(v) for k, v in dwells.items()}
+    if not len(dw.get("dwell_id", ())):
+        return dw
+    lat, lon = dw["platform_lat_deg"], dw["platform_lon_deg"]
+    ve, vn, vu = scene_to_local_velocity(origin, lat, lon, dw["platform_vx_mps"],
+                                         dw["platform_vy_mps"], dw["platform_vz_mps"])
+    hd = np.asarray(dw["platform_heading_rad"], float)
+    he, hn, _ = scene_to_local_velocity(origin, lat, lon, np.sin(hd), np.cos(hd), 0.0)
+    heading = frames.heading_rad(he, hn)
+    return dict(dw, platform_vx_mps=ve, platform_vy_mps=vn, platform_vz_mps=vu,
+                platform_heading_rad=np.where(np.isfinite(hd), heading, np.nan))
 
 
 def _cfg(config: dict, *keys, default=None):
@@ -233,17 +281,9 @@ def to_4607_tables(run: RunTables):
     if not located.all():
         log.info("4607: %d unlocated report(s) skipped", int((~located).sum()))
     det = {k: v[located] for k, v in det.items()}
-    if len(dw.get("dwell_id", ())):
-        lat, lon = dw["platform_lat_deg"], dw["platform_lon_deg"]
-        ve, vn, vu = scene_to_local_velocity(run.origin, lat, lon, dw["platform_vx_mps"],
-                                             dw["platform_vy_mps"], dw["platform_vz_mps"])
-        he, hn, _ = scene_to_local_velocity(run.origin, lat, lon,
-                                            np.sin(dw["platform_heading_rad"]),
-                                            np.cos(dw["platform_heading_rad"]), 0.0)
-        dw = dict(dw, platform_vx_mps=ve, platform_vy_mps=vn, platform_vz_mps=vu,
-                  platform_heading_rad=frames.heading_rad(he, hn))
-    if len(det.get("det_id", ())) and "range_rate_mps" in det:
-        det["range_rate_mps"] = det["range_rate_mps"] - ground_range_rate_scene(
+    dw = local_frame_dwells(dw, run.origin)
+    if len(det.get("det_id", ())) and "range_rate_mps" in det and "los_velocity_mps" not in det:
+        det["los_velocity_mps"] = det["range_rate_mps"] - ground_range_rate_scene(
             run.tables["dwells"], det)
     # Columns 4607 has no field for are not needed by the writer (it ignores them).
     return dw, det
@@ -262,8 +302,7 @@ def from_4607_tables(tables: dict, origin: Optional[frames.Origin] = None) -> di
     dw = dict(out["dwells"])
     det = dict(out["detections"])
     if len(det.get("det_id", ())):
-        los = np.asarray(det["range_rate_mps"], float)
-        det["los_velocity_mps"] = los
+        los = np.asarray(det["los_velocity_mps"], float)
         det["range_rate_mps"] = los + ground_range_rate_geodetic(dw, det)
     if origin is not None:
         h = np.asarray(det.get("height_m", np.zeros(len(det["det_id"]))), float)
@@ -388,6 +427,16 @@ def _csv_table(run: RunTables, name: str) -> Optional[Table]:
     return {c: v for c, v in table.items() if c in cols}
 
 
+def blind_run(run: RunTables) -> RunTables:
+    """``run`` without truth (``export.blind``): no /truth, detections without truth columns."""
+    from gmtiflow.evaluate.protocol import TRUTH_DETECTION_COLUMNS
+    tables = {k: v for k, v in run.tables.items() if k != "truth"}
+    if "detections" in tables:
+        tables["detections"] = {c: v for c, v in tables["detections"].items()
+                                if c not in TRUTH_DETECTION_COLUMNS}
+    return RunTables(run.path, run.attrs, run.origin, run.epoch_utc, run.config, tables)
+
+
 def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
     """Write one export of ``run`` to ``dest`` (a path or a binary file object).
 
@@ -453,7 +502,7 @@ def planned_files(cfg: ExportConfig) -> list:
             continue
         if fmt == "csv":
             out += [(f"csv:{name}", f"{name}.csv") for name in CSV_TABLES
-                    if name in cfg.csv_tables]
+                    if name in cfg.csv_tables and not (cfg.blind and name == "truth")]
         else:
             out.append((fmt, FILE_NAMES[fmt]))
     return out
@@ -476,6 +525,8 @@ def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
     if not plan:
         return []
     run = load_run(run_path)
+    if cfg.blind:
+        run = blind_run(run)
     out_dir = Path(out_dir) if out_dir is not None else Path(run_path).parent
     out_dir.mkdir(parents=True, exist_ok=True)
     written: List[Path] = []
