@@ -380,11 +380,15 @@ def run(cfg: AppConfig, out_dir) -> Path:
             detections, dwells = empty_table(DETECTION_COLUMNS), empty_table(DWELL_COLUMNS)
             looks, truth = empty_table(LOOK_COLUMNS), None
         tracks = runner.stage("track", track, cfg.tracker, detections, dwells, cfg.seed,
-                              origin=roadmap.origin)
+                              origin=roadmap.origin, epoch_utc=scene.epoch_utc,
+                              duration_s=scene.duration_s)
         writer.write_table("tracks", tracks)
         if cfg.metrics.enabled:
+            # Scored up to the last dwell (docs/evaluation.md, "Time base").
+            last_dwell_s = float(np.max(dwells["time_s"])) if len(dwells["time_s"]) else None
             metrics = runner.stage("evaluate", evaluate, cfg.metrics, truth, tracks, looks,
-                                   fleet.vehicles, platform_table, origin=roadmap.origin)
+                                   fleet.vehicles, platform_table, origin=roadmap.origin,
+                                   until_s=last_dwell_s)
             for name, table in metrics.items():
                 writer.write_table(name, table)
         runner.stage("store", writer.commit)
