@@ -122,8 +122,8 @@ def test_track_errors_bands_are_the_per_bin_percentiles(small_run):
     labels = [ln.get_label() for ln in fig.axes[0].lines]
     assert "median" in labels and all(f"track {int(i)}" in labels for i in worst)
     rms = {i: np.sqrt(np.nanmean(v[te["track_id"] == i] ** 2)) for i in np.unique(te["track_id"])}
-    assert rms[worst[0]] == pytest.approx(max(r for i, r in rms.items()
-                                              if np.sum(te["track_id"] == i) >= 3))
+    eligible = {i: r for i, r in rms.items() if np.sum(te["track_id"] == i) >= 3} or rms
+    assert rms[worst[0]] == pytest.approx(max(eligible.values()))   # fewer rows: any track
     # tracker off: one note, no empty axes
     fig = F.track_errors_figure({}, tracker_enabled=False)
     assert fig.axes == [] and any("tracker off" in t.get_text() for t in fig.texts)
