@@ -32,7 +32,8 @@ from lxml import etree
 
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError, RoadMapError
-from gmtiflow.scene.roadmap import OSM_ATTRIBUTION, RoadMap, RoadmapConfig
+from gmtiflow.scene.road_network import RoadMap
+from gmtiflow.scene.roadmap_config import OSM_ATTRIBUTION, RoadmapConfig
 
 _MAXSPEED = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(km/h|kmh|kph|mph|knots)?\s*$", re.IGNORECASE)
 _UNIT_MPS = {None: 1 / 3.6, "km/h": 1 / 3.6, "kmh": 1 / 3.6, "kph": 1 / 3.6,
