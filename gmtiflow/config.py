@@ -13,8 +13,9 @@ import dataclasses
 from dataclasses import dataclass, field
 from datetime import datetime
 from enum import Enum
-from typing import List
+from typing import Dict, List
 
+import numpy as np
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
@@ -83,6 +84,23 @@ class FidelityConfig:
 
 
 @dataclass
+class SensorSlotConfig:
+    """One more airborne sensor of the scene: a platform preset and a sensor preset.
+
+    Declared under ``sensors.<name>`` (docs/sensor.md, "Several sensors"), composed from the
+    same groups as the first sensor with package overrides, e.g. in an ``experiment/`` file
+    ``- /platform@sensors.east.platform: default`` and ``- /sensor@sensors.east.sensor: wide_fov``
+    (on the command line ``+platform@sensors.east.platform=default ...``).
+    """
+
+    platform: PlatformConfig = MISSING
+    sensor: SensorConfig = MISSING
+    platform_id: str = ""
+    """STANAG 4607 platform id (P8, at most 10 characters); "" = ``export.platform_id`` with the
+    sensor id appended."""
+
+
+@dataclass
 class AppConfig:
     """The whole run.  Groups are chosen in ``conf/config.yaml`` and on the command line."""
 
@@ -95,6 +113,10 @@ class AppConfig:
     platform: PlatformConfig = MISSING
     terrain: TerrainConfig = MISSING
     sensor: SensorConfig = MISSING
+    sensor_name: str = "main"
+    """Name of the first sensor (``platform`` + ``sensor``, sensor_id 0)."""
+    sensors: Dict[str, SensorSlotConfig] = field(default_factory=dict)
+    """More sensors by name (sensor_id 1, 2 ... in this order); each its own platform + radar."""
     clutter: ClutterConfig = MISSING
     tracker: TrackerConfig = MISSING
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
@@ -116,7 +138,82 @@ class AppConfig:
         if not (isinstance(self.sensor_workers, int) and 1 <= self.sensor_workers <= 256):
             out.append(Problem("sensor_workers", f"must be an integer in [1, 256], got "
                                                  f"{self.sensor_workers!r}"))
+        return out + sensor_problems(self)
+
+
+@dataclass(frozen=True)
+class SensorSlot:
+    """One sensor of the scene, resolved: its id, name, platform, radar and stream seed."""
+
+    sensor_id: int
+    name: str
+    platform: PlatformConfig
+    sensor: SensorConfig
+    platform_id: str
+    """STANAG 4607 platform id of its aircraft."""
+    stream_seed: int
+    """The seed its sensor draws derive from: the root seed for sensor 0 (so a one-sensor scene
+    is what it always was), ``derived_seed(seed, "sensors", name)`` for the others; either way
+    it depends on nothing but the root seed and the sensor's own name (common random numbers:
+    adding a sensor never changes another one's draws)."""
+
+
+def derived_seed(seed: int, *names: str) -> int:
+    """A 63-bit seed derived by name from the root seed (independent streams per name)."""
+    from gmtiflow import rng
+    return int(rng.seed_sequence(seed, *names).generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+def _slot_platform_id(cfg: "AppConfig", sensor_id: int, explicit: str) -> str:
+    if explicit:
+        return explicit
+    base = cfg.export.platform_id if hasattr(cfg.export, "platform_id") else "GMTIFLOW"
+    if sensor_id == 0:
+        return base
+    suffix = str(sensor_id)
+    return base[:10 - len(suffix)] + suffix
+
+
+def sensor_slots(cfg: "AppConfig") -> List[SensorSlot]:
+    """The scene's sensors in sensor_id order: the first (``platform`` + ``sensor``), then
+    ``sensors`` in declaration order."""
+    slots = [SensorSlot(0, cfg.sensor_name, cfg.platform, cfg.sensor,
+                        _slot_platform_id(cfg, 0, ""), int(cfg.seed))]
+    for i, (name, extra) in enumerate((cfg.sensors or {}).items(), start=1):
+        slots.append(SensorSlot(i, str(name), extra.platform, extra.sensor,
+                                _slot_platform_id(cfg, i, extra.platform_id),
+                                derived_seed(cfg.seed, "sensors", str(name))))
+    return slots
+
+
+def sensor_problems(cfg: "AppConfig") -> List[Problem]:
+    """Sensor names and 4607 platform ids must be unique; each names the key it is set by."""
+    out: List[Problem] = []
+    where = {}
+    if not str(cfg.sensor_name).strip():
+        out.append(Problem("sensor_name", "must not be empty"))
+    seen_names = {str(cfg.sensor_name): "sensor_name"}
+    for name in (cfg.sensors or {}):
+        key = f"sensors.{name}"
+        if str(name) in seen_names:
+            out.append(Problem(key, f"sensor name {name!r} is already used by "
+                                    f"{seen_names[str(name)]}; every sensor needs its own name"))
+        seen_names.setdefault(str(name), key)
+    try:
+        slots = sensor_slots(cfg)
+    except (AttributeError, TypeError):   # incomplete tree (a unit test's partial config)
         return out
+    for slot in slots:
+        key = "export.platform_id" if slot.sensor_id == 0 else f"sensors.{slot.name}.platform_id"
+        if slot.platform_id in where:
+            out.append(Problem(key, f"STANAG 4607 platform id {slot.platform_id!r} is already "
+                                    f"used by {where[slot.platform_id]}; each sensor's aircraft "
+                                    f"needs its own id"))
+        where.setdefault(slot.platform_id, key)
+        if not (0 < len(slot.platform_id) <= 10 and slot.platform_id.isascii()):
+            out.append(Problem(key, f"STANAG 4607 platform id must be 1-10 ASCII characters, "
+                                    f"got {slot.platform_id!r}"))
+    return out
 
 
 def register() -> None:
