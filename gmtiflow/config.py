@@ -83,6 +83,10 @@ class FidelityConfig:
         return out
 
 
+MAIN_SENSOR = "main"
+"""The default name of the first sensor; its draws use the root seed's streams."""
+
+
 @dataclass
 class SensorSlotConfig:
     """One more airborne sensor of the scene: a platform preset and a sensor preset.
@@ -113,7 +117,7 @@ class AppConfig:
     platform: PlatformConfig = MISSING
     terrain: TerrainConfig = MISSING
     sensor: SensorConfig = MISSING
-    sensor_name: str = "main"
+    sensor_name: str = MAIN_SENSOR
     """Name of the first sensor (``platform`` + ``sensor``, sensor_id 0)."""
     sensors: Dict[str, SensorSlotConfig] = field(default_factory=dict)
     """More sensors by name (sensor_id 1, 2 ... in this order); each its own platform + radar."""
@@ -152,10 +156,20 @@ class SensorSlot:
     platform_id: str
     """STANAG 4607 platform id of its aircraft."""
     stream_seed: int
-    """The seed its sensor draws derive from: the root seed for sensor 0 (so a one-sensor scene
-    is what it always was), ``derived_seed(seed, "sensors", name)`` for the others; either way
-    it depends on nothing but the root seed and the sensor's own name (common random numbers:
-    adding a sensor never changes another one's draws)."""
+    """The seed its draws derive from (:func:`stream_seed`)."""
+
+
+def stream_seed(seed: int, name: str) -> int:
+    """The seed of sensor ``name``'s draws: keyed by its name, nothing else.
+
+    The sensor named ``main`` (the default scene's one sensor) draws from the root seed's own
+    streams, so a one-sensor scene is what it always was; any other sensor from
+    ``derived_seed(seed, "sensors", name)``.  A sensor's dwells, detections and looks therefore
+    depend on the seed, its name and its own settings only: adding, removing or reordering
+    other sensors never changes them (common random numbers), and a sensor run alone reproduces
+    its rows of a several-sensor run.
+    """
+    return int(seed) if name == MAIN_SENSOR else derived_seed(seed, "sensors", name)
 
 
 def derived_seed(seed: int, *names: str) -> int:
@@ -178,11 +192,11 @@ def sensor_slots(cfg: "AppConfig") -> List[SensorSlot]:
     """The scene's sensors in sensor_id order: the first (``platform`` + ``sensor``), then
     ``sensors`` in declaration order."""
     slots = [SensorSlot(0, cfg.sensor_name, cfg.platform, cfg.sensor,
-                        _slot_platform_id(cfg, 0, ""), int(cfg.seed))]
+                        _slot_platform_id(cfg, 0, ""), stream_seed(cfg.seed, cfg.sensor_name))]
     for i, (name, extra) in enumerate((cfg.sensors or {}).items(), start=1):
         slots.append(SensorSlot(i, str(name), extra.platform, extra.sensor,
                                 _slot_platform_id(cfg, i, extra.platform_id),
-                                derived_seed(cfg.seed, "sensors", str(name))))
+                                stream_seed(cfg.seed, str(name))))
     return slots
 
 

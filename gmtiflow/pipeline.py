@@ -47,6 +47,7 @@ from tqdm import tqdm
 from gmtiflow.formats import write_atomic
 from gmtiflow import config as config_mod
 from gmtiflow.cache import StageCache, stage_key
+from gmtiflow.coverage import sensors_table
 from gmtiflow.config import AppConfig, SensorSlot, sensor_slots
 from gmtiflow.errors import GmtiflowError
 from gmtiflow.evaluate import evaluate, track
@@ -390,14 +391,23 @@ def _write_tracks(state: RunState, tracks):
 
 
 def _evaluate(state: RunState):
+    """The metrics of the fused tracks, and /metrics/sensors: each sensor's and the fused
+    detection coverage and blind gaps (:mod:`gmtiflow.coverage`)."""
     cfg = state.cfg
     platform = state.values["platform_table"]
     first = np.asarray(platform["sensor_id"]) == 0
-    return evaluate(cfg.metrics, state.values["truth_table"], state.values["track"],
-                    state.table("looks", {**LOOK_COLUMNS, **SENSOR_ID}),
-                    state.values["truth"].vehicles,
-                    {c: np.asarray(v)[first] for c, v in platform.items()},
-                    origin=state.values["scene"][0].origin)
+    looks = state.table("looks", {**LOOK_COLUMNS, **SENSOR_ID})
+    metrics = evaluate(cfg.metrics, state.values["truth_table"], state.values["track"], looks,
+                       state.values["truth"].vehicles,
+                       {c: np.asarray(v)[first] for c, v in platform.items()},
+                       origin=state.values["scene"][0].origin)
+    window_s = 2.0 * max(slot.sensor.revisit_s for slot in state.slots)
+    metrics["metrics/sensors"] = sensors_table(
+        [slot.name for slot in state.slots], state.values["truth_table"],
+        state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID}),
+        state.table("detections", {**DETECTION_COLUMNS, **SENSOR_ID}), looks,
+        window_s=window_s, end_s=cfg.scene.duration_s)
+    return metrics
 
 
 def _write_metrics(state: RunState, metrics):

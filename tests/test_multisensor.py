@@ -1,0 +1,143 @@
+"""Several sensors in one scene (issue 14): per-sensor random streams (common random numbers),
+unique sensor names and platform ids, per-sensor stage cache, run-wide ids."""
+import logging
+import re
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from gmtiflow import pipeline
+from gmtiflow.compose import compose
+from gmtiflow.config import sensor_slots
+from gmtiflow.errors import ConfigError
+
+SMALL = ["scene.duration_s=40", "vehicles=random", "vehicles.random.count=12",
+         "vehicles.random.start_time_max_s=10", "progress=false", "export=none",
+         "report.enabled=false"]
+LEAN = ["tracker=none", "metrics.enabled=false", "cache.enabled=false"]
+TWO = ["experiment=two_orbits"]
+SENSOR_TABLES = ("dwells", "detections", "looks")
+
+
+def tables(path, names=SENSOR_TABLES + ("platform", "sensors")):
+    with h5py.File(path, "r") as f:
+        return {n: {c: f[n][c][()] for c in f[n]} for n in names}
+
+
+def rows_of(table, sensor_id):
+    sel = table["sensor_id"] == sensor_id
+    return {c: v[sel] for c, v in table.items()}
+
+
+def assert_same_rows(a, b, skip=()):
+    assert sorted(a) == sorted(b)
+    for c in a:
+        if c in skip:
+            continue
+        x, y = np.asarray(a[c]), np.asarray(b[c])
+        assert x.dtype == y.dtype and x.shape == y.shape, c
+        if x.dtype.kind == "f":
+            assert np.array_equal(x.view(np.uint8), y.view(np.uint8)), c   # bit for bit
+        else:
+            assert np.array_equal(x, y), c
+
+
+def one_sensor(cfg, name):
+    """The two-sensor config reduced to its sensor ``name`` alone (as the first sensor)."""
+    slot = {s.name: s for s in sensor_slots(cfg)}[name]
+    cfg.platform, cfg.sensor, cfg.sensor_name, cfg.sensors = slot.platform, slot.sensor, name, {}
+    return cfg
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """The two_orbits scene (short) with both sensors and with each sensor alone."""
+    out = tmp_path_factory.mktemp("multisensor")
+    both = pipeline.run(compose(TWO + SMALL + LEAN), out / "both")
+    south = pipeline.run(one_sensor(compose(TWO + SMALL + LEAN), "south"), out / "south")
+    west = pipeline.run(one_sensor(compose(TWO + SMALL + LEAN), "west"), out / "west")
+    return tables(both), tables(south), tables(west)
+
+
+def test_adding_a_sensor_leaves_the_first_bit_identical(runs):
+    both, south, _ = runs
+    assert list(both["sensors"]["name"].astype(str)) == ["south", "west"]
+    for name in SENSOR_TABLES:
+        assert set(np.unique(both[name]["sensor_id"])) == {0, 1}, name
+        assert_same_rows(rows_of(both[name], 0), south[name])
+    assert_same_rows(rows_of(both["platform"], 0), south["platform"])
+
+
+def test_each_sensor_draws_from_its_own_named_streams(runs):
+    """West alone (as the first sensor) equals west beside south, up to the id offsets: its
+    draws depend on the seed and its name only, not on its position or the other sensor."""
+    both, south, west = runs
+    n_dw, n_det = len(south["dwells"]["dwell_id"]), len(south["detections"]["det_id"])
+    got = {n: rows_of(both[n], 1) for n in SENSOR_TABLES}
+    assert np.array_equal(got["dwells"]["dwell_id"], west["dwells"]["dwell_id"] + n_dw)
+    assert np.array_equal(got["detections"]["det_id"], west["detections"]["det_id"] + n_det)
+    assert np.array_equal(got["looks"]["det_id"],
+                          np.where(west["looks"]["det_id"] >= 0, west["looks"]["det_id"] + n_det,
+                                   -1))
+    for n in SENSOR_TABLES:
+        assert_same_rows(got[n], west[n], skip=("dwell_id", "det_id", "sensor_id"))
+    assert len(got["detections"]["det_id"]) > 0 and n_det > 0
+    # Same vehicles, other geometry: the sensors' errors are not the same draws.
+    common = np.intersect1d(south["detections"]["truth_id"], west["detections"]["truth_id"])
+    assert len(common) > 0
+
+
+def test_ids_are_run_wide_and_join(runs):
+    both, _, _ = runs
+    dw, det, look = both["dwells"], both["detections"], both["looks"]
+    assert np.array_equal(dw["dwell_id"], np.arange(len(dw["dwell_id"])))
+    assert np.array_equal(det["det_id"], np.arange(len(det["det_id"])))
+    sensor_of_dwell = dw["sensor_id"][det["dwell_id"]]
+    assert np.array_equal(sensor_of_dwell, det["sensor_id"])
+    hit = look["det_id"] >= 0
+    assert np.array_equal(det["sensor_id"][look["det_id"][hit]], look["sensor_id"][hit])
+
+
+def test_same_sensor_name_or_platform_id_is_one_clear_error():
+    with pytest.raises(ConfigError) as err:
+        compose(TWO + ["sensor_name=west"])
+    assert str(err.value) == ("invalid config: sensors.west: sensor name 'west' is already "
+                              "used by sensor_name; every sensor needs its own name")
+    with pytest.raises(ConfigError, match=r"sensors.west.platform_id: STANAG 4607 platform id "
+                                          r"'GMTIFLOW' is already used by export.platform_id"):
+        compose(TWO + ["sensors.west.platform_id=GMTIFLOW"])
+
+
+def test_cli_rejects_a_duplicate_sensor_name_before_any_work(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "gmtiflow.cli", *TWO, "sensor_name=west",
+                           f"hydra.run.dir={tmp_path}"], capture_output=True, text=True)
+    assert proc.returncode == 1
+    errors = [ln for ln in proc.stderr.splitlines() if "ERROR" in ln]
+    assert len(errors) == 1 and "sensor name 'west' is already used by sensor_name" in errors[0]
+    assert not (tmp_path / "run.h5").exists()
+
+
+def test_changing_one_sensor_recomputes_only_that_sensor(tmp_path, caplog):
+    caplog.set_level(logging.INFO, logger="gmtiflow")
+    base = TWO + SMALL + ["tracker=none", "metrics.enabled=false", f"cache.dir={tmp_path / 'c'}"]
+    keys = pipeline.stage_keys(compose(base))
+    assert set(keys) == {"scene", "truth", "platform.south", "platform.west", "sensor.south",
+                         "sensor.west"}
+    changed = pipeline.stage_keys(compose(base + ["sensors.west.sensor.peak_power_w=900"]))
+    assert {k for k in keys if keys[k] != changed[k]} == {"sensor.west"}
+    pipeline.run(compose(base), tmp_path / "a")
+    caplog.clear()
+    b = pipeline.run(compose(base + ["sensors.west.sensor.peak_power_w=900"]), tmp_path / "b")
+    misses = re.findall(r"cache miss (\S+) ", caplog.text)
+    assert misses == ["sensor.west"], caplog.text
+    for stage in ("scene", "truth", "platform.south", "platform.west", "sensor.south"):
+        assert f"cache hit {stage} " in caplog.text
+    plain = pipeline.run(compose(base[:-1] + ["cache.enabled=false",
+                                              "sensors.west.sensor.peak_power_w=900"]),
+                         tmp_path / "plain")
+    got, want = tables(b), tables(plain)
+    for name in SENSOR_TABLES:
+        assert_same_rows(got[name], want[name])
