@@ -98,6 +98,11 @@ class ExportConfig:
     and truth.csv (a 1,000-vehicle, 30-min scene at 1 s makes a 150 MB GeoJSON)."""
     geojson_roads: bool = True
     geojson_clutter: bool = True
+    blind: bool = False
+    """Exports without truth, for handing to a tracker under test: no truth.csv, no truth in
+    the GeoJSON, and the detections without ``truth_id``, ``true_*``, ``merged``, the
+    ambiguity flags and ``rcs_dbsm`` (so no 4607 truth tag D32.16/17 nor RCS D32.18).  Truth
+    stays in run.h5 for scoring."""
 
     def problems(self) -> List[Problem]:
         out: List[Problem] = non_negative(self, "geojson_truth_step_s")
@@ -388,6 +393,16 @@ def _csv_table(run: RunTables, name: str) -> Optional[Table]:
     return {c: v for c, v in table.items() if c in cols}
 
 
+def blind_run(run: RunTables) -> RunTables:
+    """``run`` without truth (``export.blind``): no /truth, detections without truth columns."""
+    from gmtiflow.evaluate.protocol import TRUTH_DETECTION_COLUMNS
+    tables = {k: v for k, v in run.tables.items() if k != "truth"}
+    if "detections" in tables:
+        tables["detections"] = {c: v for c, v in tables["detections"].items()
+                                if c not in TRUTH_DETECTION_COLUMNS}
+    return RunTables(run.path, run.attrs, run.origin, run.epoch_utc, run.config, tables)
+
+
 def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
     """Write one export of ``run`` to ``dest`` (a path or a binary file object).
 
@@ -453,7 +468,7 @@ def planned_files(cfg: ExportConfig) -> list:
             continue
         if fmt == "csv":
             out += [(f"csv:{name}", f"{name}.csv") for name in CSV_TABLES
-                    if name in cfg.csv_tables]
+                    if name in cfg.csv_tables and not (cfg.blind and name == "truth")]
         else:
             out.append((fmt, FILE_NAMES[fmt]))
     return out
@@ -476,6 +491,8 @@ def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
     if not plan:
         return []
     run = load_run(run_path)
+    if cfg.blind:
+        run = blind_run(run)
     out_dir = Path(out_dir) if out_dir is not None else Path(run_path).parent
     out_dir.mkdir(parents=True, exist_ok=True)
     written: List[Path] = []

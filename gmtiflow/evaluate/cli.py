@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 import h5py
+import yaml
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
@@ -103,7 +104,7 @@ def metrics_config(run_file: h5py.File, include_unconfirmed: bool = False) -> Me
             stored = OmegaConf.create(read_text(run_file, "config"))
             if "metrics" in stored:
                 base = OmegaConf.merge(base, stored.metrics)
-        except (OmegaConfBaseException, ValueError) as exc:
+        except (OmegaConfBaseException, ValueError, yaml.YAMLError) as exc:
             raise StoreError(f"{run_file.filename}: /config metrics section is not usable "
                              f"({exc})") from None
     cfg: MetricsConfig = OmegaConf.to_object(base)

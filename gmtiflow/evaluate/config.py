@@ -7,18 +7,29 @@ cross-field checks.  ``TrackerConfig`` is the ``tracker`` group (``conf/tracker/
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import List, Optional
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional
 
 from gmtiflow.schema import Problem, in_range, non_negative, positive
 
 
 @dataclass
 class TrackerConfig:
-    """Baseline NN-Kalman tracker (``gmtiflow.evaluate.tracker``).  A baseline, not the product."""
+    """The tracker stage: the baseline NN-Kalman tracker (``gmtiflow.evaluate.tracker``, a
+    baseline, not the product) or any tracker of the protocol (``target``,
+    :mod:`gmtiflow.evaluate.protocol`)."""
 
     enabled: bool = True
-    """Run the baseline tracker (``conf/tracker/none.yaml`` switches it off)."""
+    """Run a tracker (``conf/tracker/none.yaml`` switches it off)."""
+    name: str = "nn_kalman"
+    """Label of the tracker (the config file's name; shown in reports)."""
+    target: Optional[str] = None
+    """Import path of a tracker class or factory (``mypkg.MyTracker`` or ``mypkg:MyTracker``),
+    built with ``params`` as keyword arguments; empty: the baseline below."""
+    params: Dict[str, Any] = field(default_factory=dict)
+    """Keyword arguments of ``target`` (the baseline uses the fields below instead)."""
+    per: str = "dwell"
+    """What one protocol batch holds: ``dwell`` or ``revisit`` (one sensor's revisit)."""
     accel_sigma_mps2: float = 1.0
     """White-acceleration σ of the constant-velocity model (per axis; with ``cwna`` the noise
     density is σ²·1 s)."""
@@ -55,6 +66,12 @@ class TrackerConfig:
                        "default_sigma_range_m",
                        "default_sigma_azimuth_deg", "default_sigma_range_rate_mps")
         out += non_negative(self, "footprint_margin_m")
+        if self.per not in ("dwell", "revisit"):
+            out.append(Problem("per", f"must be 'dwell' or 'revisit', got {self.per!r}"))
+        if (self.target is not None and not str(self.target).strip()) or (
+                self.target is None and self.name == "python"):
+            out.append(Problem("target", "must be the import path of your tracker class, e.g. "
+                                         "tracker.target=mypkg.MyTracker"))
         if self.process_noise not in ("cwna", "dwna"):
             out.append(Problem("process_noise", f"must be 'cwna' or 'dwna', got "
                                                 f"{self.process_noise!r}"))

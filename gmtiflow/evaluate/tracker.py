@@ -41,24 +41,23 @@ interface only, and the output is deterministic.
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Mapping, Optional
 
 import numpy as np
 from scipy.stats import chi2
 
 from gmtiflow import frames
-from gmtiflow.errors import InputFileError
 from gmtiflow.evaluate import kalman
 from gmtiflow.evaluate.assignment import gated_assignment
 from gmtiflow.evaluate.config import TrackerConfig
+from gmtiflow.evaluate.protocol import (Batch, SceneInfo, _Prepared, load_tracker,
+                                        run_tracker)
 from gmtiflow.tables import Table
 
 TRACK_COLUMNS = ("track_id", "time_s", "x_m", "y_m", "vx_mps", "vy_mps", "cov_xx_m2",
                  "cov_xy_m2", "cov_yy_m2", "range_rate_mps", "confirmed")
 
-_DET_REQUIRED = ("dwell_id", "x_m", "y_m")
-_DWELL_REQUIRED = ("dwell_id", "time_s", "platform_x_m", "platform_y_m", "platform_z_m",
-                   "platform_vx_mps", "platform_vy_mps", "platform_vz_mps")
 
 
 def empty_tracks() -> Table:
@@ -69,16 +68,10 @@ def empty_tracks() -> Table:
     return out
 
 
-def _require(table: Mapping[str, np.ndarray], names, what: str) -> None:
-    missing = [n for n in names if n not in table]
-    if missing:
-        raise InputFileError(f"{what}: missing column(s) {', '.join(missing)} "
-                             f"(docs/tables.md lists the columns)")
-
-
-def _column(table, name, n, default):
-    if name in table:
-        col = np.asarray(table[name], float)
+def _column(det, name, n, default):
+    """Column ``name`` of the (one dwell's) detections, non-finite values and absence -> default."""
+    if name in det:
+        col = np.asarray(det[name], float)
         return np.where(np.isfinite(col), col, default)
     return np.full(n, float(default))
 
@@ -111,38 +104,21 @@ class _Tracks:
             setattr(self, f, np.concatenate([getattr(self, f), new[f]]))
 
 
-def _dwell_footprints(dwells: Mapping[str, np.ndarray], origin: Optional[frames.Origin]):
-    """Per-dwell footprint arrays, or None when /dwells lacks the beam columns."""
-    if not all(c in dwells for c in ("beam_az_rad", "angle_half_extent_rad")):
-        return None
-    n = len(dwells["dwell_id"])
-    fp = {"az": np.asarray(dwells["beam_az_rad"], float),
-          "half_az": np.asarray(dwells["angle_half_extent_rad"], float),
-          "range": np.full(n, np.nan), "half_range": np.full(n, np.nan)}
-    if origin is not None and all(c in dwells for c in ("area_lat_deg", "area_lon_deg",
-                                                        "range_half_extent_m")):
-        cx, cy, cz = frames.geodetic_to_enu(origin, dwells["area_lat_deg"], dwells["area_lon_deg"],
-                                            np.full(n, origin.height_m))
-        fp["range"] = np.sqrt((cx - dwells["platform_x_m"]) ** 2
-                              + (cy - dwells["platform_y_m"]) ** 2
-                              + (cz - dwells["platform_z_m"]) ** 2)
-        fp["half_range"] = np.asarray(dwells["range_half_extent_m"], float)
-    return fp
-
-
-def _covered(fp, k: int, pos: np.ndarray, z: np.ndarray, plat: np.ndarray, margin_m: float):
-    """Which positions (n, 2) the footprint of dwell index ``k`` covers."""
+def _covered(dw, k: int, pos: np.ndarray, z: np.ndarray, plat: np.ndarray, margin_m: float):
+    """Which positions (n, 2) the footprint of the batch's dwell ``k`` covers."""
     dx, dy, dz = pos[:, 0] - plat[0], pos[:, 1] - plat[1], z - plat[2]
     ground = np.hypot(dx, dy)
     az = frames.heading_rad(dx, dy)
-    off = np.abs(frames.wrap_pi(az - fp["az"][k]))
-    half = fp["half_az"][k]
+    off = np.abs(frames.wrap_pi(az - float(dw["beam_az_rad"][k])))
+    half = float(dw["angle_half_extent_rad"][k])
     ok = np.ones(len(pos), bool)
     if np.isfinite(half):
         ok &= off <= half + margin_m / np.maximum(ground, 1.0)
-    if np.isfinite(fp["range"][k]) and np.isfinite(fp["half_range"][k]):
-        slant = np.sqrt(ground ** 2 + dz ** 2)
-        ok &= np.abs(slant - fp["range"][k]) <= fp["half_range"][k] + margin_m
+    if "area_range_m" in dw and "range_half_extent_m" in dw:
+        centre, half_r = float(dw["area_range_m"][k]), float(dw["range_half_extent_m"][k])
+        if np.isfinite(centre) and np.isfinite(half_r):
+            slant = np.sqrt(ground ** 2 + dz ** 2)
+            ok &= np.abs(slant - centre) <= half_r + margin_m
     return ok
 
 
@@ -196,63 +172,64 @@ def _model(x: np.ndarray, z: np.ndarray, plat_pos, plat_vel, use_rr: bool):
     return h, H
 
 
-def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
-          dwells: Mapping[str, np.ndarray], seed: int = 0, *,
-          origin: Optional[frames.Origin] = None) -> Table:
-    """Run the baseline tracker over the detections of every dwell; returns the /tracks table.
+class NNKalmanTracker:
+    """The baseline as a tracker of the protocol (:mod:`gmtiflow.evaluate.protocol`).
 
-    ``origin`` (the scene's geodetic origin) enables the slant-range test of dwell footprints;
-    without it only the azimuth extent is used.  ``seed`` is unused (the tracker is
-    deterministic) and kept for the common stage signature.
+    ``update`` runs steps 1–6 of the module docstring for each dwell of the batch and returns
+    that batch's /tracks rows; per-dwell and per-revisit batches give the same tracks.
     """
-    del seed
-    if not cfg.enabled:
-        return empty_tracks()
-    _require(detections, _DET_REQUIRED, "/detections")
-    _require(dwells, _DWELL_REQUIRED, "/dwells")
-    n_det = len(detections["dwell_id"])
-    order_dw = np.lexsort((np.asarray(dwells["dwell_id"]), np.asarray(dwells["time_s"], float)))
-    dwells = {k: np.asarray(v)[order_dw] for k, v in dwells.items()}
-    n_dw = len(dwells["dwell_id"])
-    det_dwell = np.asarray(detections["dwell_id"], np.int64)
-    usable = np.ones(n_det, bool)
-    if "implausible" in detections:
-        usable &= ~np.asarray(detections["implausible"], bool)
-    for c in ("x_m", "y_m"):
-        usable &= np.isfinite(np.asarray(detections[c], float))
-    det_order = np.flatnonzero(usable)[np.argsort(det_dwell[usable], kind="stable")]
-    sorted_dwell = det_dwell[det_order]
 
-    fp = _dwell_footprints(dwells, origin)
-    if "revisit_id" in dwells:
-        rev = np.asarray(dwells["revisit_id"])
-        last_of_revisit = np.append(rev[1:] != rev[:-1], True)
-    else:
-        last_of_revisit = np.ones(n_dw, bool)
-    use_rr = cfg.use_range_rate and "range_rate_mps" in detections
-    m = 3 if use_rr else 2
-    gate = float(chi2.ppf(cfg.gate_probability, m))
-    init_var_v = cfg.init_speed_sigma_mps ** 2
+    def __init__(self, cfg: Optional[TrackerConfig] = None, **overrides) -> None:
+        cfg = cfg if cfg is not None else TrackerConfig()
+        if overrides:
+            cfg = dataclasses.replace(cfg, **overrides)
+        self.cfg = cfg
+        self._gate = {m: float(chi2.ppf(cfg.gate_probability, m)) for m in (2, 3)}
+        self.reset(SceneInfo())
 
-    tr = _Tracks()
-    next_id = 0
-    out = []
-    t_dw = np.asarray(dwells["time_s"], float)
-    plat_pos_all = np.stack([dwells["platform_x_m"], dwells["platform_y_m"],
-                             dwells["platform_z_m"]], axis=1).astype(float)
-    plat_vel_all = np.stack([dwells["platform_vx_mps"], dwells["platform_vy_mps"],
-                             dwells["platform_vz_mps"]], axis=1).astype(float)
+    def reset(self, scene: SceneInfo) -> None:
+        self._tr = _Tracks()
+        self._next_id = 0
 
-    for k in range(n_dw):
-        t = t_dw[k]
-        plat_pos, plat_vel = plat_pos_all[k], plat_vel_all[k]
-        lo, hi = np.searchsorted(sorted_dwell, [dwells["dwell_id"][k], dwells["dwell_id"][k] + 1])
-        didx = det_order[lo:hi]
+    def finish(self) -> None:
+        return None
+
+    def update(self, batch: Batch) -> Optional[Table]:
+        dw, det = batch.dwells, batch.detections
+        if not len(dw["dwell_id"]):
+            return None
+        has_fp = "beam_az_rad" in dw and "angle_half_extent_rad" in dw
+        usable = np.ones(len(det["dwell_id"]), bool)
+        if "implausible" in det:
+            usable &= ~np.asarray(det["implausible"], bool)
+        for c in ("x_m", "y_m"):
+            usable &= np.isfinite(np.asarray(det[c], float))
+        out = []
+        for k, rows in batch.dwell_slices():
+            idx = np.flatnonzero(usable[rows])
+            sub = {name: col[rows] for name, col in det.items()} if len(idx) else det
+            self._dwell(dw, k, sub, idx, has_fp, out)
+        if not out:
+            return None
+        if len(out) == 1:
+            return out[0]
+        return {name: np.concatenate([o[name] for o in out]) for name in TRACK_COLUMNS}
+
+    def _dwell(self, dw, k: int, det, didx, has_fp: bool, out: list) -> None:
+        cfg, tr = self.cfg, self._tr
+        use_rr = cfg.use_range_rate and "range_rate_mps" in det
+        gate = self._gate[3 if use_rr else 2]
+        init_var_v = cfg.init_speed_sigma_mps ** 2
+        t = float(dw["time_s"][k])
+        plat_pos = np.array([dw["platform_x_m"][k], dw["platform_y_m"][k],
+                             dw["platform_z_m"][k]], float)
+        plat_vel = np.array([dw["platform_vx_mps"][k], dw["platform_vy_mps"][k],
+                             dw["platform_vz_mps"][k]], float)
         n_tr = len(tr.id)
         dt = t - tr.t
         pos_guess = kalman.extrapolate_position(tr.x, dt)
-        if fp is not None:
-            cov = _covered(fp, k, pos_guess, tr.z, plat_pos, cfg.footprint_margin_m)
+        if has_fp:
+            cov = _covered(dw, k, pos_guess, tr.z, plat_pos, cfg.footprint_margin_m)
         else:
             cov = np.ones(n_tr, bool)
         ci = np.flatnonzero(cov)
@@ -261,7 +238,7 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
         assigned_track = np.full(len(ci), -1, np.int64)       # detection slot per covered track
         det_taken = np.zeros(len(didx), bool)
         if len(didx):
-            zmeas, R, zdet, wrap = _measurements(detections, didx, plat_pos, cfg)
+            zmeas, R, zdet, wrap = _measurements(det, didx, plat_pos, cfg)
         if len(didx) and len(ci):
             h, H = _model(xp, tr.z[ci], plat_pos, plat_vel, use_rr)
             nu, HPHt, d2 = kalman.innovations(xp, Pp, H, h, zmeas, R, wrap, gate)
@@ -298,8 +275,8 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
                 nu1 = kalman.wrap_symmetric(zmeas[free, 2:3] - h1, wrap[free, None])
                 S1 = H1 @ P0 @ np.transpose(H1, (0, 2, 1)) + R[free, 2:3, 2:3]
                 x0, P0 = kalman.kalman_update(x0, P0, H1, nu1, S1, R[free, 2:3, 2:3])
-            ids = next_id + np.arange(nf, dtype=np.int64)
-            next_id += nf
+            ids = self._next_id + np.arange(nf, dtype=np.int64)
+            self._next_id += nf
             zeros = np.zeros(nf, np.int64)
             tr.append(id=ids, x=x0, P=P0, t=np.full(nf, t), z=zdet[free], hits=zeros,
                       covered=zeros, misses=zeros, confirmed=np.full(nf, cfg.confirm_m <= 1),
@@ -312,7 +289,7 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
         tr.rev_hit[ci[hit]] = True
         dead = (t - tr.t) > cfg.max_coast_s
         missed_rev = np.zeros(0, np.int64)
-        if last_of_revisit[k]:
+        if dw["revisit_end"][k]:
             counted = np.flatnonzero(tr.rev_covered)
             got = tr.rev_hit[counted]
             tr.covered[counted] += 1
@@ -329,7 +306,7 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
 
         # Rows: covered tracks (updated or coasted) with footprints; without, the updated tracks
         # and, at a revisit's end, the ones it missed.  New tracks: their first row.
-        if fp is not None:
+        if has_fp:
             row_sel = np.ones(len(ci), bool)
         else:
             row_sel = hit | np.isin(ci, missed_rev)
@@ -345,17 +322,36 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
                              tr.confirmed[new]))
         tr.keep(~dead)
 
-    if not out:
+
+def make_tracker(cfg: TrackerConfig):
+    """The tracker ``cfg`` names: the baseline, or ``cfg.target`` built with ``cfg.params``."""
+    if cfg.target:
+        return load_tracker(cfg.target, cfg.params)
+    return NNKalmanTracker(cfg)
+
+
+def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
+          dwells: Mapping[str, np.ndarray], seed: int = 0, *,
+          origin: Optional[frames.Origin] = None, epoch_utc: Optional[str] = None,
+          duration_s: Optional[float] = None) -> Table:
+    """The tracker stage: run the configured tracker over every dwell; returns /tracks.
+
+    The baseline (``cfg.target`` empty) or the user's tracker (:func:`make_tracker`) is fed the
+    blind batches of :func:`gmtiflow.evaluate.protocol.batches` (one per dwell, or per revisit
+    with ``cfg.per``).  ``origin`` (the scene's geodetic origin) enables the slant-range test
+    of dwell footprints; without it only the azimuth extent is used.  ``seed`` is handed to the
+    tracker in its :class:`~gmtiflow.evaluate.protocol.SceneInfo` (the baseline draws no
+    random numbers).
+    """
+    if not cfg.enabled:
         return empty_tracks()
-    table = {name: np.concatenate([o[name] for o in out]) for name in TRACK_COLUMNS}
-    order = np.lexsort((table["time_s"], table["track_id"]))
-    table = {name: col[order] for name, col in table.items()}
-    # Several dwells can share one instant (instant_scan evaluates a whole scan at once): a track
-    # updated twice at the same time keeps its last state only (lexsort is stable).
-    ids, t = table["track_id"], table["time_s"]
-    last = np.ones(len(ids), bool)
-    last[:-1] = (ids[1:] != ids[:-1]) | (t[1:] != t[:-1])
-    return {name: col[last] for name, col in table.items()}
+    tracker = make_tracker(cfg)
+    prepared = _Prepared(detections, dwells, origin, cfg.per)
+    scene = SceneInfo(origin=origin, epoch_utc=epoch_utc, duration_s=duration_s,
+                      n_dwells=prepared.n_dwells, n_batches=len(prepared),
+                      sensor_ids=prepared.sensor_ids, per=cfg.per, seed=int(seed))
+    table = run_tracker(tracker, prepared, scene, origin)
+    return empty_tracks() if table is None else table
 
 
 def _rows(ids, t, x, P, z, plat_pos, plat_vel, confirmed) -> Table:
