@@ -99,9 +99,6 @@ class SensorSlotConfig:
 
     platform: PlatformConfig = MISSING
     sensor: SensorConfig = MISSING
-    platform_id: str = ""
-    """STANAG 4607 platform id (P8, at most 10 characters); "" = ``export.platform_id`` with the
-    sensor id appended."""
 
 
 @dataclass
@@ -154,7 +151,7 @@ class SensorSlot:
     platform: PlatformConfig
     sensor: SensorConfig
     platform_id: str
-    """STANAG 4607 platform id of its aircraft."""
+    """STANAG 4607 platform id (P8) of its aircraft (:func:`platform_id`)."""
     stream_seed: int
     """The seed its draws derive from (:func:`stream_seed`)."""
 
@@ -178,11 +175,11 @@ def derived_seed(seed: int, *names: str) -> int:
     return int(rng.seed_sequence(seed, *names).generate_state(1, np.uint64)[0] >> np.uint64(1))
 
 
-def _slot_platform_id(cfg: "AppConfig", sensor_id: int, explicit: str) -> str:
-    if explicit:
-        return explicit
-    base = cfg.export.platform_id if hasattr(cfg.export, "platform_id") else "GMTIFLOW"
-    if sensor_id == 0:
+def platform_id(base: str, sensor_id: int, n_sensors: int) -> str:
+    """The STANAG 4607 platform id of a sensor's aircraft, as the 4607 writer makes it: one
+    sensor: ``export.platform_id``; several: that id with the sensor id appended, within 10
+    characters (GMTIFLOW0, GMTIFLOW1 ...)."""
+    if n_sensors <= 1:
         return base
     suffix = str(sensor_id)
     return base[:10 - len(suffix)] + suffix
@@ -191,17 +188,17 @@ def _slot_platform_id(cfg: "AppConfig", sensor_id: int, explicit: str) -> str:
 def sensor_slots(cfg: "AppConfig") -> List[SensorSlot]:
     """The scene's sensors in sensor_id order: the first (``platform`` + ``sensor``), then
     ``sensors`` in declaration order."""
-    slots = [SensorSlot(0, cfg.sensor_name, cfg.platform, cfg.sensor,
-                        _slot_platform_id(cfg, 0, ""), stream_seed(cfg.seed, cfg.sensor_name))]
-    for i, (name, extra) in enumerate((cfg.sensors or {}).items(), start=1):
-        slots.append(SensorSlot(i, str(name), extra.platform, extra.sensor,
-                                _slot_platform_id(cfg, i, extra.platform_id),
-                                stream_seed(cfg.seed, str(name))))
+    named = [(str(cfg.sensor_name), cfg.platform, cfg.sensor)] + [
+        (str(name), extra.platform, extra.sensor) for name, extra in (cfg.sensors or {}).items()]
+    base = getattr(cfg.export, "platform_id", "GMTIFLOW")
+    slots = [SensorSlot(i, name, plat, sens, platform_id(base, i, len(named)),
+                        stream_seed(cfg.seed, name))
+             for i, (name, plat, sens) in enumerate(named)]
     return slots
 
 
 def sensor_problems(cfg: "AppConfig") -> List[Problem]:
-    """Sensor names and 4607 platform ids must be unique; each names the key it is set by."""
+    """Sensor names (and so their 4607 platform ids) must be unique; each names its key."""
     out: List[Problem] = []
     where = {}
     if not str(cfg.sensor_name).strip():
@@ -218,15 +215,12 @@ def sensor_problems(cfg: "AppConfig") -> List[Problem]:
     except (AttributeError, TypeError):   # incomplete tree (a unit test's partial config)
         return out
     for slot in slots:
-        key = "export.platform_id" if slot.sensor_id == 0 else f"sensors.{slot.name}.platform_id"
+        key = "sensor_name" if slot.sensor_id == 0 else f"sensors.{slot.name}"
         if slot.platform_id in where:
-            out.append(Problem(key, f"STANAG 4607 platform id {slot.platform_id!r} is already "
-                                    f"used by {where[slot.platform_id]}; each sensor's aircraft "
-                                    f"needs its own id"))
+            out.append(Problem("export.platform_id", f"gives sensors {where[slot.platform_id]} "
+                                                     f"and {key} the same STANAG 4607 platform "
+                                                     f"id {slot.platform_id!r}; choose another"))
         where.setdefault(slot.platform_id, key)
-        if not (0 < len(slot.platform_id) <= 10 and slot.platform_id.isascii()):
-            out.append(Problem(key, f"STANAG 4607 platform id must be 1-10 ASCII characters, "
-                                    f"got {slot.platform_id!r}"))
     return out
 
 
