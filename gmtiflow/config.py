@@ -210,17 +210,16 @@ def sensor_problems(cfg: "AppConfig") -> List[Problem]:
             out.append(Problem(key, f"sensor name {name!r} is already used by "
                                     f"{seen_names[str(name)]}; every sensor needs its own name"))
         seen_names.setdefault(str(name), key)
-    try:
-        slots = sensor_slots(cfg)
-    except (AttributeError, TypeError):   # incomplete tree (a unit test's partial config)
-        return out
-    for slot in slots:
-        key = "sensor_name" if slot.sensor_id == 0 else f"sensors.{slot.name}"
-        if slot.platform_id in where:
-            out.append(Problem("export.platform_id", f"gives sensors {where[slot.platform_id]} "
-                                                     f"and {key} the same STANAG 4607 platform "
-                                                     f"id {slot.platform_id!r}; choose another"))
-        where.setdefault(slot.platform_id, key)
+    names = [str(cfg.sensor_name)] + [str(n) for n in (cfg.sensors or {})]
+    base = getattr(cfg.export, "platform_id", "GMTIFLOW")
+    for i, name in enumerate(names):
+        key = "sensor_name" if i == 0 else f"sensors.{name}"
+        pid = platform_id(str(base), i, len(names))
+        if pid in where:
+            out.append(Problem("export.platform_id", f"gives sensors {where[pid]} and {key} the "
+                                                     f"same STANAG 4607 platform id {pid!r}; "
+                                                     f"choose another"))
+        where.setdefault(pid, key)
     return out
 
 
