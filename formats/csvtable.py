@@ -42,6 +42,7 @@ COLUMNS: dict[str, dict[str, str]] = {
         "time_s": F, "det_id": I, "dwell_id": I, "sensor_id": I, "lat_deg": F, "lon_deg": F,
         "height_m": F,
         "x_m": F, "y_m": F, "z_m": F, "range_m": F, "azimuth_rad": F, "range_rate_mps": F,
+        "los_velocity_mps": F,
         "sigma_range_m": F, "sigma_azimuth_rad": F, "sigma_range_rate_mps": F, "snr_db": F,
         "truth_id": I, "true_range_m": F, "true_azimuth_rad": F, "true_range_rate_mps": F,
         "merged": B, "range_folded": B, "doppler_wrapped": B, "implausible": B, "rcs_dbsm": F,

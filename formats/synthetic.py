@@ -92,6 +92,9 @@ def tables(n_dwells: int = 20, n_detections: int = 200, *, seed: int = 0,
         "rcs_dbsm": rng.uniform(-5, 25, n),
         "wrap_velocity_mps": np.full(n, 75.0),
     }
+    # STANAG 4607 D32.7: the LOS velocity corrected for platform motion (the target's own
+    # radial speed), a column of its own beside the full range rate
+    dets["los_velocity_mps"] = rng.uniform(-30, 30, n)
     return dwells, dets
 
 

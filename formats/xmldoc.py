@@ -60,7 +60,7 @@ DWELL_COLUMNS = {
 DETECTION_COLUMNS = {
     "det_id": _INT, "time_s": _FLOAT, "lat_deg": _FLOAT, "lon_deg": _FLOAT, "height_m": _FLOAT,
     "x_m": _FLOAT, "y_m": _FLOAT, "z_m": _FLOAT, "range_m": _FLOAT, "azimuth_rad": _FLOAT,
-    "range_rate_mps": _FLOAT, "wrap_velocity_mps": _FLOAT, "snr_db": _FLOAT,
+    "range_rate_mps": _FLOAT, "los_velocity_mps": _FLOAT, "wrap_velocity_mps": _FLOAT, "snr_db": _FLOAT,
     "classification": _U8, "sigma_range_m": _FLOAT, "sigma_azimuth_rad": _FLOAT,
     "sigma_cross_range_m": _FLOAT, "sigma_height_m": _FLOAT, "sigma_range_rate_mps": _FLOAT,
     "truth_id": _INT, "rcs_dbsm": _FLOAT, "true_range_m": _FLOAT, "true_azimuth_rad": _FLOAT,

@@ -146,6 +146,9 @@ def read_any(path: Path, fmt: str, *, table: Optional[str] = None,
         raw = formats.read_4607(path, epoch_utc=epoch)
         tables = export_mod.from_4607_tables(raw, origin)
         attrs.update({k: v for k, v in raw["attrs"].items() if v is not None})
+        if origin is not None:     # the run-file root attributes of the scene frame
+            attrs.update(origin_lat_deg=origin.lat_deg, origin_lon_deg=origin.lon_deg,
+                         origin_height_m=origin.height_m)
     elif fmt == "xml":
         raw = formats.read_xml(path)
         tables = {"dwells": raw["dwells"], "detections": raw["detections"]}
@@ -173,6 +176,12 @@ def read_any(path: Path, fmt: str, *, table: Optional[str] = None,
 def write_tables_h5(out: Path, tables: Dict[str, dict], attrs: dict,
                     texts: Optional[Dict[str, str]] = None) -> Path:
     """HDF5 tables in the run-file layout (atomic; ``seed`` -1 marks 'not a simulation')."""
+    for name, table in tables.items():
+        for col, values in (table or {}).items():
+            v = np.asarray(values)
+            if v.dtype.kind in "UO" and any("\x00" in str(x) for x in v.ravel()):
+                raise InputFileError(f"{out}: table {name!r} column {col!r} holds a NUL "
+                                     "character, which HDF5 text cannot store")
     with RunWriter(out, seed=-1, attrs=attrs) as w:
         for name, text in (texts or {}).items():
             w.write_text(name, text)
@@ -196,6 +205,10 @@ def convert(args) -> Path:
         if problems:
             raise InputFileError("; ".join(f"--{p.key.replace('_', '-')}: {p.message}"
                                            for p in problems))
+        if args.to == "4607" and export_mod.is_converted_4607(args.input):
+            out = args.output or args.input.parent / export_mod.FILE_NAMES["stanag4607"]
+            export_mod.rewrite_converted_4607(args.input, out)
+            return out
         run = export_mod.load_run(args.input)
         if args.to == "csv":
             name = args.table or "detections"

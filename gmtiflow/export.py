@@ -171,6 +171,49 @@ def load_run(run_path) -> RunTables:
                      config if isinstance(config, dict) else {}, tables)
 
 
+def is_converted_4607(run_path) -> bool:
+    """Whether ``run_path`` was converted from a 4607 file (``gmtiflow-convert X.4607 --to h5``)
+    and holds every table :func:`formats.stanag4607.encode_read_tables` needs."""
+    with open_run(run_path) as f:
+        attrs = read_attrs(f)
+        return (str(attrs.get("source_format", "")) == "4607"
+                and all(name in f for name in formats.stanag4607.READ_TABLES))
+
+
+def rewrite_converted_4607(run_path, dest) -> None:
+    """Write a run file converted from 4607 back to 4607, losslessly.
+
+    Packets, segments, existence masks and every field come from the stored tables; a file that
+    was converted with ``--origin`` has its dwells in the scene frame, and they are rotated back
+    to the sensor's local frame first.  A valid input file comes back byte for byte.
+    """
+    with open_run(run_path) as f:
+        attrs = read_attrs(f)
+        tables = {name: read_table(f, name) for name in formats.stanag4607.READ_TABLES}
+    if "origin_lat_deg" in attrs:
+        origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
+                               float(attrs.get("origin_height_m", 0.0)))
+        tables["dwells"] = local_frame_dwells(tables["dwells"], origin)
+    data = formats.stanag4607.encode_read_tables(tables)
+    formats.write_atomic(dest, data)
+
+
+def local_frame_dwells(dwells: Table, origin: frames.Origin) -> Table:
+    """Dwells with platform velocity and heading rotated from the scene ENU frame to the local
+    ENU at the platform (true north at the sensor, as 4607 D15-D17 and D21 are defined)."""
+    dw = {k: np.asarray(v) for k, v in dwells.items()}
+    if not len(dw.get("dwell_id", ())):
+        return dw
+    lat, lon = dw["platform_lat_deg"], dw["platform_lon_deg"]
+    ve, vn, vu = scene_to_local_velocity(origin, lat, lon, dw["platform_vx_mps"],
+                                         dw["platform_vy_mps"], dw["platform_vz_mps"])
+    hd = np.asarray(dw["platform_heading_rad"], float)
+    he, hn, _ = scene_to_local_velocity(origin, lat, lon, np.sin(hd), np.cos(hd), 0.0)
+    heading = frames.heading_rad(he, hn)
+    return dict(dw, platform_vx_mps=ve, platform_vy_mps=vn, platform_vz_mps=vu,
+                platform_heading_rad=np.where(np.isfinite(hd), heading, np.nan))
+
+
 def _cfg(config: dict, *keys, default=None):
     node = config
     for k in keys:
@@ -238,17 +281,9 @@ def to_4607_tables(run: RunTables):
     if not located.all():
         log.info("4607: %d unlocated report(s) skipped", int((~located).sum()))
     det = {k: v[located] for k, v in det.items()}
-    if len(dw.get("dwell_id", ())):
-        lat, lon = dw["platform_lat_deg"], dw["platform_lon_deg"]
-        ve, vn, vu = scene_to_local_velocity(run.origin, lat, lon, dw["platform_vx_mps"],
-                                             dw["platform_vy_mps"], dw["platform_vz_mps"])
-        he, hn, _ = scene_to_local_velocity(run.origin, lat, lon,
-                                            np.sin(dw["platform_heading_rad"]),
-                                            np.cos(dw["platform_heading_rad"]), 0.0)
-        dw = dict(dw, platform_vx_mps=ve, platform_vy_mps=vn, platform_vz_mps=vu,
-                  platform_heading_rad=frames.heading_rad(he, hn))
-    if len(det.get("det_id", ())) and "range_rate_mps" in det:
-        det["range_rate_mps"] = det["range_rate_mps"] - ground_range_rate_scene(
+    dw = local_frame_dwells(dw, run.origin)
+    if len(det.get("det_id", ())) and "range_rate_mps" in det and "los_velocity_mps" not in det:
+        det["los_velocity_mps"] = det["range_rate_mps"] - ground_range_rate_scene(
             run.tables["dwells"], det)
     # Columns 4607 has no field for are not needed by the writer (it ignores them).
     return dw, det
@@ -267,8 +302,7 @@ def from_4607_tables(tables: dict, origin: Optional[frames.Origin] = None) -> di
     dw = dict(out["dwells"])
     det = dict(out["detections"])
     if len(det.get("det_id", ())):
-        los = np.asarray(det["range_rate_mps"], float)
-        det["los_velocity_mps"] = los
+        los = np.asarray(det["los_velocity_mps"], float)
         det["range_rate_mps"] = los + ground_range_rate_geodetic(dw, det)
     if origin is not None:
         h = np.asarray(det.get("height_m", np.zeros(len(det["det_id"]))), float)

@@ -57,8 +57,11 @@ def by(table, *keys):
 def assert_close(a, b, quanta, what, nan_as_zero=()):
     for col, tol in quanta.items():
         x, y = np.asarray(a[col], float), np.asarray(b[col], float)
-        if col in nan_as_zero:            # 4607 has no per-report "absent": NaN is sent as 0
-            x = np.where(np.isnan(x), 0.0, x)
+        if col in nan_as_zero:
+            # 4607's "absent" is per dwell (the existence mask): a dwell where no report has the
+            # value leaves the field out and it reads back as NaN; a report without it in a
+            # dwell where others have it is sent as 0
+            x = np.where(np.isnan(x) & ~np.isnan(y), 0.0, x)
         assert x.shape == y.shape, (what, col)
         err = np.abs(x - y)
         assert np.array_equal(np.isnan(x), np.isnan(y)), (what, col)
@@ -203,3 +206,42 @@ def test_format_to_format_is_refused(run, tmp_path):
     code, _, err = cli(tmp_path / "d.csv", "--to", "xml")
     assert code == 1 and "--to h5" in err
     assert convert.main([str(run), "--to", "h5"]) == 1
+
+
+@pytest.mark.parametrize("with_origin", [True, False])
+def test_4607_to_h5_to_4607_is_byte_identical_and_carries_the_origin(run, tmp_path, with_origin):
+    first = tmp_path / "first.4607"
+    code, _, err = cli(run, "--to", "4607", "-o", first)
+    assert code == 0, err
+    extra = ("--origin", origin_of(run)) if with_origin else ()
+    code, _, err = cli(first, "--to", "h5", "-o", tmp_path / "c.h5", *extra)
+    assert code == 0, err
+    with h5py.File(tmp_path / "c.h5") as f:
+        assert ("origin_lat_deg" in f.attrs) == with_origin
+        if with_origin:
+            assert ",".join(str(float(f.attrs[k])) for k in (
+                "origin_lat_deg", "origin_lon_deg", "origin_height_m")) == origin_of(run)
+    code, _, err = cli(tmp_path / "c.h5", "--to", "4607", "-o", tmp_path / "again.4607")
+    assert code == 0, err
+    assert (tmp_path / "again.4607").read_bytes() == first.read_bytes()
+
+
+def test_nul_padded_4607_converts_to_h5_and_back(tmp_path):
+    from tests.formats.test_4607_round_trip import PT_MASK, fixture_file
+    data = fixture_file(PT_MASK).replace(b"AFRLPLAT  ", b"AFRLPLAT\x00\x00").replace(
+        b"hello analyst", b"hello\x00garbage")
+    (tmp_path / "nul.4607").write_bytes(data)
+    code, _, err = cli(tmp_path / "nul.4607", "--to", "h5", "-o", tmp_path / "nul.h5")
+    assert code == 0, err
+    assert store.read_table(tmp_path / "nul.h5", "free_texts")["text"].tolist() == ["hello"]
+    code, _, err = cli(tmp_path / "nul.h5", "--to", "4607", "-o", tmp_path / "back.4607")
+    assert code == 0, err
+    # field-identical: the standard's space padding instead of the NULs, text up to the NUL
+    assert (tmp_path / "back.4607").read_bytes() == fixture_file(PT_MASK, text=b"hello")
+
+
+def test_empty_4607_file_is_an_error_not_an_empty_run_file(tmp_path):
+    (tmp_path / "empty.4607").write_bytes(b"")
+    code, _, err = cli(tmp_path / "empty.4607", "--to", "h5", "-o", tmp_path / "e.h5")
+    assert code == 1 and "empty (0 bytes)" in err and err.count("\n") == 1
+    assert not (tmp_path / "e.h5").exists()

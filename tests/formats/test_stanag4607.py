@@ -150,7 +150,7 @@ def test_hand_assembled_full_mask_dwell_decodes_to_engineering_values():
     assert t["lat_deg"][0] == pytest.approx(-0x1B3A_0000 * SA32_Q, abs=1e-12)
     assert t["lon_deg"][0] == pytest.approx(0xF9FF_0000 * BA32_Q - 360.0, abs=1e-12)  # west
     assert t["height_m"].tolist() == [-417.0, 250.0]                                  # negative
-    assert t["range_rate_mps"][0] == pytest.approx(-12.34)
+    assert t["los_velocity_mps"][0] == pytest.approx(-12.34)
     assert t["wrap_velocity_mps"][0] == pytest.approx(75.0)
     assert t["snr_db"][0] == -7.0
     assert t["classification"][0] == 138
@@ -236,7 +236,7 @@ def test_reads_real_sample_list1(list1_path):
     assert t["lon_deg"][0] == pytest.approx(357.2900000307709 - 360, abs=1e-12)
     assert (t["mti_report_index"][0], t["height_m"][0], t["snr_db"][0]) == (34, 100.0, -128.0)
     assert (t["truth_application"][0], t["truth_id"][0], t["rcs_dbsm"][0]) == (200, 10000, 5.0)
-    assert t["range_rate_mps"][0] == pytest.approx(5.30)
+    assert t["los_velocity_mps"][0] == pytest.approx(5.30)
     assert t["sigma_cross_range_m"][0] == 200.0
     assert r["attrs"]["time_origin"] == "reference_day"
     assert t["time_s"][0] == 1000.0
@@ -351,7 +351,7 @@ def test_independent_decoder_reads_every_field_we_write(edition):
     np.testing.assert_allclose([f(x.high_resolution_latitude) for x in tg_rows], t["lat_deg"], atol=1e-12)
     np.testing.assert_allclose([f(x.high_resolution_longitude) for x in tg_rows], t["lon_deg"] % 360, atol=1e-12)
     assert [x.geodetic_height_meters for x in tg_rows] == t["height_m"].tolist()
-    np.testing.assert_allclose([x.radial_velocity_centimeters_per_second / 100 for x in tg_rows], t["range_rate_mps"])
+    np.testing.assert_allclose([x.radial_velocity_centimeters_per_second / 100 for x in tg_rows], t["los_velocity_mps"])
     np.testing.assert_allclose([x.wrap_velocity_centimeters_per_second / 100 for x in tg_rows], t["wrap_velocity_mps"])
     assert [x.signal_to_noise_ratio_decibels for x in tg_rows] == t["snr_db"].tolist()
     assert [x.classification for x in tg_rows] == t["classification"].tolist()
@@ -382,7 +382,7 @@ def _check_quanta(dwells, dets, r):
     dl = (t["lon_deg"] - dets["lon_deg"] + 180) % 360 - 180
     assert np.all(np.abs(dl) <= BA32_Q / 2 + 1e-12)
     np.testing.assert_allclose(t["height_m"], dets["height_m"], atol=0.5 + 1e-9)
-    np.testing.assert_allclose(t["range_rate_mps"], dets["range_rate_mps"], atol=0.005 + 1e-9)
+    np.testing.assert_allclose(t["los_velocity_mps"], dets["los_velocity_mps"], atol=0.005 + 1e-9)
     np.testing.assert_allclose(t["snr_db"], dets["snr_db"], atol=0.5 + 1e-9)
     np.testing.assert_allclose(t["sigma_range_m"], dets["sigma_range_m"], atol=0.005 + 1e-9)
     np.testing.assert_allclose(t["sigma_cross_range_m"], dets["range_m"] * dets["sigma_azimuth_rad"], atol=0.05 + 1e-9)
@@ -420,13 +420,13 @@ def test_round_trip_random_tables(seed, n_dwells, n_dets, lat, lon):
 def test_out_of_range_values_saturate_and_nan_becomes_zero():
     dwells, dets = synthetic.tables(2, 4, seed=2)
     dets["snr_db"][:] = [500.0, -500.0, np.nan, 12.4]
-    dets["range_rate_mps"][:] = [1e4, -1e4, 0.0, 1.0]
+    dets["los_velocity_mps"][:] = [1e4, -1e4, 0.0, 1.0]
     dets["rcs_dbsm"][:] = [100.0, -100.0, 0.0, 0.0]
     dets["height_m"][:] = [1e6, -5000.0, 0.0, 0.0]
     dets["lat_deg"][0] = 90.0
     t = s4607.read_4607(s4607.encode_4607(dwells, dets, META))["detections"]
     assert t["snr_db"].tolist() == [127.0, -128.0, 0.0, 12.0]
-    assert t["range_rate_mps"].tolist()[:2] == [327.67, -327.68]
+    assert t["los_velocity_mps"].tolist()[:2] == [327.67, -327.68]
     assert t["rcs_dbsm"].tolist()[:2] == [63.5, -64.0]
     assert t["height_m"].tolist()[:2] == [32767.0, -1000.0]
     assert t["lat_deg"][0] == pytest.approx(90.0 - SA32_Q)
@@ -484,7 +484,10 @@ def test_no_detections_and_empty_tables():
     assert r["dwells"]["target_count"].tolist() == [0, 0, 0]
     r = s4607.read_4607(s4607.encode_4607({}, {}, META))
     assert len(r["dwells"]["dwell_id"]) == 0 and len(r["missions"]["packet"]) == 1
-    assert s4607.read_4607(b"")["packets"]["offset"].size == 0
+    assert s4607.decode_4607(b"")["packets"]["offset"].size == 0
+    # an empty file is not a 4607 file (it would convert to an empty run file posing as one)
+    with pytest.raises(FormatError, match="empty"):
+        s4607.read_4607(b"")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -633,7 +636,7 @@ def test_any_existence_mask_decodes_like_the_independent_decoder(case):
         rcs = x.radar_cross_section_decibels
         assert (np.isnan(t["rcs_dbsm"][i]) if rcs is None else t["rcs_dbsm"][i] == float(rcs))
         v = x.radial_velocity_centimeters_per_second
-        assert (np.isnan(t["range_rate_mps"][i]) if v is None else t["range_rate_mps"][i] == v / 100)
+        assert (np.isnan(t["los_velocity_mps"][i]) if v is None else t["los_velocity_mps"][i] == v / 100)
 
 
 def test_iter_packets_is_lazy():

@@ -1,0 +1,168 @@
+"""STANAG 4607 checked against Wireshark's dissector (tshark) and, for several sensors, the
+independent PyPI decoder.  The tshark tests skip only where tshark is not installed (CI
+installs it: .ci/run)."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from gmtiflow.formats import stanag4607 as s4607, synthetic
+
+META = {"epoch_utc": synthetic.EPOCH_UTC}
+TSHARK = shutil.which("tshark")
+needs_tshark = pytest.mark.skipif(TSHARK is None, reason="tshark is not installed "
+                                  "(apt-get install tshark; CI installs it)")
+
+
+def tshark_expert_errors(path) -> list:
+    """The error lines of ``tshark -r FILE -q -z expert`` (empty when the file is clean)."""
+    out = subprocess.run([TSHARK, "-r", str(path), "-q", "-z", "expert"], capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    if "Errors" not in "".join(lines):
+        return []
+    i = next(k for k, line in enumerate(lines) if line.startswith("Errors"))
+    errs = []
+    for line in lines[i + 3:]:
+        if not line.strip() or line.startswith(("Warns", "Notes", "Chats", "=")):
+            break
+        errs.append(line.strip())
+    return errs
+
+
+def tshark_fields(path, *fields) -> dict:
+    """Raw values of tshark fields over all packets, each as one flat int array."""
+    cmd = [TSHARK, "-r", str(path), "-T", "fields", "-E", "separator=|", "-E", "aggregator=,"]
+    for f in fields:
+        cmd += ["-e", f]
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    cols = {f: [] for f in fields}
+    for line in out.stdout.splitlines():
+        for f, cell in zip(fields, line.split("|")):
+            cols[f] += [int(v, 0) for v in cell.split(",") if v]
+    return {f: np.array(v, dtype=np.int64) for f, v in cols.items()}
+
+
+def two_sensor_tables():
+    """Two aircraft: the second's dwells interleave in time with the first's."""
+    d1, t1 = synthetic.tables(8, 60, seed=11)
+    d2, t2 = synthetic.tables(6, 40, seed=12, lat0=43.9, lon0=7.6)
+    d2["time_s"] = d2["time_s"] + 0.37
+    off = int(d1["dwell_id"].max()) + 1
+    d2["dwell_id"] = d2["dwell_id"] + off
+    t2["dwell_id"] = t2["dwell_id"] + off
+    t2["det_id"] = t2["det_id"] + len(t1["det_id"])
+    d1["sensor_id"] = np.zeros(len(d1["dwell_id"]), np.int64)
+    d2["sensor_id"] = np.ones(len(d2["dwell_id"]), np.int64)
+    dw = {k: np.concatenate([d1[k], d2[k]]) for k in d1}
+    det = {k: np.concatenate([t1[k], t2[k]]) for k in t1}
+    return dw, det
+
+
+@needs_tshark
+@pytest.mark.parametrize("case", ["one", "two_sensors", "no_sigmas", "split"])
+def test_tshark_reads_our_4607_without_expert_errors(tmp_path, case):
+    if case == "two_sensors":
+        dw, det = two_sensor_tables()
+    elif case == "split":                       # a dwell over several packets
+        dw, det = synthetic.tables(2, 5000, seed=3)
+    else:
+        dw, det = synthetic.tables(12, 150, seed=4)
+        if case == "no_sigmas":
+            for c in ("sigma_range_m", "sigma_range_rate_mps", "height_m"):
+                det.pop(c)
+    path = tmp_path / "d.4607"
+    s4607.write_4607(path, dw, det, META)
+    assert tshark_expert_errors(path) == []
+    # and what tshark decodes is what we decode
+    ours = s4607.read_4607(path)
+    d, t = ours["dwells"], ours["detections"]
+    got = tshark_fields(path, "s4607.dwell.time", "s4607.dwell.count", "s4607.dwell.sensor.lat",
+                        "s4607.dwell.plat.pitch", "s4607.dwell.rpt.idx", "s4607.dwell.rpt.lat",
+                        "s4607.dwell.rpt.lon", "s4607.dwell.rpt.tag.entity",
+                        "s4607.dwell.rpt.section", "s4607.dwell.rpt.unc.slant",
+                        "s4607.dwell.rpt.unc.height", "s4607.dwell.rpt.unc.radial",
+                        "s4607.dwell.rpt.height", "s4607.dwell.rpt.radial",
+                        "s4607.dwell.rpt.snr")
+    pieces = np.repeat(np.arange(len(d["dwell_id"])), d["n_packets"])
+    assert got["s4607.dwell.time"].tolist() == d["dwell_time_ms"][pieces].tolist()
+    assert got["s4607.dwell.count"].sum() == len(t["det_id"])
+    assert got["s4607.dwell.sensor.lat"].tolist() == s4607.enc_sa32(
+        d["platform_lat_deg"][pieces]).tolist()
+    assert got["s4607.dwell.plat.pitch"].tolist() == s4607.enc_sa16(
+        np.degrees(d["platform_pitch_rad"][pieces])).tolist()
+    assert got["s4607.dwell.rpt.idx"].tolist() == t["mti_report_index"].tolist()
+    assert got["s4607.dwell.rpt.lat"].tolist() == s4607.enc_sa32(t["lat_deg"]).tolist()
+    assert got["s4607.dwell.rpt.lon"].tolist() == s4607.enc_ba32(t["lon_deg"]).tolist()
+    assert got["s4607.dwell.rpt.tag.entity"].tolist() == (t["truth_id"] % 2**32).tolist()
+    assert got["s4607.dwell.rpt.section"].tolist() == (t["rcs_dbsm"] * 2).astype(int).tolist()
+    if case == "no_sigmas":      # no sigma group and no height: nothing for tshark to misread
+        assert np.isnan(t["sigma_range_m"]).all() and np.isnan(t["sigma_height_m"]).all()
+        assert len(got["s4607.dwell.rpt.unc.slant"]) == 0
+    else:
+        assert got["s4607.dwell.rpt.unc.slant"].tolist() == np.rint(
+            t["sigma_range_m"] * 100).astype(int).tolist()
+        assert got["s4607.dwell.rpt.unc.height"].tolist() == t["sigma_height_m"].astype(
+            int).tolist()
+        assert got["s4607.dwell.rpt.unc.radial"].tolist() == np.rint(
+            t["sigma_range_rate_mps"] * 100).astype(int).tolist()
+        assert got["s4607.dwell.rpt.height"].tolist() == t["height_m"].astype(int).tolist()
+        assert got["s4607.dwell.rpt.radial"].tolist() == np.rint(
+            t["los_velocity_mps"] * 100).astype(int).tolist()
+    assert got["s4607.dwell.rpt.snr"].tolist() == t["snr_db"].astype(int).tolist()
+
+
+def test_d32_14_is_written_whenever_d32_12_is():
+    dw, det = synthetic.tables(6, 80, seed=8)
+    assert "sigma_height_m" not in det
+    r = s4607.read_4607(s4607.encode_4607(dw, det, META))
+    for mask in r["dwells"]["existence_mask"].tolist():
+        has = [bool(mask & s4607.target_mask_bit(k)) for k in (6, 7, 12, 13, 14, 15)]
+        assert all(has), hex(mask)
+        assert s4607.tshark_safe_mask(mask) == mask
+    # the height sigma is the vertical part of the slant-range sigma, at least 1 m
+    t = r["detections"]
+    dep = (np.asarray(r["dwells"]["platform_height_m"])[t["dwell_id"]] - t["height_m"]) / t["range_m"]
+    np.testing.assert_allclose(t["sigma_height_m"], np.maximum(np.rint(t["sigma_range_m"] * dep), 1),
+                               atol=1.0)
+    assert t["sigma_height_m"].min() >= 1
+
+
+def test_two_sensors_are_two_platforms_in_time_order_for_the_independent_decoder():
+    stanag = pytest.importorskip("stanag4607", reason="PyPI stanag4607==0.1.0 (test extra)")
+    dw, det = two_sensor_tables()
+    data = s4607.encode_4607(dw, det, dict(META, platform_id="RADAR"))
+    dec = stanag.PacketStreamDecoder()
+    packets = list(dec.feed(data))
+    dec.finish()
+    per_platform: dict = {}
+    times = []
+    for p in packets:
+        pid = p.header.platform_id.decode().strip()
+        for e in stanag.iter_packet_events(p):
+            v = e.value
+            if isinstance(v, stanag.DwellSegment):
+                c = per_platform.setdefault(pid, [0, 0])
+                c[0] += 1
+                c[1] += v.target_report_count
+                times.append(v.dwell_time_milliseconds)
+    sensor = dw["sensor_id"]
+    expect = {f"RADAR{s}": [int((sensor == s).sum()), int(np.isin(det["dwell_id"],
+                                                                  dw["dwell_id"][sensor == s]).sum())]
+              for s in (0, 1)}
+    assert per_platform == expect
+    assert times == sorted(times)                     # interleaved by time across sensors
+    ours = s4607.read_4607(data)
+    d = ours["dwells"]
+    assert sorted(set(d["platform_id"].tolist())) == ["RADAR0", "RADAR1"]
+    order = np.argsort(dw["time_s"], kind="stable")
+    assert d["sensor_id"].tolist() == sensor[order].tolist()
+    assert d["target_count"].sum() == len(det["det_id"])
+    # each platform has its own mission and job definition, with its own job id
+    assert sorted(set(ours["jobs"]["job_id"].tolist())) == [1, 2]
+    assert set(d["job_id"][d["sensor_id"] == 1].tolist()) == {2}
