@@ -161,3 +161,38 @@ def test_two_orbits_fused_coverage_beats_each_sensor_and_the_report_shows_it(tmp
     assert t["doppler_blind_gaps"][2] < t["doppler_blind_gaps"][0]     # south's notch filled
     pdf = (tmp_path / "report.pdf").read_bytes()
     assert len(re.findall(rb"/Type\s*/Page[^s]", pdf)) == len(PAGES) + 1
+
+
+def test_4607_of_a_two_sensor_run_is_two_platforms_in_time_order(tmp_path):
+    """The independent PyPI decoder sees two platform ids, each with its sensor's dwells and
+    located reports; dwells come in time order across sensors; our reader gives the sensors
+    back."""
+    stanag = pytest.importorskip("stanag4607", reason="PyPI stanag4607 (test extra)")
+    from gmtiflow import formats
+    path = pipeline.run(compose(TWO + SMALL[:-2] + ["report.enabled=false", "export=stanag4607",
+                                                    *LEAN]), tmp_path)
+    t = tables(path, ("dwells", "detections", "sensors"))
+    data = (tmp_path / "detections.4607").read_bytes()
+    dec = stanag.PacketStreamDecoder()
+    packets = list(dec.feed(data))
+    dec.finish()
+    n_dwells, n_targets, times = {}, {}, []
+    for p in packets:
+        pid = p.header.platform_id.rstrip(b"\0 ").decode()
+        for e in stanag.iter_packet_events(p):
+            if isinstance(e.value, stanag.DwellSegment):
+                n_dwells[pid] = n_dwells.get(pid, 0) + 1
+                n_targets[pid] = n_targets.get(pid, 0) + e.value.target_report_count
+                times.append(e.value.dwell_time_milliseconds)
+    ids = [s.decode() for s in t["sensors"]["platform_id"]]
+    assert ids == ["GMTIFLOW0", "GMTIFLOW1"] and sorted(n_dwells) == ids
+    det = t["detections"]
+    located = np.isfinite(det["lat_deg"]) & np.isfinite(det["lon_deg"])
+    for sid, pid in enumerate(ids):
+        assert n_dwells[pid] == np.sum(t["dwells"]["sensor_id"] == sid)
+        assert n_targets[pid] == np.sum(located & (det["sensor_id"] == sid)) > 0
+    assert times == sorted(times) and len(times) == len(t["dwells"]["dwell_id"])
+    ours = formats.read_4607(data)
+    order = np.lexsort((t["dwells"]["sensor_id"], t["dwells"]["time_s"]))
+    assert np.array_equal(ours["dwells"]["sensor_id"], t["dwells"]["sensor_id"][order])
+    assert list(np.unique(ours["dwells"]["platform_id"])) == ids
