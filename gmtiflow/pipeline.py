@@ -382,7 +382,9 @@ def _track(state: RunState):
     dwells = state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID})
     for name in ("looks", "detection_ancestors"):
         state.sinks[name].close()
-    return track(cfg.tracker, detections, dwells, cfg.seed, origin=state.values["scene"][0].origin)
+    return track(cfg.tracker, detections, dwells, cfg.seed,
+                 origin=state.values["scene"][0].origin, epoch_utc=cfg.scene.epoch_utc,
+                 duration_s=cfg.scene.duration_s)
 
 
 def _write_tracks(state: RunState, tracks):
@@ -397,14 +399,16 @@ def _evaluate(state: RunState):
     platform = state.values["platform_table"]
     first = np.asarray(platform["sensor_id"]) == 0
     looks = state.table("looks", {**LOOK_COLUMNS, **SENSOR_ID})
+    dwells = state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID})
+    # Scored up to the last dwell of any sensor (docs/evaluation.md, "Time base").
+    last_dwell_s = float(np.max(dwells["time_s"])) if len(dwells["time_s"]) else None
     metrics = evaluate(cfg.metrics, state.values["truth_table"], state.values["track"], looks,
                        state.values["truth"].vehicles,
                        {c: np.asarray(v)[first] for c, v in platform.items()},
-                       origin=state.values["scene"][0].origin)
+                       origin=state.values["scene"][0].origin, until_s=last_dwell_s)
     window_s = 2.0 * max(slot.sensor.revisit_s for slot in state.slots)
     metrics["metrics/sensors"] = sensors_table(
-        [slot.name for slot in state.slots], state.values["truth_table"],
-        state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID}),
+        [slot.name for slot in state.slots], state.values["truth_table"], dwells,
         state.table("detections", {**DETECTION_COLUMNS, **SENSOR_ID}), looks,
         window_s=window_s, end_s=cfg.scene.duration_s)
     return metrics

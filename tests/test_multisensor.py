@@ -196,3 +196,16 @@ def test_4607_of_a_two_sensor_run_is_two_platforms_in_time_order(tmp_path):
     order = np.lexsort((t["dwells"]["sensor_id"], t["dwells"]["time_s"]))
     assert np.array_equal(ours["dwells"]["sensor_id"], t["dwells"]["sensor_id"][order])
     assert list(np.unique(ours["dwells"]["platform_id"])) == ids
+
+
+def test_xml_and_csv_exports_carry_the_sensor_id_and_read_back(tmp_path):
+    from gmtiflow import formats
+    pipeline.run(compose(TWO + SMALL[:-2] + ["report.enabled=false", "export=all", *LEAN]),
+                 tmp_path)
+    t = tables(tmp_path / "run.h5", ("dwells", "detections"))
+    xml = formats.read_xml(tmp_path / "detections.xml")
+    assert np.array_equal(np.sort(xml["dwells"]["sensor_id"]), np.sort(t["dwells"]["sensor_id"]))
+    assert set(xml["dwells"]["sensor_id"]) == {0, 1}
+    csv = formats.read_csv(tmp_path / "detections.csv", "detections")
+    by_id = np.argsort(csv["det_id"])
+    assert np.array_equal(csv["sensor_id"][by_id], t["detections"]["sensor_id"])
