@@ -505,6 +505,8 @@ def planned_names(cfg: AppConfig) -> List[str]:
         names.append(cfg.report.filename)
         if cfg.report.animation:
             names.append(str(Path(cfg.report.filename).with_suffix(".gif")))
+        if cfg.report.viewer:
+            names.append(cfg.report.viewer_filename)
     return list(dict.fromkeys(names))
 
 

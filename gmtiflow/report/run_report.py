@@ -21,6 +21,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 from matplotlib.backends.backend_pdf import PdfPages
+from tqdm import tqdm
 from matplotlib.figure import Figure
 
 from gmtiflow.formats import atomic_path
@@ -87,12 +88,20 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
     with atomic_path(out_pdf) as tmp, PdfPages(
             tmp, metadata={"Title": f"gmtiflow run report: {run.path}",
                            "Creator": f"gmtiflow {__version__}"}) as pdf:
-        for page, builder in run_figures(run, cfg):
+        pages = run_figures(run, cfg)
+        for page, builder in tqdm(pages, desc="report", unit="page", leave=False, delay=2.0,
+                                  disable=None):   # a bar on a terminal when it takes > 2 s
             t0 = time.perf_counter()
             fig = builder()
             pdf.savefig(fig, dpi=cfg.dpi)
             fig.clear()
             seconds[page] = time.perf_counter() - t0
+    if cfg.viewer:
+        from .viewer import build_viewer
+        t0 = time.perf_counter()
+        build_viewer(run.path, out_pdf.parent / cfg.viewer_filename,
+                     max_frames=cfg.viewer_max_frames, max_labels=cfg.viewer_max_labels)
+        seconds["viewer"] = time.perf_counter() - t0
     if cfg.animation:
         t0 = time.perf_counter()
         gif = write_animation(run, out_pdf.with_suffix(".gif"), cfg)
@@ -106,13 +115,18 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
 
 
 def write_animation(run: RunData, out_gif: Path, cfg: ReportConfig) -> Optional[Path]:
-    """An animated GIF, one frame per revisit (at most ``animation_max_frames``): truth positions
-    with short tails, that revisit's detections, and confirmed tracks with tails.
+    """An animated GIF, one frame per revisit (at most ``animation_max_frames``): truth positions,
+    that revisit's detections, and confirmed tracks.
 
-    Uses matplotlib's PillowWriter; returns None (with a log line) when pillow is missing.
+    Blitted: the roads, axes and legend are drawn once; each frame restores that background,
+    draws only the three moving layers and the title, and hands the pixels to pillow (adaptive
+    palette per frame).  Matplotlib's FuncAnimation + PillowWriter redrew the whole figure per
+    frame (24.5 s for 60 frames of the 1,000-vehicle scene).  Returns None (with a log line)
+    when pillow is missing.
     """
-    from matplotlib import animation
-    if not animation.PillowWriter.isAvailable():
+    try:
+        from PIL import Image
+    except ImportError:
         log.warning("animation skipped: pillow is not installed")
         return None
     truth, det, tracks, dwells = (run.table(k) for k in ("truth", "detections", "tracks", "dwells"))
@@ -139,12 +153,13 @@ def write_animation(run: RunData, out_gif: Path, cfg: ReportConfig) -> Optional[
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("east (km)")
     ax.set_ylabel("north (km)")
-    truth_sc = ax.scatter([], [], s=25, color="#35978f", label="truth", zorder=3)
-    det_sc = ax.scatter([], [], s=14, color="#2166ac", label="detections (this revisit)", zorder=4)
+    truth_sc = ax.scatter([], [], s=25, color="#35978f", label="truth", zorder=3, animated=True)
+    det_sc = ax.scatter([], [], s=14, color="#2166ac", label="detections (this revisit)", zorder=4,
+                        animated=True)
     trk_sc = ax.scatter([], [], s=30, marker="s", facecolor="none", edgecolor="k",
-                        label="confirmed tracks", zorder=5)
-    ax.legend(loc="upper left", fontsize=8)
-    title = ax.set_title("")
+                        label="confirmed tracks", zorder=5, animated=True)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False)
+    title = ax.set_title("revisit 0000, t = 00000.0 s", animated=True)
     tt = np.asarray(truth["time_s"]) if n(truth) else np.zeros(0)
     tr_t = np.asarray(tracks["time_s"]) if n(tracks) else np.zeros(0)
     conf = np.asarray(tracks["confirmed"], bool) if n(tracks) and "confirmed" in tracks else np.ones(len(tr_t), bool)
@@ -164,7 +179,18 @@ def write_animation(run: RunData, out_gif: Path, cfg: ReportConfig) -> Optional[
         title.set_text(f"revisit {int(r)}, t = {te:.1f} s")
         return truth_sc, det_sc, trk_sc, title
 
-    anim = animation.FuncAnimation(fig, draw, frames=list(frames), blit=False)
+    fig.set_dpi(80)
+    canvas = fig.canvas
+    canvas.draw()                                  # the static layers, once
+    background = canvas.copy_from_bbox(fig.bbox)
+    images = []
+    for r in frames:
+        canvas.restore_region(background)
+        for artist in draw(r):
+            artist.axes.draw_artist(artist) if artist.axes is not None else fig.draw_artist(artist)
+        rgb = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+        images.append(Image.fromarray(rgb).quantize(colors=64, method=Image.Quantize.MEDIANCUT))
     with atomic_path(out_gif, suffix=".partial.gif") as tmp:
-        anim.save(tmp, writer=animation.PillowWriter(fps=cfg.animation_fps), dpi=80)
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], loop=0,
+                       duration=int(round(1000.0 / cfg.animation_fps)))
     return out_gif

@@ -22,7 +22,8 @@ import numpy as np
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError, RoadMapError
 from gmtiflow.scene.osm import parse_maxspeed
-from gmtiflow.scene.roadmap import RoadMap, RoadmapConfig
+from gmtiflow.scene.road_network import RoadMap
+from gmtiflow.scene.roadmap_config import RoadmapConfig
 
 
 def _truthy(value: Any) -> bool:

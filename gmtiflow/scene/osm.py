@@ -32,7 +32,8 @@ from lxml import etree
 
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError, RoadMapError
-from gmtiflow.scene.roadmap import OSM_ATTRIBUTION, RoadMap, RoadmapConfig
+from gmtiflow.scene.road_network import RoadMap
+from gmtiflow.scene.roadmap_config import OSM_ATTRIBUTION, RoadmapConfig
 
 _MAXSPEED = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(km/h|kmh|kph|mph|knots)?\s*$", re.IGNORECASE)
 _UNIT_MPS = {None: 1 / 3.6, "km/h": 1 / 3.6, "kmh": 1 / 3.6, "kph": 1 / 3.6,
@@ -69,7 +70,8 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         raise InputFileError("roadmap.path: an OSM road map needs a file path")
     p = Path(path)
     if not p.is_file():
-        raise InputFileError(f"{p}: OSM file not found")
+        raise InputFileError(f"{p}: OSM file not found (roadmap.path; experiment=monaco reads "
+                             f"monaco.osm and N43E007.hgt from the folder in GMTIFLOW_DATA_DIR)")
     try:
         root = etree.parse(str(p), hardened_parser()).getroot()
     except etree.XMLSyntaxError as exc:

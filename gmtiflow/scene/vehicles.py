@@ -34,8 +34,6 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
 import numpy as np
-from scipy.signal import lfilter
-from scipy.special import ndtri
 
 from gmtiflow import frames, rng, schema
 from gmtiflow.errors import ConfigError, RoadMapError
@@ -137,7 +135,7 @@ class VehicleSpec:
             if len(self.off_road) < 2:
                 out.append(schema.Problem("off_road", "needs at least two waypoints"))
             for i, point in enumerate(self.off_road):
-                out += schema.point_problems(f"off_road[{i}]", point)
+                out += schema.point_problems(f"off_road[{i}]", point, geodetic=True)
             if self.stop_points or self.speed_changes:
                 out.append(schema.Problem("off_road", "an off-road vehicle has no road nodes for "
                                                       "stop_points or speed_changes"))
@@ -278,7 +276,12 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
     for spec in specs:
         who = f"vehicle {spec.name!r}"
         if spec.off_road:
-            route = off_road_route(spec.off_road, who=who)
+            try:    # waypoints in metres or {lat_deg, lon_deg, height_m} (frames.point_to_enu)
+                pts = [frames.point_to_enu(p, roadmap.origin) for p in spec.off_road]
+            except (KeyError, TypeError, ValueError):
+                raise RoadMapError(f"{who}: off_road waypoints must be [x, y(, z)] metres or "
+                                   f"{{lat_deg, lon_deg, height_m}}") from None
+            route = off_road_route(pts, who=who)
         else:
             try:
                 route = shortest_route(roadmap, spec.start, spec.end, spec.stopovers, who=who)
@@ -380,6 +383,9 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
                 dt_s: float, progress: bool = False) -> "Fleet":
     """Route every vehicle, draw its randomness from its own stream and run the profiles
     (``progress``: a tqdm bar over the time steps, on a terminal only)."""
+    from scipy.signal import lfilter   # imported here: scipy.signal/special cost ~1 s at start-up
+    from scipy.special import ndtri
+
     _check(cfg)
     if not (dt_s > 0 and math.isfinite(dt_s)):
         raise ConfigError(f"vehicles: time step dt_s must be > 0, got {dt_s!r}")

@@ -55,7 +55,6 @@ from typing import Any, Callable, List, Optional
 import math
 
 import numpy as np
-from scipy import stats
 
 from gmtiflow import rng, schema
 from gmtiflow.errors import ConfigError
@@ -276,6 +275,7 @@ def _poisson_counts(key, dwell_id: np.ndarray, mean: np.ndarray) -> np.ndarray:
     counts = np.zeros(len(dwell_id), dtype=np.int64)
     pos = mean > 0
     if np.any(pos):
+        from scipy import stats   # imported here: scipy.stats costs ~1 s at start-up
         counts[pos] = stats.poisson.ppf(u[pos], mean[pos]).astype(np.int64)
     return counts
 

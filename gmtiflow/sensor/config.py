@@ -171,6 +171,14 @@ class SensorConfig:
         return self.beamwidth_factor * self.wavelength_m / self.aperture_m
 
     @property
+    def n_dwells(self) -> int:
+        """Beam positions (dwells) per scan: the sector in sine space over the dwell spacing
+        (docs/sensor.md "Scan"; :mod:`gmtiflow.sensor.scan` lays them out)."""
+        span = math.sin(math.radians(self.az_max_deg)) - math.sin(math.radians(self.az_min_deg))
+        step = self.dwell_spacing_beamwidths * self.beamwidth_sine
+        return max(1, math.ceil(span / step - 1e-9))
+
+    @property
     def range_resolution_m(self) -> float:
         """Δr = k c / (2B)."""
         return self.range_resolution_factor * C_MPS / (2.0 * self.bandwidth_hz)
@@ -256,8 +264,7 @@ class SensorConfig:
             p.append(Problem("mdv_mps", f"must be < half the blind speed lambda*PRF/2 "
                                         f"({self.blind_speed_mps / 2.0:.4g} m/s), got "
                                         f"{self.mdv_mps!r}"))
-        from gmtiflow.sensor import scan  # local import: scan imports this module
-        n_dwells = scan.n_dwells(self)
+        n_dwells = self.n_dwells
         scan_s = n_dwells * self.cpi_s
         if self.revisit_s < scan_s:
             p.append(Problem("revisit_s", f"must be >= the scan time n_dwells * cpi_s = "
