@@ -8,7 +8,8 @@ Pipeline hook (the runner calls it after the run file is committed)::
 
 Pages (``PAGES``): title (scene summary, key numbers), map, physics sanity (P_D vs SNR and
 normalised measurement errors), range rate vs azimuth (clutter notch, blind speeds), per-vehicle
-timeline, track errors (paper Fig. 5), OSPA/GOSPA and identity events.  The PDF is written under
+timeline, track errors (paper Fig. 5), OSPA/GOSPA and identity events; with several sensors a
+"sensors" page (per-sensor and fused coverage) follows the title.  The PDF is written under
 a temporary name and renamed when complete, so an interrupted report never looks finished.
 """
 from __future__ import annotations
@@ -29,17 +30,19 @@ from gmtiflow import __version__
 from . import figures as F
 from .config import ReportConfig
 from .data import RunData, key_numbers, load_run, n, summary
+from .sensors_page import sensors_figure
 
 log = logging.getLogger(__name__)
 
 PAGES = ("title", "map", "sensor", "range_rate", "timeline", "track_errors", "ospa")
+"""The pages of a one-sensor run; a run with several sensors adds "sensors" after the title."""
 
 
 def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[], Figure]]]:
     """The report's pages in order, as (name, builder) pairs (built lazily, one at a time)."""
     t = run.table
     tracker_on = bool(run.cfg("tracker.enabled", True))
-    return [
+    pages = [
         ("title", lambda: F.title_figure(run.attrs, run.config, key_numbers(run),
                                          summary(t("metrics")), str(run.path))),
         ("map", lambda: F.map_figure(t("roads/nodes"), t("roads/edges"), t("truth"), t("platform"),
@@ -64,6 +67,13 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
                                        cutoff_m=float(run.cfg("metrics.cutoff_m", float("nan"))),
                                        tracker_enabled=tracker_on)),
     ]
+    sensors = t("metrics/sensors")
+    if len(sensors.get("name", ())) > 2:    # several sensors (one row each, and the fused row)
+        window_s = 2.0 * max(float(run.cfg("sensor.revisit_s", 0.0)), *(
+            float(s.get("sensor", {}).get("revisit_s", 0.0))
+            for s in (run.cfg("sensors", {}) or {}).values()))
+        pages.insert(1, ("sensors", lambda: sensors_figure(sensors, window_s)))
+    return pages
 
 
 def _expected_false_alarms(run: RunData) -> Optional[float]:
