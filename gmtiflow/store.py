@@ -145,6 +145,11 @@ class RunWriter:
         if not self._committed:
             self.abort()
 
+    def set_attrs(self, attrs: Mapping) -> None:
+        """Set root attributes (the scene's origin and epoch, once the scene is built)."""
+        for key, value in attrs.items():
+            self._file.attrs[key] = value
+
     def write_text(self, name: str, text: str) -> None:
         """A scalar UTF-8 string dataset (e.g. ``/config``)."""
         self._file.create_dataset(name, data=text, dtype=_STR, track_times=False)

@@ -217,6 +217,7 @@ def test_extreme_dt_range_gives_consistent_distance():
     # angles from 0° to 90°, a stop-and-go fleet with a speed of 0 at stops
     ["sensor.az_min_deg=-89.0", "sensor.az_max_deg=89.0", "sensor.pfa=1e-15",
      "sensor.range_min_m=1", "sensor.range_max_m=1e6", "sensor.pri_s=null",
+     "sensor.integration_gain_db=21",
      "sensor.el_min_deg=-90", "sensor.el_max_deg=0"],
     # the platform right over the scene (grazing 90°) in a tight circle (bank ~ 80°)
     ["sensor.el_min_deg=-90", "sensor.el_max_deg=0", "sensor.range_min_m=1",

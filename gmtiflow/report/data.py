@@ -22,7 +22,7 @@ from gmtiflow.tables import Table
 TABLES = ("roads/nodes", "roads/edges", "vehicles", "truth", "platform", "dwells", "detections",
           "detection_ancestors", "looks", "tracks", "metrics", "metrics/ospa",
           "metrics/track_errors", "metrics/identity_switches", "metrics/events",
-          "metrics/truth_identity", "metrics/association")
+          "metrics/truth_identity", "metrics/association", "metrics/sensors")
 
 # Looks where the beam was on a visible target: the Swerling draw happened.
 DRAWN = (Outcome.DETECTED, Outcome.DOPPLER_BLIND, Outcome.PD_MISS, Outcome.MERGED)

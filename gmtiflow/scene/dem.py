@@ -23,8 +23,6 @@ from pathlib import Path
 from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.linalg
 
 from gmtiflow.errors import InputFileError
 from gmtiflow.paths import check_input_file, excerpt
@@ -202,6 +200,8 @@ def _laplace_solve(values: np.ndarray, void: np.ndarray) -> np.ndarray:
         np.add.at(rhs, kv, values[rr[kv], cc[kv]])
     off_r = np.concatenate(a_rows)
     off_c = np.concatenate(a_cols)
+    import scipy.sparse    # imported here: scipy.sparse costs ~0.5 s at start-up
+    import scipy.sparse.linalg
     mat = scipy.sparse.csr_matrix(
         (np.concatenate([diag, -np.ones(off_r.size)]),
          (np.concatenate([np.arange(n_void), off_r]), np.concatenate([np.arange(n_void), off_c]))),

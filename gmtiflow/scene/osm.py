@@ -74,7 +74,8 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         raise InputFileError("roadmap.path: an OSM road map needs a file path")
     p = Path(path)
     if not p.is_file():
-        raise InputFileError(f"{p}: OSM file not found")
+        raise InputFileError(f"{p}: OSM file not found (roadmap.path; experiment=monaco reads "
+                             f"monaco.osm and N43E007.hgt from the folder in GMTIFLOW_DATA_DIR)")
     check_input_file(p, "OSM file", MAX_OSM_BYTES, memory_factor=6.0)
     try:
         root = etree.parse(str(p), hardened_parser()).getroot()

@@ -107,9 +107,16 @@ class RoadMap:
         return self._xyz[np.asarray(node_ids, dtype=np.int64)]
 
     def node_index(self, ref: Any) -> int:
-        """Node id of a reference: a node name, an OSM id (int), or [x, y] (nearest node)."""
+        """Node id of a reference: a node name, an OSM id (int), [x, y] metres or
+        {lat_deg, lon_deg} (nearest node)."""
         if ref is None:
             raise RoadMapError(f"{self.source}: a node reference is missing (null)")
+        if hasattr(ref, "keys"):
+            try:
+                ref = frames.point_to_enu(ref, self.origin)[:2]
+            except (KeyError, TypeError, ValueError):
+                raise RoadMapError(f"{self.source}: node reference {dict(ref)!r} must be "
+                                   f"{{lat_deg, lon_deg}}") from None
         if isinstance(ref, (list, tuple)) or (hasattr(ref, "__len__") and
                                                 not isinstance(ref, str)):
             vals = list(ref)

@@ -77,8 +77,14 @@ def from_inline(cfg: RoadmapConfig, source: str = "roadmap (inline)") -> RoadMap
     xyz: List[List[float]] = []
     index: Dict[str, int] = {}
 
+    origin = _origin(cfg, DEFAULT_ORIGIN)
+
     def add_node(name: str, point) -> int:
-        vals = [float(c) for c in point]
+        try:        # [x, y(, z)] metres or {lat_deg, lon_deg, height_m} (frames.point_to_enu)
+            vals = frames.point_to_enu(point, origin)
+        except (KeyError, TypeError, ValueError):
+            raise RoadMapError(f"{source}: node {name!r} must be [x, y], [x, y, z] in metres or "
+                               f"{{lat_deg, lon_deg, height_m}}, got {point!r}") from None
         if len(vals) == 2:
             vals.append(0.0)
         if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
@@ -111,7 +117,7 @@ def from_inline(cfg: RoadmapConfig, source: str = "roadmap (inline)") -> RoadMap
             lim.append(road.speed_limit_mps)
             inv.append(bool(road.invisible))
             cls.append(road.road_class)
-    return RoadMap.from_lists(_origin(cfg, DEFAULT_ORIGIN), names, np.asarray(xyz), ef, et, one,
+    return RoadMap.from_lists(origin, names, np.asarray(xyz), ef, et, one,
                               lim, inv, cls, source=source)
 
 

@@ -57,7 +57,7 @@ class RoadSpec:
     def problems(self) -> List[schema.Problem]:
         out = schema.positive(self, "speed_limit_mps")
         for i, point in enumerate(self.via):
-            out += schema.point_problems(f"via[{i}]", point)
+            out += schema.point_problems(f"via[{i}]", point, geodetic=True)
         return out
 
 
@@ -109,7 +109,7 @@ class RoadmapConfig:
                 out.append(schema.Problem("roads", "an inline road map needs at least one node "
                                                    "and one road"))
             for name, xyz in self.nodes.items():
-                out += schema.point_problems(f"nodes.{name}", xyz)
+                out += schema.point_problems(f"nodes.{name}", xyz, geodetic=True)
             for i, road in enumerate(self.roads):
                 out += schema.prefixed(f"roads[{i}]", road.problems())
                 for end in ("from_node", "to_node"):
