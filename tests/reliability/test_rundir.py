@@ -149,7 +149,7 @@ def test_hydra_job_logging_disabled_runs_and_reports_errors(tmp_path):
 def test_ctrl_c_is_one_line_exit_130_and_outputs_marked_incomplete(tmp_path):
     out = tmp_path / "run"
     out.mkdir()
-    proc = subprocess.Popen([sys.executable, "-m", "gmtiflow.cli", f"hydra.run.dir={out}",
+    proc = subprocess.Popen([sys.executable, "-m", "gmtiflow.cli", "-v", f"hydra.run.dir={out}",
                              "scene.duration_s=600", "export=none", "report=none",
                              "progress=false", "cache.enabled=false"],
                             stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
