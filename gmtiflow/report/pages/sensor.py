@@ -71,10 +71,10 @@ def sensor_figure(looks: Table, detections: Table, pfa: float, *, snr_bin_db: fl
     if expected_false_alarms is not None:
         n_fa = int(np.sum(_col(detections, "truth_id") < 0)) if n(detections) else 0
         e = float(expected_false_alarms)
-        fig.text(0.05, 0.93, f"False alarms: {n_fa} in the run; the detector's expectation "
-                 f"P_FA × range × Doppler cells × dwells = {e:.4g} ± {math.sqrt(max(e, 0.0)):.2g} "
-                 "(Poisson; fewer where the horizon or terrain masks cells, more with clutter "
-                 "regions)", fontsize=9, color="0.2")
+        fig.text(0.05, 0.925, f"False alarms: {n_fa} in the run; the detector's expectation "
+                 f"P_FA × range × Doppler cells × dwells = {e:.4g} ± {math.sqrt(max(e, 0.0)):.2g}"
+                 "\n(Poisson; fewer where the horizon or terrain masks cells, more with clutter "
+                 "regions)", fontsize=8, color="0.2", va="center")
     gs = fig.add_gridspec(2, 3, height_ratios=[1.25, 1], left=0.07, right=0.93, top=0.88,
                           bottom=0.08, hspace=0.42, wspace=0.28)
     ax = fig.add_subplot(gs[0, :])
