@@ -40,7 +40,7 @@ from gmtiflow.cache import StageCache, stage_key
 from gmtiflow.config import AppConfig
 from gmtiflow.errors import GmtiflowError
 from gmtiflow.evaluate import evaluate, track
-from gmtiflow.export import export_run, planned_files
+from gmtiflow.export import export_run, open_live_export, planned_files
 from gmtiflow.report import build_run_report
 from gmtiflow.scene.platform import Platform
 from gmtiflow.scene.roadmap import RoadMap, load_roadmap
@@ -354,8 +354,15 @@ def run(cfg: AppConfig, out_dir) -> Path:
 
         start = time.perf_counter()
         chunks = cache.stream("sensor", keys["sensor"], produce)
+        # export.stream: the 4607 packets of every chunk go out live (gmtiflow.live)
+        live_sink = open_live_export(cfg.export, roadmap.origin, scene.epoch_utc,
+                                     {"sensor": {"revisit_s": cfg.sensor.revisit_s},
+                                      "clutter": {"fov_density_per_km2":
+                                                  cfg.clutter.fov_density_per_km2}})
         for dw, det, look in tqdm(chunks, desc="sensor", unit="chunk", leave=False,
                                   disable=None if cfg.progress else True):
+            if live_sink is not None:
+                live_sink.append(dw, det)
             sinks["dwells"].append(dw)
             sinks["detections"].append(det)
             sinks["detection_ancestors"].append(detection_ancestors(det, look))
@@ -365,6 +372,8 @@ def run(cfg: AppConfig, out_dir) -> Path:
             counts["detected"] += int(np.sum(look["outcome"] == Outcome.DETECTED))
         for sink in sinks.values():
             sink.close()
+        if live_sink is not None:
+            live_sink.close()
         runner.seconds["sensor"] = time.perf_counter() - start
         log.info("stage %-14s %8.3f s", "sensor", runner.seconds["sensor"])
         log.info("sensor: %d dwells, %d detections (%d false alarms, %d merged), %d looks "

@@ -262,7 +262,8 @@ def generated_masks(dw: dict, det: dict, row: np.ndarray, nd: int) -> np.ndarray
 
 def encode_dwell_packets(dw: dict, det: dict, row: np.ndarray, masks: np.ndarray,
                          headers: np.ndarray, m: dict, epoch_sod: float,
-                         piece_counts=None, piece_last=None):
+                         piece_counts=None, piece_last=None,
+                         max_packet_bytes: int = MAX_PACKET_BYTES):
     """Dwell packets of every dwell, in dwell order, as (parts, piece_dwell, piece_k).
 
     ``dw``: dwell columns (``nd`` rows in stream order); ``det``: detection columns grouped by
@@ -294,7 +295,7 @@ def encode_dwell_packets(dw: dict, det: dict, row: np.ndarray, masks: np.ndarray
         piece_dtype = np.dtype(PACKET_HEADER.descr + SEGMENT_HEADER.descr + [("mask", ">u8")]
                                + ddt.descr)
         fixed = piece_dtype.itemsize
-        per_packet = (MAX_PACKET_BYTES - fixed) // tlen if tlen else 2**31
+        per_packet = (max_packet_bytes - fixed) // tlen if tlen else 2**31
         c = counts[sel]
         if piece_counts is None:
             n_pieces = np.maximum(1, -(-c // per_packet))
