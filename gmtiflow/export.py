@@ -135,9 +135,9 @@ class ExportConfig:
             if not is_url(self.stream.url):
                 out.append(Problem("stream.url", f"must be udp://HOST:PORT or tcp://HOST:PORT, "
                                                  f"got {self.stream.url!r}"))
-        if not self.stream.speed >= 0:
-            out.append(Problem("stream.speed", f"must be >= 0 (0 = unpaced), got "
-                                               f"{self.stream.speed}"))
+        if not (np.isfinite(self.stream.speed) and self.stream.speed >= 0):
+            out.append(Problem("stream.speed", f"must be a finite number >= 0 (0 = unpaced), "
+                                               f"got {self.stream.speed}"))
         if self.pd is not None and not 0.0 <= self.pd <= 1.0:
             out.append(Problem("pd", f"must be a probability in [0, 1], got {self.pd}"))
         return out
