@@ -8,8 +8,8 @@ ellipsoid), no ``crs`` member (RFC 7946 §4).  Every feature has ``properties.ki
 * ``"truth"`` — LineString per vehicle through its samples in time order (a Point if it has one
   sample); properties: ``vehicle_id``, ``convoy_id`` and, per vertex, arrays of the other truth
   columns (``time_s``, ``speed_mps``, ...), so the truth table can be read back.  Booleans are
-  written per vertex as 0/1 (GDAL reads lists of integers, not of booleans); a per-vertex float
-  column must have no NaN (GDAL types a list holding ``null`` as text).  Truth goes in a file of
+  written per vertex as 0/1 (GDAL reads lists of integers, not of booleans); NaN is ``null``,
+  and GDAL types a list holding ``null`` as text (gmtiflow's /truth has no NaN).  Truth goes in a file of
   its own (``truth.geojson``): one property name has one type in a file, and ``time_s`` is a
   scalar on detections but a list on truth lines, which GDAL cannot read as one field.
 * ``"road_node"`` — Point per road node (``node_id``, ``name``, ``x_m y_m z_m``);
@@ -114,9 +114,6 @@ def _truth_features(truth: Mapping[str, np.ndarray]) -> list[dict]:
     cols = {c: np.asarray(v)[order] for c, v in truth.items()}
     per_vertex = [c for c in cols if c not in _GEO + ("vehicle_id", "convoy_id")]
     for c in per_vertex:
-        if cols[c].dtype.kind == "f" and np.isnan(cols[c]).any():
-            raise ValueError(f"GeoJSON writer: truth column {c!r} has NaN; a per-vertex list "
-                             "with null is not a numeric list for GDAL")
         if cols[c].dtype.kind == "b":
             cols[c] = cols[c].astype(np.int64)
     feats = []
