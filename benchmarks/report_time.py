@@ -17,7 +17,8 @@ from pathlib import Path
 
 from gmtiflow import pipeline
 from gmtiflow.compose import compose
-from gmtiflow.report import ReportConfig, build_run_report
+from gmtiflow.report import ReportConfig
+from gmtiflow.report.run_report import build_run_report
 from gmtiflow.report.data import key_numbers, load_run
 
 
@@ -46,12 +47,32 @@ def bench(name: str, overrides, repeats: int = 3) -> None:
     print("  pages: " + ", ".join(f"{p} {s:.2f}" for p, s in pages.items()))
 
 
+def bench_file(run: Path, repeats: int) -> None:
+    """The report of an existing run file: wall and CPU (process) time, per page."""
+    k = key_numbers(load_run(run))
+    print(f"{run}: {k['vehicles']:.0f} vehicles, {k['detections']:.0f} detections, "
+          f"{k['tracks']:.0f} tracks")
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(repeats):
+            t0, c0 = time.perf_counter(), time.process_time()
+            build_run_report(ReportConfig(), run, Path(tmp) / "report.pdf")
+            print(f"  report: wall {time.perf_counter() - t0:.2f} s, CPU "
+                  f"{time.process_time() - c0:.2f} s; pages (wall): " + ", ".join(
+                      f"{p} {s:.2f}" for p, s in build_run_report.last_seconds.items()))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--big", type=int, default=500, help="random vehicles in the big scene (0: skip)")
+    ap.add_argument("--run", type=Path, help="time the report of this existing run.h5 only "
+                    "(e.g. the issue-18 1,000-vehicle scene: see docs/reports.md)")
+    ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     print(f"python {sys.version.split()[0]}, {platform.machine()}, {os.cpu_count()} cpus, "
           f"load {os.getloadavg()[0]:.1f}")
+    if args.run:
+        bench_file(args.run, args.repeat)
+        return
     bench("default scene (300 s)", [])
     if args.big:
         bench("big scene", ["vehicles=random", f"vehicles.random.count={args.big}",

@@ -39,7 +39,8 @@ F, I, B, U8 = "float", "int", "bool", "u8"
 
 COLUMNS: dict[str, dict[str, str]] = {
     "detections": {
-        "time_s": F, "det_id": I, "dwell_id": I, "lat_deg": F, "lon_deg": F, "height_m": F,
+        "time_s": F, "det_id": I, "dwell_id": I, "sensor_id": I, "lat_deg": F, "lon_deg": F,
+        "height_m": F,
         "x_m": F, "y_m": F, "z_m": F, "range_m": F, "azimuth_rad": F, "range_rate_mps": F,
         "los_velocity_mps": F,
         "sigma_range_m": F, "sigma_azimuth_rad": F, "sigma_range_rate_mps": F, "snr_db": F,

@@ -48,7 +48,8 @@ FORMAT_VERSION = 1
 
 _INT, _FLOAT, _BOOL, _U8 = "int", "float", "bool", "u8"
 DWELL_COLUMNS = {
-    "dwell_id": _INT, "time_s": _FLOAT, "revisit_id": _INT, "dwell_index": _INT,
+    "dwell_id": _INT, "sensor_id": _INT, "time_s": _FLOAT, "revisit_id": _INT,
+    "dwell_index": _INT,
     "last_dwell": _BOOL, "cpi_s": _FLOAT, "beam_scan_rad": _FLOAT, "beam_az_rad": _FLOAT,
     "platform_x_m": _FLOAT, "platform_y_m": _FLOAT, "platform_z_m": _FLOAT,
     "platform_vx_mps": _FLOAT, "platform_vy_mps": _FLOAT, "platform_vz_mps": _FLOAT,

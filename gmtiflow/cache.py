@@ -4,7 +4,9 @@ A stage's cache **key** is a SHA-256 over
 
 * the stage name and :data:`CACHE_FORMAT`,
 * the resolved YAML of every config subtree the stage reads (``to_key_text``), with a
-  fingerprint (size, modification time) of every input file a string in it names,
+  fingerprint of every input file a string in it names, taken of the file the loaders read
+  (``~`` expanded, symlinks resolved): its SHA-256 up to :data:`HASH_LIMIT_BYTES`, else its
+  size, modification and change times and inode,
 * the keys of the stages it consumes (so a changed upstream setting invalidates exactly the
   stages downstream of it, and nothing upstream),
 * the root seed,
@@ -17,8 +19,12 @@ sweep never see a half-written entry.  A run that misses takes an advisory lock
 (``<key>.lock``, ``fcntl.flock``) before computing and looks again once it holds it, so the
 parallel jobs of a sweep (joblib, submitit) that need the same truth compute it once: the
 others wait and then hit.  Where ``flock`` is missing (Windows, some network file systems)
-both compute and the last rename wins, with identical content.  An entry that cannot be read (truncated by a full disk,
-written by another Python) counts as a miss and is rewritten.
+both compute and the last rename wins, with identical content.
+
+Every entry ends with a trailer holding the SHA-256 of what precedes it.  It is verified
+before anything is unpickled: an entry that fails (flipped bytes, cut short by a full disk or a
+kill) or cannot be read counts as a miss, is logged and rewritten.  A cache directory that
+cannot be written (full, read-only) is logged and skipped: the cache never fails a run.
 
 Serialisation is :mod:`pickle` (protocol 5) of numpy-backed objects, exact to the bit, so
 runs with the cache on are bit-identical to runs with it off.  **Trust model:** unpickling runs
@@ -36,6 +42,8 @@ import hashlib
 import logging
 import os
 import pickle
+import stat
+import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from enum import Enum
@@ -44,16 +52,21 @@ from typing import Any, Callable, Iterable, Iterator, List, Optional
 
 from omegaconf import OmegaConf
 
-from gmtiflow.formats import atomic_path
 from gmtiflow import __version__
 from gmtiflow.errors import StoreError
 
 log = logging.getLogger(__name__)
 
-CACHE_FORMAT = 1
+CACHE_FORMAT = 2
 """Bumped whenever what an entry holds changes meaning."""
 
 _MISSING = object()
+
+HASH_LIMIT_BYTES = 64 * 2**20
+"""Input files up to this size are fingerprinted by content, bigger ones by their metadata."""
+
+_TRAILER_MAGIC = b"GMTIFLOW-CACHE-SHA256\n"
+_TRAILER_BYTES = len(_TRAILER_MAGIC) + 32
 
 
 @dataclass
@@ -111,8 +124,30 @@ def _plain(obj: Any) -> Any:
     return obj
 
 
+def _file_print(path: str) -> Optional[str]:
+    """Fingerprint of the regular file a config string names, as a loader opens it (``~``
+    expanded, symlinks resolved), or None if it names none."""
+    try:
+        real = os.path.realpath(os.path.expanduser(path))
+        st = os.stat(real)
+    except (OSError, ValueError):
+        return None
+    if not stat.S_ISREG(st.st_mode):
+        return None
+    if st.st_size <= HASH_LIMIT_BYTES:
+        h = hashlib.sha256()
+        try:
+            with open(real, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    h.update(block)
+        except OSError:
+            return None
+        return f"{real}:sha256:{h.hexdigest()}"
+    return f"{real}:{st.st_size}:{st.st_mtime_ns}:{st.st_ctime_ns}:{st.st_ino}"
+
+
 def _file_prints(data: Any, out: List[str]) -> None:
-    """Size and mtime of every existing file a string in ``data`` names (input files)."""
+    """Fingerprints of every existing file a string in ``data`` names (input files)."""
     if isinstance(data, dict):
         for v in data.values():
             _file_prints(v, out)
@@ -120,12 +155,9 @@ def _file_prints(data: Any, out: List[str]) -> None:
         for v in data:
             _file_prints(v, out)
     elif isinstance(data, str) and data and len(data) < 4096:
-        try:
-            st = os.stat(data)
-        except (OSError, ValueError):
-            return
-        if os.path.isfile(data):
-            out.append(f"{os.path.abspath(data)}:{st.st_size}:{st.st_mtime_ns}")
+        fp = _file_print(data)
+        if fp is not None:
+            out.append(fp)
 
 
 def to_key_text(**parts: Any) -> str:
@@ -165,19 +197,57 @@ class StageCache:
     def _path(self, stage: str, key: str) -> Path:
         return self.dir / stage / f"{key}.pkl"
 
-    def _load(self, path: Path) -> Any:
+    def _open_verified(self, path: Path):
+        """The entry opened at its start if its checksum holds, else None (a miss, logged)."""
         try:
-            with open(path, "rb") as f:
-                return pickle.load(f)
+            f = open(path, "rb")
         except FileNotFoundError:
-            return _MISSING
-        except Exception as exc:  # truncated / unreadable entry: recompute it
+            return None
+        except OSError as exc:
             log.warning("cache entry %s unreadable (%s): recomputing", path, exc)
-            return _MISSING
+            return None
+        try:
+            size = os.fstat(f.fileno()).st_size
+            if size < _TRAILER_BYTES:
+                raise ValueError(f"{size} B, shorter than its checksum trailer")
+            h = hashlib.sha256()
+            left = size - _TRAILER_BYTES
+            while left:
+                block = f.read(min(left, 1 << 20))
+                if not block:
+                    raise ValueError("cut short while reading")
+                h.update(block)
+                left -= len(block)
+            trailer = f.read(_TRAILER_BYTES)
+            if trailer[:len(_TRAILER_MAGIC)] != _TRAILER_MAGIC:
+                raise ValueError("no checksum trailer (cut short, or not a cache entry)")
+            if trailer[len(_TRAILER_MAGIC):] != h.digest():
+                raise ValueError("checksum mismatch (the entry was altered or damaged)")
+            f.seek(0)
+            return f
+        except (OSError, ValueError) as exc:
+            f.close()
+            log.warning("cache entry %s is damaged (%s): recomputing", path, exc)
+            return None
 
-    def _atomic_write(self, path: Path, write: Callable[[Any], None]) -> None:
-        with atomic_path(path) as tmp, open(tmp, "wb") as f:
-            write(f)
+    def _load(self, path: Path) -> Any:
+        f = self._open_verified(path)
+        if f is None:
+            return _MISSING
+        with f:
+            try:
+                return pickle.load(f)
+            except Exception as exc:  # verified but unreadable (another Python): recompute
+                log.warning("cache entry %s unreadable (%s): recomputing", path, exc)
+                return _MISSING
+
+    def _writer(self, path: Path) -> Optional["_EntryWriter"]:
+        """A checksumming writer of a new entry, or None (logged) if the directory refuses."""
+        try:
+            return _EntryWriter(path)
+        except OSError as exc:
+            log.warning("could not write cache entry %s: %s", path, exc)
+            return None
 
     @contextmanager
     def _lock(self, path: Path):
@@ -211,10 +281,10 @@ class StageCache:
                     log.info("cache miss %s %s", stage, key)
                     self.misses.append(stage)
                     value = compute()
-                    try:
-                        self._atomic_write(path, lambda f: pickle.dump(value, f, protocol=5))
-                    except OSError as exc:  # a full or read-only disk must not fail the run
-                        log.warning("could not write cache entry %s: %s", path, exc)
+                    w = self._writer(path)
+                    if w is not None:
+                        w.write_items([value])
+                        w.commit()
                     return value
         log.info("cache hit %s %s", stage, key)
         self.hits.append(stage)
@@ -232,32 +302,95 @@ class StageCache:
             yield from produce()
             return
         path = self._path(stage, key)
-        try:
-            f = open(path, "rb")
-        except FileNotFoundError:
-            f = None
+        f = self._open_verified(path)
         if f is not None:
             log.info("cache hit %s %s", stage, key)
             self.hits.append(stage)
-            with f:
-                while True:
-                    try:
+            with f:    # verified: the items and their end marker are all there
+                try:
+                    while True:
                         item = pickle.load(f)
-                    except Exception as exc:
-                        raise StoreError(f"cache entry {path} is damaged ({exc}); delete it "
-                                         f"and run again") from None
-                    if isinstance(item, _End):
-                        return
-                    yield item
+                        if isinstance(item, _End):
+                            return
+                        yield item
+                except Exception as exc:
+                    raise StoreError(f"cache entry {path} passed its checksum but cannot be "
+                                     f"unpickled ({type(exc).__name__}); delete it and run "
+                                     f"again") from None
         log.info("cache miss %s %s", stage, key)
         self.misses.append(stage)
         n = 0
-        with atomic_path(path) as tmp, open(tmp, "wb") as out:
+        w = self._writer(path)
+        try:
             for item in produce():
-                pickle.dump(item, out, protocol=5)
+                if w is not None:
+                    w.write_items([item])
+                    if w.failed:
+                        w = None
                 n += 1
                 yield item
-            pickle.dump(_End(n), out, protocol=5)
+            if w is not None:
+                w.write_items([_End(n)])
+                w.commit()
+                w = None
+        finally:
+            if w is not None:      # the consumer stopped early or the producer raised
+                w.discard()
+
+
+class _EntryWriter:
+    """Writes one entry (pickles + SHA-256 trailer) to a temporary file, renamed on commit.
+
+    An OSError while writing (full disk) is logged once and the entry dropped: the run goes on.
+    """
+
+    def __init__(self, path: Path):
+        self.path = path
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+        self.tmp = Path(name)
+        self._f = os.fdopen(fd, "wb")
+        self._hash = hashlib.sha256()
+        self.failed = False
+
+    def write(self, data) -> None:          # pickle's file protocol
+        self._hash.update(data)
+        self._f.write(data)
+
+    def write_items(self, items) -> None:
+        if self.failed:
+            return
+        try:
+            for item in items:
+                pickle.dump(item, self, protocol=5)
+        except OSError as exc:
+            self._fail(exc)
+
+    def _fail(self, exc: OSError) -> None:
+        log.warning("could not write cache entry %s (%s); the run goes on without it",
+                    self.path, exc)
+        self.failed = True
+        self.discard()
+
+    def commit(self) -> None:
+        if self.failed:
+            return
+        try:
+            self._f.write(_TRAILER_MAGIC + self._hash.digest())
+            self._f.close()
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(self.tmp, 0o666 & ~umask)
+            os.replace(self.tmp, self.path)
+        except OSError as exc:
+            self._fail(exc)
+
+    def discard(self) -> None:
+        try:
+            self._f.close()
+        except OSError:
+            pass
+        self.tmp.unlink(missing_ok=True)
 
 
 @dataclass(frozen=True)

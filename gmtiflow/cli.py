@@ -1,41 +1,140 @@
-"""Command-line entry point ``gmtiflow`` (a Hydra application).
+"""The ``gmtiflow`` command: a thin Hydra entry point (``reference/hydra.md``).
 
 The Hydra wrapper only converts the config and calls :func:`gmtiflow.pipeline.run` with the run
 directory Hydra chose; errors a user can cause are printed as one line naming what is wrong and
-exit with status 1, leaving no run file behind.
+exit with status 1, leaving no run file behind (and no empty run directory,
+:func:`gmtiflow.console.discard_failed_run_dir`).  Ctrl-C prints one line and exits with 130; the
+run directory's ``outputs.json`` then still says ``complete: false``.
+
+The run directory (:mod:`gmtiflow.rundir`) is locked for the run, refused if Hydra's outputs in
+it are symlinks, and Hydra's ``.hydra/*.yaml`` are written only after the previous run's outputs
+are gone (the packaged config sets ``hydra.output_subdir: null``).
+
+Start-up is kept short: ``--help`` is answered before Hydra is imported, and the pipeline
+(matplotlib, the tracker, the sensor) is imported only once the config is valid, so ``--help``
+and a config error answer quickly (``benchmarks/startup_time.py``).  The console shows warnings,
+errors and a summary at the end; INFO lines go to the run's ``gmtiflow.log`` (``-v`` or
+``hydra.verbose=true`` shows them).
 """
 from __future__ import annotations
 
 import logging
 import sys
+from pathlib import Path
+from typing import Dict
 
-import hydra
-from hydra.core.hydra_config import HydraConfig
-from hydra.types import RunMode
-from omegaconf import DictConfig
-
-from gmtiflow import config, pipeline
-from gmtiflow.errors import GmtiflowError
+from gmtiflow import console
 
 log = logging.getLogger("gmtiflow")
+_VERBOSE = False
 
 
-@hydra.main(version_base="1.3", config_path="pkg://gmtiflow.conf", config_name="config")
-def _hydra_main(cfg: DictConfig) -> None:
-    out_dir = HydraConfig.get().runtime.output_dir
+def _hydra_files(cfg) -> Dict[str, str]:
+    """What Hydra writes to ``.hydra/`` when ``hydra.output_subdir`` is set (same content)."""
+    from hydra.core.hydra_config import HydraConfig
+    from omegaconf import OmegaConf
+
+    hc = HydraConfig.get()
+    return {"config.yaml": OmegaConf.to_yaml(cfg),
+            "hydra.yaml": OmegaConf.to_yaml(HydraConfig.instance().cfg),
+            "overrides.yaml": OmegaConf.to_yaml(hc.overrides.task)}
+
+
+def _run_locked(cfg, out_dir: Path):
+    """Validate and run inside the locked run directory; returns the run file's path."""
+    from hydra.core.hydra_config import HydraConfig
+
+    from gmtiflow import config, rundir
+    from gmtiflow.errors import GmtiflowError
+
+    hc = HydraConfig.get()
+    ours = hc.output_subdir is None    # else Hydra wrote its files itself (user's choice)
+    files = _hydra_files(cfg) if ours else {}
+    with rundir.claim(out_dir):
+        rundir.check_hydra_outputs(out_dir, [f"{hc.job.name}.log"])
+        prepared = []
+
+        def on_prepared() -> None:
+            prepared.append(True)
+            if files:
+                rundir.write_hydra_files(out_dir, files)
+
+        try:
+            app = config.to_object(cfg)
+            from gmtiflow import pipeline   # heavy: only once the config is valid
+            return pipeline.run(app, out_dir, on_prepared=on_prepared)
+        except GmtiflowError:
+            # A run that failed before touching the directory leaves an earlier run's files and
+            # config together; a fresh directory (a sweep job) gets the config that failed.
+            if files and not prepared and not rundir.holds_earlier_run(out_dir):
+                rundir.write_hydra_files(out_dir, files)
+            raise
+
+
+def _run_job(cfg) -> None:
+    """The body of the Hydra job: validate, run, summarise (or one error line and exit 1)."""
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    from gmtiflow.errors import GmtiflowError
+
+    hc = HydraConfig.get()
+    out_dir = Path(hc.runtime.output_dir)
+    multirun = hc.mode == RunMode.MULTIRUN
+    console.set_verbosity(_VERBOSE or bool(hc.verbose))
     try:
-        app = config.to_object(cfg)
-        pipeline.run(app, out_dir)
+        path = _run_locked(cfg, out_dir)
     except GmtiflowError as exc:
-        if HydraConfig.get().mode == RunMode.MULTIRUN:
+        if multirun:
             raise  # let the launcher record this job as failed
-        log.error("%s", exc)    # console (stderr) and the run's log file, once
+        _say(f"{exc}")
+        console.discard_failed_run_dir(out_dir)
         sys.exit(1)
+    except OSError as exc:  # a full disk or an unwritable output: one line
+        if multirun:
+            raise
+        _say(f"{exc.filename or out_dir}: {exc.strerror or exc}")
+        sys.exit(1)
+    except MemoryError:     # a backstop: gmtiflow.budget refuses what it can foresee
+        _say("out of memory; reduce scene.duration_s, vehicles.random.count, "
+             "fidelity.time_step_s or fidelity.truth_output_dt_s, or set tracker=none "
+             "metrics.enabled=false")
+        sys.exit(1)
+    if not multirun:
+        print(console.run_summary(path, out_dir))
+
+
+def _say(message: str) -> None:
+    """One error line on the console and in the run's log (or on stderr without logging)."""
+    log.error("%s", message)
+    if not logging.getLogger().handlers:    # hydra/job_logging=disabled: still say it
+        print(f"gmtiflow: error: {message}", file=sys.stderr)
+
+
+def _hydra_app():
+    """The Hydra-decorated job (built on first use: importing Hydra and the config schema takes
+    a second that ``--help`` should not pay)."""
+    import hydra
+
+    import gmtiflow.config  # noqa: F401  (registers the structured schema `base_config`)
+
+    return hydra.main(version_base="1.3", config_path="pkg://gmtiflow.conf",
+                      config_name="config")(_run_job)
 
 
 def main() -> None:
     """Console script ``gmtiflow``."""
-    _hydra_main()
+    global _VERBOSE
+    if console.wants_app_help(sys.argv):
+        print(console.help_text())
+        return
+    _VERBOSE = console.pop_verbose_flag(sys.argv)
+    try:
+        _hydra_app()()
+    except KeyboardInterrupt:
+        print("gmtiflow: interrupted; the run directory's outputs.json says complete: false",
+              file=sys.stderr)
+        sys.exit(130)
 
 
 if __name__ == "__main__":

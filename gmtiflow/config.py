@@ -10,11 +10,13 @@ check, raising one :class:`~gmtiflow.errors.ConfigError` that names each full ke
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timezone
 from enum import Enum
-from typing import List
+from typing import Dict, List
 
+import numpy as np
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
@@ -50,6 +52,17 @@ class SceneConfig:
         if parsed.utcoffset() is None:
             out.append(Problem("epoch_utc", f"must carry a time zone (Z for UTC), got "
                                             f"{self.epoch_utc!r}"))
+            return out
+        # Exports write dates with 4-digit years: the whole scene must end within year 9999.
+        last = datetime(9999, 12, 31, 23, 59, 59, tzinfo=timezone.utc)
+        first = datetime(1970, 1, 1, tzinfo=timezone.utc)
+        if parsed < first:
+            out.append(Problem("epoch_utc", f"must be 1970-01-01 or later, got "
+                                            f"{self.epoch_utc!r}"))
+        elif not out and (last - parsed).total_seconds() < self.duration_s:
+            out.append(Problem("epoch_utc", f"the scene ({self.duration_s:g} s from "
+                                            f"{self.epoch_utc}) must end by "
+                                            f"9999-12-31T23:59:59Z"))
         return out
 
 
@@ -82,6 +95,24 @@ class FidelityConfig:
         return out
 
 
+MAIN_SENSOR = "main"
+"""The default name of the first sensor; its draws use the root seed's streams."""
+
+
+@dataclass
+class SensorSlotConfig:
+    """One more airborne sensor of the scene: a platform preset and a sensor preset.
+
+    Declared under ``sensors.<name>`` (docs/sensor.md, "Several sensors"), composed from the
+    same groups as the first sensor with package overrides, e.g. in an ``experiment/`` file
+    ``- /platform@sensors.east.platform: default`` and ``- /sensor@sensors.east.sensor: wide_fov``
+    (on the command line ``+platform@sensors.east.platform=default ...``).
+    """
+
+    platform: PlatformConfig = MISSING
+    sensor: SensorConfig = MISSING
+
+
 @dataclass
 class AppConfig:
     """The whole run.  Groups are chosen in ``conf/config.yaml`` and on the command line."""
@@ -95,6 +126,10 @@ class AppConfig:
     platform: PlatformConfig = MISSING
     terrain: TerrainConfig = MISSING
     sensor: SensorConfig = MISSING
+    sensor_name: str = MAIN_SENSOR
+    """Name of the first sensor (``platform`` + ``sensor``, sensor_id 0)."""
+    sensors: Dict[str, SensorSlotConfig] = field(default_factory=dict)
+    """More sensors by name (sensor_id 1, 2 ... in this order); each its own platform + radar."""
     clutter: ClutterConfig = MISSING
     tracker: TrackerConfig = MISSING
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
@@ -116,7 +151,88 @@ class AppConfig:
         if not (isinstance(self.sensor_workers, int) and 1 <= self.sensor_workers <= 256):
             out.append(Problem("sensor_workers", f"must be an integer in [1, 256], got "
                                                  f"{self.sensor_workers!r}"))
-        return out
+        return out + sensor_problems(self)
+
+
+@dataclass(frozen=True)
+class SensorSlot:
+    """One sensor of the scene, resolved: its id, name, platform, radar and stream seed."""
+
+    sensor_id: int
+    name: str
+    platform: PlatformConfig
+    sensor: SensorConfig
+    platform_id: str
+    """STANAG 4607 platform id (P8) of its aircraft (:func:`platform_id`)."""
+    stream_seed: int
+    """The seed its draws derive from (:func:`stream_seed`)."""
+
+
+def stream_seed(seed: int, name: str) -> int:
+    """The seed of sensor ``name``'s draws: keyed by its name, nothing else.
+
+    The sensor named ``main`` (the default scene's one sensor) draws from the root seed's own
+    streams, so a one-sensor scene is what it always was; any other sensor from
+    ``derived_seed(seed, "sensors", name)``.  A sensor's dwells, detections and looks therefore
+    depend on the seed, its name and its own settings only: adding, removing or reordering
+    other sensors never changes them (common random numbers), and a sensor run alone reproduces
+    its rows of a several-sensor run.
+    """
+    return int(seed) if name == MAIN_SENSOR else derived_seed(seed, "sensors", name)
+
+
+def derived_seed(seed: int, *names: str) -> int:
+    """A 63-bit seed derived by name from the root seed (independent streams per name)."""
+    from gmtiflow import rng
+    return int(rng.seed_sequence(seed, *names).generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+def platform_id(base: str, sensor_id: int, n_sensors: int) -> str:
+    """The STANAG 4607 platform id of a sensor's aircraft, as the 4607 writer makes it: one
+    sensor: ``export.platform_id``; several: that id with the sensor id appended, within 10
+    characters (GMTIFLOW0, GMTIFLOW1 ...)."""
+    if n_sensors <= 1:
+        return base
+    suffix = str(sensor_id)
+    return base[:10 - len(suffix)] + suffix
+
+
+def sensor_slots(cfg: "AppConfig") -> List[SensorSlot]:
+    """The scene's sensors in sensor_id order: the first (``platform`` + ``sensor``), then
+    ``sensors`` in declaration order."""
+    named = [(str(cfg.sensor_name), cfg.platform, cfg.sensor)] + [
+        (str(name), extra.platform, extra.sensor) for name, extra in (cfg.sensors or {}).items()]
+    base = getattr(cfg.export, "platform_id", "GMTIFLOW")
+    slots = [SensorSlot(i, name, plat, sens, platform_id(base, i, len(named)),
+                        stream_seed(cfg.seed, name))
+             for i, (name, plat, sens) in enumerate(named)]
+    return slots
+
+
+def sensor_problems(cfg: "AppConfig") -> List[Problem]:
+    """Sensor names (and so their 4607 platform ids) must be unique; each names its key."""
+    out: List[Problem] = []
+    where = {}
+    if not str(cfg.sensor_name).strip():
+        out.append(Problem("sensor_name", "must not be empty"))
+    seen_names = {str(cfg.sensor_name): "sensor_name"}
+    for name in (cfg.sensors or {}):
+        key = f"sensors.{name}"
+        if str(name) in seen_names:
+            out.append(Problem(key, f"sensor name {name!r} is already used by "
+                                    f"{seen_names[str(name)]}; every sensor needs its own name"))
+        seen_names.setdefault(str(name), key)
+    names = [str(cfg.sensor_name)] + [str(n) for n in (cfg.sensors or {})]
+    base = getattr(cfg.export, "platform_id", "GMTIFLOW")
+    for i, name in enumerate(names):
+        key = "sensor_name" if i == 0 else f"sensors.{name}"
+        pid = platform_id(str(base), i, len(names))
+        if pid in where:
+            out.append(Problem("export.platform_id", f"gives sensors {where[pid]} and {key} the "
+                                                     f"same STANAG 4607 platform id {pid!r}; "
+                                                     f"choose another"))
+        where.setdefault(pid, key)
+    return out
 
 
 def register() -> None:
@@ -159,10 +275,37 @@ def problems_of(obj, prefix: str = "") -> List[Problem]:
     return out
 
 
+MAX_MAGNITUDE = 1e12
+"""No numeric setting may exceed this in magnitude in its own unit (1e12 m, s, Hz, W ...):
+such values are typos, and their products overflow float64 deep in the physics.  ``seed`` is
+the one exception (any integer in [0, 2^63))."""
+
+_MAGNITUDE_EXEMPT = {"seed"}
+
+
+def magnitude_problems(obj, prefix: str = "") -> List[Problem]:
+    """A Problem for every numeric leaf of the tree beyond ±:data:`MAX_MAGNITUDE`."""
+    out: List[Problem] = []
+    if dataclasses.is_dataclass(obj):
+        for f in dataclasses.fields(obj):
+            out += magnitude_problems(getattr(obj, f.name), f"{prefix}{f.name}.")
+    elif isinstance(obj, (list, tuple)):
+        for i, item in enumerate(obj):
+            out += magnitude_problems(item, f"{prefix[:-1]}[{i}].")
+    elif isinstance(obj, dict):
+        for key, item in obj.items():
+            out += magnitude_problems(item, f"{prefix}{key}.")
+    elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
+        key = prefix[:-1]
+        if key not in _MAGNITUDE_EXEMPT and math.isfinite(obj) and abs(obj) > MAX_MAGNITUDE:
+            out.append(Problem(key, f"must be within ±{MAX_MAGNITUDE:g}, got {obj!r}"))
+    return out
+
+
 def validate(obj: AppConfig) -> None:
     """Raise one ConfigError listing every invalid value by its full key path."""
     # A group's problems() may already report its nested items; list each problem once.
-    found = list(dict.fromkeys(problems_of(obj)))
+    found = list(dict.fromkeys(problems_of(obj) + magnitude_problems(obj)))
     if found:
         lines = [f"{p.key}: {p.message}" for p in found]
         raise ConfigError("invalid config: " + "; ".join(lines))

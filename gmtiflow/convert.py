@@ -26,6 +26,7 @@ from gmtiflow import formats
 from gmtiflow import export as export_mod
 from gmtiflow import frames
 from gmtiflow.errors import GmtiflowError, InputFileError
+from gmtiflow.paths import refuse_same_file
 from gmtiflow.store import RunWriter
 
 PROG = "gmtiflow-convert"
@@ -261,16 +262,18 @@ def convert(args) -> Path:
             key = _FORMAT_OF_TO[args.to]
             default = export_mod.FILE_NAMES[key]
         out = args.output or args.input.parent / default
+        refuse_same_file(out, [args.input])
         export_mod.write_format(key, run, cfg, out)
         return out
     if args.to != "h5":
         raise InputFileError(f"{args.input}: a {fmt} file converts to HDF5 tables only "
                              f"(--to h5); to change format, convert the run file")
+    if args.input.is_file() and args.input.stat().st_size == 0:
+        raise InputFileError(f"{args.input}: empty (0 bytes); nothing to convert")
     tables, attrs, texts = read_any(args.input, fmt, table=args.table,
                                     origin=_origin(args.origin), epoch=args.epoch)
     out = args.output or args.input.with_suffix(".h5")
-    if out.resolve() == args.input.resolve():
-        raise InputFileError(f"{out}: output would overwrite the input")
+    refuse_same_file(out, [args.input])
     return write_tables_h5(out, tables, attrs, texts)
 
 

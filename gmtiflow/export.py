@@ -162,7 +162,7 @@ class RunTables:
 def load_run(run_path) -> RunTables:
     """Read the tables the exports use from a complete run file (StoreError if it is not one)."""
     run_path = Path(run_path)
-    with open_run(run_path) as f:
+    with open_run(run_path, require_columns=True) as f:
         attrs = read_attrs(f)
         tables = {name: read_table(f, name)
                   for name in ("dwells", "detections", "truth", "tracks", "platform",
@@ -524,6 +524,19 @@ def planned_files(cfg: ExportConfig) -> list:
             if fmt == "geojson" and cfg.geojson_truth and not cfg.blind:
                 out.append(("geojson:truth", FILE_NAMES["geojson:truth"]))
     return out
+
+
+def stream_problem(cfg: ExportConfig, n_sensors: int) -> Optional[str]:
+    """Why ``export.stream`` cannot serve a run of ``n_sensors`` sensors, or None.
+
+    A run simulates its sensors one after the other (gmtiflow.pipeline), so a live stream of
+    several sensors could not be paced in scene time; it is refused before any work."""
+    if cfg.stream.url and n_sensors > 1:
+        return (f"export.stream.url: a live stream carries one sensor, and this run has "
+                f"{n_sensors} (simulated one after the other, so they cannot be paced together); "
+                "stream a one-sensor run, or write detections.4607 and send it with "
+                "gmtiflow.live.Sender")
+    return None
 
 
 def open_live_export(cfg: ExportConfig, origin: frames.Origin, epoch_utc: str,

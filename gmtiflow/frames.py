@@ -38,6 +38,23 @@ def geodetic_to_enu(origin: Origin, lat_deg, lon_deg, height_m):
     return np.asarray(x, float), np.asarray(y, float), np.asarray(z, float)
 
 
+def point_to_enu(point, origin: Origin) -> list:
+    """A scene point as ENU metres: ``[x, y]``/``[x, y, z]`` (metres, returned as given) or the
+    explicit geodetic form ``{lat_deg: .., lon_deg: .., height_m: ..}`` (WGS-84 degrees;
+    ``height_m`` defaults to the origin's height), converted about ``origin``.
+
+    The geodetic form is a mapping on purpose: a bare ``[50.63, 7.13]`` is a point 50 m east
+    and 7 m north of the origin, never a latitude/longitude.
+    """
+    if hasattr(point, "keys"):
+        lat, lon = float(point["lat_deg"]), float(point["lon_deg"])
+        h = float(point.get("height_m", origin.height_m) if point.get("height_m") is not None
+                  else origin.height_m)
+        x, y, z = geodetic_to_enu(origin, lat, lon, h)
+        return [float(x), float(y), float(z)]
+    return [float(c) for c in point]
+
+
 def heading_rad(east, north):
     """Azimuth of a horizontal vector, clockwise from north, in [0, 2π)."""
     return np.mod(np.arctan2(east, north), 2.0 * np.pi)

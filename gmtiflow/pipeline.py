@@ -1,21 +1,29 @@
-"""The staged runner: orders the stages, times and logs them, and writes the run file.
+"""The staged runner: the stages of a run, declared as data, and the loop that runs them.
 
-Every stage is a plain function of its config subtree, its inputs and the root seed (from which
-it derives its own named random streams, :mod:`gmtiflow.rng`); it reads no files or global state
-of its own accord.  :func:`run` is what the CLI calls after Hydra composed and validated the
-config; tests call it directly with a composed config and a temporary directory.
+:func:`stages` lists what a run does, in order; each :class:`Stage` names its inputs, its cache
+key (the settings it depends on), its seed and the run-file tables it writes.  :func:`run`, what
+the CLI calls after Hydra composed and validated the config, is a loop over them.  Every stage
+is a plain function of its config subtree, its inputs and a seed (from which it derives its own
+named random streams, :mod:`gmtiflow.rng`); it reads no files or global state of its own accord.
 
-Order (DESIGN §1): roads -> terrain (roads draped on it) -> truth -> platform -> sensor (with
-merging, false alarms and ambiguities as the scene requires) -> tracker -> metrics -> run file.
+Order (docs/architecture.md): scene (roads, terrain, roads draped) -> truth -> /truth ->
+platform per sensor -> /sensors + /platform -> sensor per sensor (with merging, false alarms
+and ambiguities as the scene requires) -> tracker (all sensors fused in time order) ->
+metrics -> run file -> exports -> report.
 
-Caching (``cache.*``, :mod:`gmtiflow.cache`): the scene (roads + terrain + drape), the truth
-(the :class:`~gmtiflow.scene.vehicles.Fleet`), the platform and the sensor output are each
-looked up by a key over their config subtrees, their upstream keys, the seed and the code, so
-a sweep over sensor settings computes the truth once.  Cached and uncached runs write
-bit-identical datasets.
+Sensors (:func:`gmtiflow.config.sensor_slots`): one platform + one radar per slot, sensor_id
+0..S-1.  A sensor's stages read only its own slot and draw from its own streams (its
+``stream_seed``), so adding a sensor leaves the others' dwells, detections and looks
+bit-identical; its rows carry ``sensor_id`` and run-wide ``dwell_id``/``det_id`` values that
+continue after the sensors before it (docs/tables.md).
+
+Caching (``cache.*``, :mod:`gmtiflow.cache`): a stage with a ``key`` is looked up by a hash of
+its config subtrees, its seed, its cached inputs' keys and the code, so a sweep over one
+sensor's settings computes the truth and the other sensors once.  Cached and uncached runs
+write bit-identical datasets.
 
 Streaming (docs/scale.md): the run file is written while the stages run.  ``/truth`` is built
-and appended ``chunk_s`` seconds of scene time at a time, the sensor's dwells, detections and
+and appended ``chunk_s`` seconds of scene time at a time, each sensor's dwells, detections and
 looks are appended per chunk of revisits (:func:`~gmtiflow.sensor.model.simulate_chunks`), so
 memory stays bounded by the Fleet's profiles plus one chunk.  Only the tracker and the metrics
 need whole tables; they are kept in memory only when ``tracker.enabled`` or
@@ -23,24 +31,25 @@ need whole tables; they are kept in memory only when ``tracker.enabled`` or
 """
 from __future__ import annotations
 
-import glob
-import json
 import logging
 import os
 import time
+from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 from tqdm import tqdm
 
-from gmtiflow.formats import write_atomic
 from gmtiflow import config as config_mod
+from gmtiflow import budget, rundir
 from gmtiflow.cache import StageCache, stage_key
-from gmtiflow.config import AppConfig
-from gmtiflow.errors import GmtiflowError
+from gmtiflow.coverage import sensors_table
+from gmtiflow.config import AppConfig, SensorSlot, sensor_slots
+from gmtiflow.errors import ConfigError, GmtiflowError
 from gmtiflow.evaluate import evaluate, track
-from gmtiflow.export import export_run, open_live_export, planned_files
+from gmtiflow.export import export_run, open_live_export, planned_files, stream_problem
 from gmtiflow.report import build_run_report
 from gmtiflow.scene.platform import Platform
 from gmtiflow.scene.roadmap import RoadMap, load_roadmap
@@ -56,21 +65,7 @@ from gmtiflow.tables import Table, n_rows
 
 log = logging.getLogger(__name__)
 
-RUN_FILE = "run.h5"
-
-
-class Runner:
-    """Runs named stages in order, logging what each did and how long it took."""
-
-    def __init__(self) -> None:
-        self.seconds: Dict[str, float] = {}
-
-    def stage(self, name: str, fn: Callable[..., Any], *args, **kwargs) -> Any:
-        start = time.perf_counter()
-        result = fn(*args, **kwargs)
-        self.seconds[name] = time.perf_counter() - start
-        log.info("stage %-14s %8.3f s", name, self.seconds[name])
-        return result
+RUN_FILE = rundir.RUN_FILE
 
 
 def sample_times(duration_s: float, dt_s: float) -> np.ndarray:
@@ -182,37 +177,330 @@ def time_chunks(times: np.ndarray, chunk_s: float) -> List[np.ndarray]:
     return np.split(times, cut)
 
 
-def _scene(cfg: AppConfig, runner: Runner):
-    roadmap = runner.stage("roads", load_roadmap, cfg.roadmap)
-    terrain = runner.stage("terrain", build_terrain, cfg.terrain, roadmap.origin)
-    roadmap = runner.stage("drape", drape_roads, roadmap, terrain)
-    return roadmap, terrain
+# ---------------------------------------------------------------------------------------------
+# The stages.  Each is declared once (name, inputs, cache key, tables) in :func:`stages`; the
+# runner (:func:`run`) is a loop over them.  A stage's ``compute`` returns its value (cached when
+# it has a ``key``); ``write`` puts that value into the run file and returns what later stages
+# read under the stage's name.  Per-sensor stages are one declaration per sensor slot.
+# ---------------------------------------------------------------------------------------------
 
+@dataclass(frozen=True)
+class Stage:
+    """One step of a run.
 
-def stage_keys(cfg: AppConfig) -> Dict[str, str]:
-    """Cache keys of the cached stages (:mod:`gmtiflow.cache`): which settings each depends on.
-
-    scene    roadmap, terrain (and their input files)
-    truth    scene + vehicles, scene.duration_s, fidelity.time_step_s, seed
-    platform scene (the origin) + platform
-    sensor   truth + platform + sensor, clutter, scene.duration_s, fidelity.dwell_mode,
-             fidelity.terrain_step_m, fidelity.merge_iterate, seed
+    name     unique within the run (``sensor.east``); later stages read its value by this name
+    compute  ``fn(state) -> value`` (a stream of chunks when ``stream``)
+    inputs   stages whose values it reads; their cache keys are part of its own
+    key      ``fn() -> {part: config subtree}``: the settings it depends on (None: never cached)
+    seed     the root (or sensor stream) seed its draws derive from; None: it draws nothing
+    write    ``fn(state, value) -> value``: writes its tables, returns what later stages read
+    tables   the run-file tables it writes (docs/tables.md)
     """
+
+    name: str
+    compute: Callable[["RunState"], Any]
+    inputs: Tuple[str, ...] = ()
+    key: Optional[Callable[[], Dict[str, Any]]] = None
+    seed: Optional[int] = None
+    stream: bool = False
+    write: Optional[Callable[["RunState", Any], Any]] = None
+    tables: Tuple[str, ...] = ()
+
+
+@dataclass
+class RunState:
+    """What the stages of one run share: the config, its sensors, the run file and the values."""
+
+    cfg: AppConfig
+    slots: List[SensorSlot]
+    writer: Optional[RunWriter] = None
+    values: Dict[str, Any] = field(default_factory=dict)
+    seconds: Dict[str, float] = field(default_factory=dict)
+    sinks: Dict[str, "TableSink"] = field(default_factory=dict)
+    rcs: Dict[str, RcsModels] = field(default_factory=dict)
+    live: Any = None
+    """``export.stream``: the live 4607 sink every sensor chunk is sent to (gmtiflow.live)."""
+
+    @property
+    def keep(self) -> bool:
+        """Whole tables are kept in memory only for the tracker and the metrics."""
+        return bool(self.cfg.tracker.enabled or self.cfg.metrics.enabled)
+
+    def sink(self, name: str, columns: Optional[Dict[str, type]] = None,
+             keep: Optional[bool] = None) -> "TableSink":
+        """The streaming sink of run-file table ``name`` (shared by the stages that fill it)."""
+        if name not in self.sinks:
+            self.sinks[name] = TableSink(self.writer, name, columns,
+                                         keep=self.keep if keep is None else keep)
+        return self.sinks[name]
+
+    def table(self, name: str, columns: Dict[str, type]) -> Table:
+        """Close sink ``name`` and return its rows (empty when the run keeps no tables)."""
+        sink = self.sink(name, columns)
+        sink.close()
+        return sink.table() if sink.keep else empty_table(columns)
+
+
+SENSOR_ID = {"sensor_id": np.int64}
+"""Column added to /dwells, /detections, /looks and /platform: which sensor (0..S-1)."""
+SENSORS_COLUMNS = {"sensor_id": np.int64, "name": str, "platform_id": str}
+
+
+def build_scene(cfg: AppConfig) -> Tuple[RoadMap, Terrain]:
+    """Roads, terrain and the roads draped on it (the ``scene`` stage's value)."""
+    roadmap = load_roadmap(cfg.roadmap)
+    terrain = build_terrain(cfg.terrain, roadmap.origin)
+    return drape_roads(roadmap, terrain), terrain
+
+
+def _write_scene(state: RunState, value):
+    roadmap, _ = value
+    cfg = state.cfg
+    state.writer.set_attrs({
+        "origin_lat_deg": roadmap.origin.lat_deg, "origin_lon_deg": roadmap.origin.lon_deg,
+        "origin_height_m": roadmap.origin.height_m, "scene_epoch_utc": cfg.scene.epoch_utc,
+        "scene_duration_s": cfg.scene.duration_s, "attribution": roadmap.attribution})
+    state.writer.write_table("roads/nodes", roadmap.nodes)
+    state.writer.write_table("roads/edges", roadmap.edges)
+    log.info("road map: %d nodes, %d road segments", len(roadmap.nodes["node_id"]),
+             len(roadmap.edges["edge_id"]))
+    return value
+
+
+def _truth(state: RunState):
+    cfg, (roadmap, _) = state.cfg, state.values["scene"]
+    return build_fleet(cfg.vehicles, roadmap, seed=cfg.seed, duration_s=cfg.scene.duration_s,
+                       dt_s=cfg.fidelity.time_step_s, progress=cfg.progress)
+
+
+def _write_vehicles(state: RunState, fleet):
+    state.writer.write_table("vehicles", fleet.vehicles)
+    return fleet
+
+
+def _sample_times(cfg: AppConfig) -> np.ndarray:
+    return sample_times(cfg.scene.duration_s, cfg.fidelity.truth_output_dt_s)
+
+
+def _truth_table(state: RunState):
+    """/truth, appended ``chunk_s`` seconds of scene time at a time."""
+    cfg, fleet = state.cfg, state.values["truth"]
+    times = _sample_times(cfg)
+    sink = state.sink("truth")
+    for tt in tqdm(time_chunks(times, cfg.chunk_s), desc="truth table", unit="chunk",
+                   leave=False, disable=None if cfg.progress else True):
+        sink.append(fleet.truth_table(tt))
+    if not len(times):
+        sink.append(fleet.truth_table(times))
+    sink.close()
+    log.info("truth: %d vehicles, %d samples", len(fleet.vehicles["vehicle_id"]), sink.n_rows)
+    return sink.table() if sink.keep else None
+
+
+def _platform(state: RunState, slot: SensorSlot):
+    return Platform(slot.platform, state.values["scene"][0].origin)
+
+
+def _platform_table(state: RunState):
+    """/sensors (one row per sensor) and /platform (each platform's states, sensor by sensor)."""
+    times = _sample_times(state.cfg)
+    state.writer.write_table("sensors", {
+        "sensor_id": np.array([s.sensor_id for s in state.slots], np.int64),
+        "name": np.array([s.name for s in state.slots], dtype=object),
+        "platform_id": np.array([s.platform_id for s in state.slots], dtype=object)})
+    tables = []
+    for slot in state.slots:
+        table = dict(state.values[f"platform.{slot.name}"].state_at(times))
+        table["sensor_id"] = np.full(len(times), slot.sensor_id, np.int64)
+        tables.append(table)
+    table = tables[0] if len(tables) == 1 else \
+        {c: np.concatenate([t[c] for t in tables]) for c in tables[0]}
+    state.writer.write_table("platform", table)
+    return table
+
+
+def _sensor(state: RunState, slot: SensorSlot):
+    """The chunks (dwells, detections, looks) of one sensor, with sensor-local ids."""
+    cfg, (roadmap, terrain) = state.cfg, state.values["scene"]
+    fid = cfg.fidelity
+    effects = build_effects(slot.sensor, cfg.clutter, slot.stream_seed, fid.merge_iterate)
+    log.info("sensor %s effects: %s", slot.name,
+             ", ".join(type(e).__name__ for e in effects) or "none")
+    return simulate_chunks(slot.sensor, state.values["truth"],
+                           state.values[f"platform.{slot.name}"], terrain, slot.stream_seed,
+                           cfg.scene.duration_s, roadmap.origin, effects=effects,
+                           dwell_mode=fid.dwell_mode, los_step_m=fid.terrain_step_m,
+                           rcs_models=state.rcs[slot.name], workers=cfg.sensor_workers)
+
+
+def _write_sensor(state: RunState, chunks, slot: SensorSlot):
+    """Append one sensor's chunks: run-wide dwell and det ids (after the sensors before it),
+    its ``sensor_id`` on every row."""
+    sinks = {"dwells": state.sink("dwells", {**DWELL_COLUMNS, **SENSOR_ID}),
+             "detections": state.sink("detections", {**DETECTION_COLUMNS, **SENSOR_ID}),
+             "detection_ancestors": state.sink("detection_ancestors", {
+                 "det_id": np.int64, "truth_id": np.int64}, keep=False),
+             "looks": state.sink("looks", {**LOOK_COLUMNS, **SENSOR_ID})}
+    dwell0, det0 = sinks["dwells"].n_rows, sinks["detections"].n_rows
+    if state.cfg.export.stream.url and state.live is None:
+        state.live = open_live_export(
+            state.cfg.export, state.values["scene"][0].origin, state.cfg.scene.epoch_utc,
+            {"sensor": {"revisit_s": slot.sensor.revisit_s},
+             "clutter": {"fov_density_per_km2": state.cfg.clutter.fov_density_per_km2}})
+    counts = dict.fromkeys(("dwells", "detections", "fa", "merged", "looks", "detected"), 0)
+    for dw, det, look in tqdm(chunks, desc=f"sensor {slot.name}", unit="chunk", leave=False,
+                              disable=None if state.cfg.progress else True):
+        anc = detection_ancestors(det, look)
+        dw, det, look = _as_run_wide(slot.sensor_id, dwell0, det0, dw, det, look)
+        if state.live is not None:          # export.stream: out on the network as simulated
+            state.live.append(dw, det)
+        anc["det_id"] = anc["det_id"] + det0
+        for name, table in (("dwells", dw), ("detections", det), ("looks", look),
+                            ("detection_ancestors", anc)):
+            sinks[name].append(table)
+        counts["dwells"] += n_rows(dw)
+        counts["detections"] += n_rows(det)
+        counts["looks"] += n_rows(look)
+        counts["fa"] += int(np.sum(det["truth_id"] < 0))
+        counts["merged"] += int(np.sum(det["merged"]))
+        counts["detected"] += int(np.sum(look["outcome"] == Outcome.DETECTED))
+    log.info("sensor %s: %d dwells, %d detections (%d false alarms, %d merged), %d looks "
+             "(%d detected)", slot.name, counts["dwells"], counts["detections"], counts["fa"],
+             counts["merged"], counts["looks"], counts["detected"])
+    return counts
+
+
+def _as_run_wide(sensor_id: int, dwell0: int, det0: int, dw: Table, det: Table, look: Table):
+    """One sensor's chunk with run-wide ids: dwell ids + ``dwell0``, det ids + ``det0``."""
+    def shifted(table, **offsets):
+        out = dict(table)
+        for column, offset in offsets.items():
+            ids = np.asarray(out[column], np.int64)
+            out[column] = np.where(ids >= 0, ids + offset, ids) if offset else ids
+        out["sensor_id"] = np.full(n_rows(table), sensor_id, np.int64)
+        return out
+    return (shifted(dw, dwell_id=dwell0), shifted(det, dwell_id=dwell0, det_id=det0),
+            shifted(look, dwell_id=dwell0, det_id=det0))
+
+
+def _track(state: RunState):
+    cfg = state.cfg
+    detections = state.table("detections", {**DETECTION_COLUMNS, **SENSOR_ID})
+    dwells = state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID})
+    for name in ("looks", "detection_ancestors"):
+        state.sinks[name].close()
+    return track(cfg.tracker, detections, dwells, cfg.seed,
+                 origin=state.values["scene"][0].origin, epoch_utc=cfg.scene.epoch_utc,
+                 duration_s=cfg.scene.duration_s)
+
+
+def _write_tracks(state: RunState, tracks):
+    state.writer.write_table("tracks", tracks)
+    return tracks
+
+
+def _evaluate(state: RunState):
+    """The metrics of the fused tracks, and /metrics/sensors: each sensor's and the fused
+    detection coverage and blind gaps (:mod:`gmtiflow.coverage`)."""
+    cfg = state.cfg
+    platform = state.values["platform_table"]
+    first = np.asarray(platform["sensor_id"]) == 0
+    looks = state.table("looks", {**LOOK_COLUMNS, **SENSOR_ID})
+    dwells = state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID})
+    # Scored up to the last dwell of any sensor (docs/evaluation.md, "Time base").
+    last_dwell_s = float(np.max(dwells["time_s"])) if len(dwells["time_s"]) else None
+    metrics = evaluate(cfg.metrics, state.values["truth_table"], state.values["track"], looks,
+                       state.values["truth"].vehicles,
+                       {c: np.asarray(v)[first] for c, v in platform.items()},
+                       origin=state.values["scene"][0].origin, until_s=last_dwell_s)
+    window_s = 2.0 * max(slot.sensor.revisit_s for slot in state.slots)
+    metrics["metrics/sensors"] = sensors_table(
+        [slot.name for slot in state.slots], state.values["truth_table"], dwells,
+        state.table("detections", {**DETECTION_COLUMNS, **SENSOR_ID}), looks,
+        window_s=window_s, end_s=cfg.scene.duration_s)
+    return metrics
+
+
+def _write_metrics(state: RunState, metrics):
+    for name, table in metrics.items():
+        state.writer.write_table(name, table)
+    return metrics
+
+
+def _commit(state: RunState):
+    for sink in state.sinks.values():
+        sink.close()
+    path = state.writer.commit()
+    log.info("wrote %s", path)
+    return path
+
+
+def _export(state: RunState):
+    return export_run(state.cfg.export, state.values["store"], state.values["store"].parent)
+
+
+def _report(state: RunState):
+    cfg, path = state.cfg, state.values["store"]
+    try:
+        return build_run_report(cfg.report, path, path.parent / cfg.report.filename)
+    except GmtiflowError as exc:   # the run file is complete and valid; say so and go on
+        log.error("report not written: %s", exc)
+        return None
+
+
+def stages(cfg: AppConfig, slots: Optional[List[SensorSlot]] = None) -> List[Stage]:
+    """The stages of a run of ``cfg``, in order (docs/architecture.md draws them)."""
+    slots = sensor_slots(cfg) if slots is None else slots
     fid, scene = cfg.fidelity, cfg.scene
-    k_scene = stage_key("scene", seed=None, roadmap=cfg.roadmap, terrain=cfg.terrain)
-    k_truth = stage_key("truth", seed=cfg.seed, upstream=[k_scene], vehicles=cfg.vehicles,
-                        duration_s=scene.duration_s, time_step_s=fid.time_step_s)
-    k_platform = stage_key("platform", seed=None, upstream=[k_scene], platform=cfg.platform)
-    k_sensor = stage_key("sensor", seed=cfg.seed, upstream=[k_truth, k_platform],
-                         sensor=cfg.sensor, clutter=cfg.clutter, duration_s=scene.duration_s,
-                         dwell_mode=fid.dwell_mode, terrain_step_m=fid.terrain_step_m,
-                         merge_iterate=fid.merge_iterate)
-    return {"scene": k_scene, "truth": k_truth, "platform": k_platform, "sensor": k_sensor}
+    out = [
+        Stage("scene", lambda st: build_scene(st.cfg),
+              key=lambda: dict(roadmap=cfg.roadmap, terrain=cfg.terrain),
+              write=_write_scene, tables=("roads/nodes", "roads/edges")),
+        Stage("truth", _truth, inputs=("scene",), seed=cfg.seed,
+              key=lambda: dict(vehicles=cfg.vehicles, duration_s=scene.duration_s,
+                               time_step_s=fid.time_step_s),
+              write=_write_vehicles, tables=("vehicles",)),
+        Stage("truth_table", _truth_table, inputs=("truth",), tables=("truth",)),
+    ]
+    for slot in slots:
+        out.append(Stage(f"platform.{slot.name}", partial(_platform, slot=slot),
+                         inputs=("scene",), key=partial(dict, platform=slot.platform)))
+    out.append(Stage("platform_table", _platform_table,
+                     inputs=tuple(f"platform.{s.name}" for s in slots),
+                     tables=("sensors", "platform")))
+    for slot in slots:
+        out.append(Stage(
+            f"sensor.{slot.name}", partial(_sensor, slot=slot),
+            inputs=("scene", "truth", f"platform.{slot.name}"), seed=slot.stream_seed,
+            key=partial(dict, sensor=slot.sensor, clutter=cfg.clutter,
+                        duration_s=scene.duration_s, dwell_mode=fid.dwell_mode,
+                        terrain_step_m=fid.terrain_step_m, merge_iterate=fid.merge_iterate),
+            stream=True, write=partial(_write_sensor, slot=slot),
+            tables=("dwells", "detections", "detection_ancestors", "looks")))
+    out.append(Stage("track", _track, inputs=tuple(f"sensor.{s.name}" for s in slots),
+                     write=_write_tracks, tables=("tracks",)))
+    if cfg.metrics.enabled:
+        out.append(Stage("evaluate", _evaluate, inputs=("truth_table", "track"),
+                         write=_write_metrics, tables=("metrics",)))
+    out += [Stage("store", _commit), Stage("export", _export, inputs=("store",))]
+    if cfg.report.enabled:
+        out.append(Stage("report", _report, inputs=("store",)))
+    return out
 
 
-MANIFEST = "outputs.json"
-"""Written first (``complete: false``, the files the run may write) and last (``complete: true``,
-the files it wrote, with sizes); docs/reliability.md, "Re-runs"."""
+def stage_keys(cfg: AppConfig, declared: Optional[List[Stage]] = None) -> Dict[str, str]:
+    """Cache keys of the cached stages (:mod:`gmtiflow.cache`) by stage name: each hashes the
+    settings its ``key`` names, its seed and the keys of its cached inputs, so a change
+    recomputes exactly the stages downstream of it (one sensor's change: that sensor only)."""
+    keys: Dict[str, str] = {}
+    for st in declared if declared is not None else stages(cfg):
+        if st.key is not None:
+            keys[st.name] = stage_key(st.name.split(".")[0], seed=st.seed,
+                                      upstream=[keys[i] for i in st.inputs if i in keys],
+                                      **st.key())
+    return keys
+
+MANIFEST = rundir.MANIFEST
 
 
 def planned_names(cfg: AppConfig) -> List[str]:
@@ -222,192 +510,64 @@ def planned_names(cfg: AppConfig) -> List[str]:
         names.append(cfg.report.filename)
         if cfg.report.animation:
             names.append(str(Path(cfg.report.filename).with_suffix(".gif")))
+        if cfg.report.viewer:
+            names.append(cfg.report.viewer_filename)
     return list(dict.fromkeys(names))
 
 
-def _temporaries(out_dir: Path, name: str) -> List[Path]:
-    """Temporaries a killed writer of ``name`` leaves: RunWriter/report, formats' writers."""
-    return sorted(out_dir.glob(f".{glob.escape(name)}.*.partial*")) + \
-        sorted(out_dir.glob(f"{glob.escape(name)}.*.part"))
-
-
-def _read_manifest(out_dir: Path) -> List[str]:
-    """File names an earlier run's manifest claims (plain names inside ``out_dir`` only)."""
-    path = out_dir / MANIFEST
-    if not path.is_file():
-        return []
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-        names = list(doc.get("planned", [])) + [f.get("name") for f in doc.get("files", [])]
-    except (ValueError, AttributeError, TypeError, OSError) as exc:
-        log.warning("%s: unreadable manifest of an earlier run (%s); ignored", path, exc)
-        return []
-    return [n for n in names if isinstance(n, str) and n and Path(n).name == n
-            and n not in (".", "..")]
-
-
-def _write_manifest(out_dir: Path, doc: dict) -> None:
-    write_atomic(out_dir / MANIFEST, (json.dumps(doc, indent=1) + "\n").encode())
-
-
-def remove_stale_outputs(cfg: AppConfig, out_dir: Path) -> List[Path]:
-    """Delete what an earlier run left in ``out_dir``, so nothing there mixes two runs.
-
-    Hydra rewrites ``.hydra/config.yaml`` at the start of every run into a directory; an old
-    ``run.h5`` or old exports kept beside it would look like the output of the new config
-    (a re-run with ``export=none``, or one that fails or is killed before it commits).  Removed:
-    ``run.h5``, the files the earlier run's manifest lists, and writers' temporaries.  Files of
-    other names, and files no gmtiflow manifest claims (a first run into a user's folder), stay.
-    """
-    claimed = _read_manifest(out_dir)
-    paths = [out_dir / n for n in dict.fromkeys([RUN_FILE, *claimed])]
-    for name in dict.fromkeys([*planned_names(cfg), *claimed]):
-        paths += _temporaries(out_dir, name)
-    paths.append(out_dir / MANIFEST)
-    removed = []
-    for path in dict.fromkeys(paths):
-        if path.is_file() or path.is_symlink():
-            path.unlink()
-            removed.append(path)
-    if len(removed) > 1 or (removed and removed[0].name != MANIFEST):
-        log.info("removed %d output(s) of an earlier run in %s: %s", len(removed), out_dir,
-                 ", ".join(p.name for p in removed))
-    return removed
-
-
-def run(cfg: AppConfig, out_dir) -> Path:
+def run(cfg: AppConfig, out_dir, *, on_prepared: Optional[Callable[[], None]] = None) -> Path:
     """Simulate the scene of ``cfg`` and write ``<out_dir>/run.h5``; returns its path.
 
-    Outputs an earlier run left in ``out_dir`` are removed first (:func:`remove_stale_outputs`).
+    The run directory is locked for the run and outputs an earlier run left there are removed
+    first (:mod:`gmtiflow.rundir`); ``on_prepared`` is called after that, before any work (the
+    CLI writes Hydra's config files there).  Then every stage of :func:`stages` runs in order,
+    its value looked up in the stage cache when it has a key, then written.
     """
     config_mod.validate(cfg)
+    budget.check(cfg)                  # refuse what cannot fit before touching the directory
+    problem = stream_problem(cfg.export, len(sensor_slots(cfg)))
+    if problem:
+        raise ConfigError(problem)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    remove_stale_outputs(cfg, out_dir)
+    with rundir.claim(out_dir):
+        rundir.prepare(out_dir, planned_names(cfg), cfg.seed)
+        if on_prepared is not None:
+            on_prepared()
+        return _run(cfg, out_dir)
+
+
+def _run(cfg: AppConfig, out_dir: Path) -> Path:
     planned = planned_names(cfg)
-    _write_manifest(out_dir, {"complete": False, "seed": cfg.seed, "planned": planned,
-                              "files": []})
     log.info("run pid=%d seed=%d -> %s", os.getpid(), cfg.seed, out_dir)
-    runner = Runner()
-    scene, fidelity = cfg.scene, cfg.fidelity
+    slots = sensor_slots(cfg)
+    state = RunState(cfg, slots, rcs={s.name: RcsModels.from_config(s.sensor.rcs)  # fail early
+                                      for s in slots})
+    declared = stages(cfg, slots)
     cache = StageCache.from_config(cfg.cache)
-    keys = stage_keys(cfg) if cache.enabled else {k: "" for k in
-                                                  ("scene", "truth", "platform", "sensor")}
-    rcs_models = RcsModels.from_config(cfg.sensor.rcs)   # reads RCS tables: fail before work
-    roadmap, terrain = cache.get_or_compute("scene", keys["scene"],
-                                            lambda: _scene(cfg, runner))
-    log.info("road map: %d nodes, %d road segments", len(roadmap.nodes["node_id"]),
-             len(roadmap.edges["edge_id"]))
-    fleet = cache.get_or_compute(
-        "truth", keys["truth"],
-        lambda: runner.stage("truth", build_fleet, cfg.vehicles, roadmap, seed=cfg.seed,
-                             duration_s=scene.duration_s, dt_s=fidelity.time_step_s,
-                             progress=cfg.progress))
-    platform = cache.get_or_compute(
-        "platform", keys["platform"],
-        lambda: runner.stage("platform", Platform, cfg.platform, roadmap.origin))
-    times = sample_times(scene.duration_s, fidelity.truth_output_dt_s)
-    keep = bool(cfg.tracker.enabled or cfg.metrics.enabled)
-
-    attrs = {
-        "origin_lat_deg": roadmap.origin.lat_deg, "origin_lon_deg": roadmap.origin.lon_deg,
-        "origin_height_m": roadmap.origin.height_m, "scene_epoch_utc": scene.epoch_utc,
-        "scene_duration_s": scene.duration_s, "attribution": roadmap.attribution,
-    }
-    path = out_dir / RUN_FILE
-    with RunWriter(path, seed=cfg.seed, attrs=attrs) as writer:
-        writer.write_text("config", config_mod.to_yaml(cfg))
-        writer.write_table("roads/nodes", roadmap.nodes)
-        writer.write_table("roads/edges", roadmap.edges)
-        writer.write_table("vehicles", fleet.vehicles)
-
-        truth_sink = TableSink(writer, "truth", keep=keep)
-        start = time.perf_counter()
-        for tt in tqdm(time_chunks(times, cfg.chunk_s), desc="truth table", unit="chunk",
-                       leave=False, disable=None if cfg.progress else True):
-            truth_sink.append(fleet.truth_table(tt))
-        if not len(times):
-            truth_sink.append(fleet.truth_table(times))
-        truth_sink.close()
-        runner.seconds["truth_table"] = time.perf_counter() - start
-        log.info("stage %-14s %8.3f s", "truth_table", runner.seconds["truth_table"])
-        platform_table = runner.stage("platform_table", platform.state_at, times)
-        writer.write_table("platform", platform_table)
-        log.info("truth: %d vehicles, %d samples", len(fleet.vehicles["vehicle_id"]),
-                 truth_sink.n_rows)
-
-        effects = build_effects(cfg.sensor, cfg.clutter, cfg.seed, fidelity.merge_iterate)
-        log.info("sensor effects: %s", ", ".join(type(e).__name__ for e in effects) or "none")
-        sinks = {"dwells": TableSink(writer, "dwells", DWELL_COLUMNS, keep=keep),
-                 "detections": TableSink(writer, "detections", DETECTION_COLUMNS, keep=keep),
-                 "detection_ancestors": TableSink(writer, "detection_ancestors", {
-                     "det_id": np.int64, "truth_id": np.int64}),
-                 "looks": TableSink(writer, "looks", LOOK_COLUMNS, keep=keep)}
-        counts = {"fa": 0, "merged": 0, "detected": 0}
-
-        def produce():
-            return simulate_chunks(cfg.sensor, fleet, platform, terrain, cfg.seed,
-                                   scene.duration_s, roadmap.origin, effects=effects,
-                                   dwell_mode=fidelity.dwell_mode,
-                                   los_step_m=fidelity.terrain_step_m, rcs_models=rcs_models,
-                                   workers=cfg.sensor_workers)
-
-        start = time.perf_counter()
-        chunks = cache.stream("sensor", keys["sensor"], produce)
-        # export.stream: the 4607 packets of every chunk go out live (gmtiflow.live)
-        live_sink = open_live_export(cfg.export, roadmap.origin, scene.epoch_utc,
-                                     {"sensor": {"revisit_s": cfg.sensor.revisit_s},
-                                      "clutter": {"fov_density_per_km2":
-                                                  cfg.clutter.fov_density_per_km2}})
-        for dw, det, look in tqdm(chunks, desc="sensor", unit="chunk", leave=False,
-                                  disable=None if cfg.progress else True):
-            if live_sink is not None:
-                live_sink.append(dw, det)
-            sinks["dwells"].append(dw)
-            sinks["detections"].append(det)
-            sinks["detection_ancestors"].append(detection_ancestors(det, look))
-            sinks["looks"].append(look)
-            counts["fa"] += int(np.sum(det["truth_id"] < 0))
-            counts["merged"] += int(np.sum(det["merged"]))
-            counts["detected"] += int(np.sum(look["outcome"] == Outcome.DETECTED))
-        for sink in sinks.values():
-            sink.close()
-        if live_sink is not None:
-            live_sink.close()
-        runner.seconds["sensor"] = time.perf_counter() - start
-        log.info("stage %-14s %8.3f s", "sensor", runner.seconds["sensor"])
-        log.info("sensor: %d dwells, %d detections (%d false alarms, %d merged), %d looks "
-                 "(%d detected)", sinks["dwells"].n_rows, sinks["detections"].n_rows,
-                 counts["fa"], counts["merged"], sinks["looks"].n_rows, counts["detected"])
-
-        if keep:
-            detections, dwells = sinks["detections"].table(), sinks["dwells"].table()
-            looks, truth = sinks["looks"].table(), truth_sink.table()
-        else:  # streamed only: the tracker and the metrics are off
-            detections, dwells = empty_table(DETECTION_COLUMNS), empty_table(DWELL_COLUMNS)
-            looks, truth = empty_table(LOOK_COLUMNS), None
-        tracks = runner.stage("track", track, cfg.tracker, detections, dwells, cfg.seed,
-                              origin=roadmap.origin)
-        writer.write_table("tracks", tracks)
-        if cfg.metrics.enabled:
-            metrics = runner.stage("evaluate", evaluate, cfg.metrics, truth, tracks, looks,
-                                   fleet.vehicles, platform_table, origin=roadmap.origin)
-            for name, table in metrics.items():
-                writer.write_table(name, table)
-        runner.stage("store", writer.commit)
+    keys = stage_keys(cfg, declared) if cache.enabled else {}
+    with RunWriter(out_dir / RUN_FILE, seed=cfg.seed) as state.writer:
+        state.writer.write_text("config", config_mod.to_yaml(cfg))
+        try:
+            for st in declared:
+                start = time.perf_counter()
+                compute = partial(st.compute, state)
+                if st.name not in keys:
+                    value = compute()
+                elif st.stream:
+                    value = cache.stream(st.name, keys[st.name], compute)
+                else:
+                    value = cache.get_or_compute(st.name, keys[st.name], compute)
+                state.values[st.name] = st.write(state, value) if st.write else value
+                state.seconds[st.name] = time.perf_counter() - start
+                log.info("stage %-14s %8.3f s", st.name, state.seconds[st.name])
+        finally:
+            if state.live is not None:      # the live stream ends with the sensor stages
+                state.live.close()
     if cache.enabled:
         log.info("cache: hits %s, misses %s", ",".join(cache.hits) or "-",
                  ",".join(cache.misses) or "-")
-    log.info("wrote %s", path)
-    runner.stage("export", export_run, cfg.export, path, out_dir)
-    if cfg.report.enabled:
-        try:
-            runner.stage("report", build_run_report, cfg.report, path,
-                         out_dir / cfg.report.filename)
-        except GmtiflowError as exc:   # the run file is complete and valid; say so and go on
-            log.error("report not written: %s", exc)
     written = [n for n in planned if (out_dir / n).is_file()]
-    _write_manifest(out_dir, {"complete": True, "seed": cfg.seed, "planned": planned,
-                              "files": [{"name": n, "bytes": (out_dir / n).stat().st_size}
-                                        for n in written]})
-    return path
+    rundir.write_manifest(out_dir, {"complete": True, "seed": cfg.seed, "planned": planned,
+                                    "files": [{"name": n, "bytes": (out_dir / n).stat().st_size}
+                                              for n in written]})
+    return state.values["store"]

@@ -89,16 +89,29 @@ def is_number(value: Any) -> bool:
             and math.isfinite(value))
 
 
-def point_problems(key: str, point: Any, dims=(2, 3), what: str = "[x, y] or [x, y, z]"
-                   ) -> List[Problem]:
+def point_problems(key: str, point: Any, dims=(2, 3), what: str = "[x, y] or [x, y, z]",
+                   geodetic: bool = False) -> List[Problem]:
     """Problems of one coordinate list (e.g. a waypoint) given as ``key``.
 
     Coordinate lists are typed ``Any`` in the schemas because OmegaConf 2.3 rejects YAML
     integers inside nested float containers (``List[List[float]]``); this check replaces the
     type check with a message that names the key.
     """
+    if geodetic and hasattr(point, "keys"):     # {lat_deg, lon_deg[, height_m]}: frames.point_to_enu
+        keys = set(point.keys())
+        bad = keys - {"lat_deg", "lon_deg", "height_m"}
+        if bad or not {"lat_deg", "lon_deg"} <= keys:
+            return [Problem(key, f"a geodetic point is {{lat_deg: .., lon_deg: .., height_m: ..}} "
+                                 f"(height_m optional), got keys {sorted(keys)}")]
+        lat, lon, h = point.get("lat_deg"), point.get("lon_deg"), point.get("height_m", 0.0)
+        if not (is_number(lat) and -90 <= lat <= 90 and is_number(lon) and -180 <= lon <= 360
+                and (h is None or is_number(h))):
+            return [Problem(key, f"lat_deg must be in [-90, 90], lon_deg in [-180, 360] and "
+                                 f"height_m a finite number, got {dict(point)!r}")]
+        return []
     ok = isinstance(point, (list, tuple)) and len(point) in dims and all(map(is_number, point))
     if ok:
         return []
     shown = list(point) if isinstance(point, (list, tuple)) else point
-    return [Problem(key, f"must be {what} in finite metres, got {shown!r}")]
+    alt = " or {lat_deg, lon_deg, height_m}" if geodetic else ""
+    return [Problem(key, f"must be {what} in finite metres{alt}, got {shown!r}")]

@@ -5,6 +5,15 @@ per column, chunked and gzip-compressed, with ``units`` (from the column-name su
 ``description`` attributes; ``/config`` holds the resolved YAML.  Root attributes:
 ``layout_version``, ``seed``, ``gmtiflow_version`` and ``complete``.
 
+Reading (:func:`open_run`) trusts nothing in the file: before a consumer sees it, the file must
+hold only groups and 1-D datasets stored inside it (no external or soft links, virtual datasets
+or external storage), no column may claim more rows than its stored bytes can hold or than the
+machine's memory, the root attributes must have their types and ranges, ``/config`` must be a
+resolved YAML mapping (no ``${...}`` interpolation, which OmegaConf would evaluate), columns with
+a unit or an ``_id`` are numeric, and a missing column raises StoreError when it is asked for.
+Every failure is a :class:`~gmtiflow.errors.StoreError` naming the file and the object; no
+message echoes the file's content.
+
 A run file is written under a temporary name in the same directory and renamed into place only
 when :meth:`RunWriter.commit` is called, after ``complete`` is set, so a crash, a kill or an error
 never leaves a file that reads as a complete run.  HDF5 object timestamps are off so that the
@@ -12,15 +21,19 @@ same config and seed give byte-identical datasets.
 """
 from __future__ import annotations
 
+import math
 import os
+import re
 from pathlib import Path
-from typing import Dict, Mapping, Optional
+from typing import Any, Dict, Mapping, Optional
 
 import h5py
 import numpy as np
+import yaml
 
 from gmtiflow import __version__
 from gmtiflow.errors import StoreError
+from gmtiflow.resources import available_memory_bytes, human_bytes
 from gmtiflow.tables import Table, n_rows, unit_of
 
 LAYOUT_VERSION = 1
@@ -28,6 +41,43 @@ LAYOUT_VERSION = 1
 
 _DAMAGED = (KeyError, OSError, RuntimeError, ValueError, TypeError, UnicodeDecodeError)
 """What h5py raises on a damaged or foreign file's objects (reported as StoreError)."""
+
+MAX_OBJECTS = 20_000
+"""A run file holds a few hundred objects; more is refused before walking them all."""
+
+MAX_EXPANSION = 1100
+"""Deflate cannot expand stored bytes more than ~1032-fold: a column claiming more bytes than
+this many times what it stores holds unwritten (fill-value) chunks, a 'decompression bomb'."""
+
+TEXT_COLUMNS = {"roads/nodes": {"name"}, "roads/edges": {"road_class"},
+                "vehicles": {"name", "vehicle_type"}, "metrics": {"name", "unit"},
+                "metrics/events": {"kind"}}
+"""The string columns gmtiflow writes into its known tables; any other column of these tables,
+and any column with a unit suffix in any table, must be numeric or boolean."""
+
+_KNOWN_TABLES = {"dwells", "detections", "looks", "tracks", "truth", "platform", "vehicles",
+                 "roads/nodes", "roads/edges", "detection_ancestors", "metrics/events"}
+
+_PLATFORM_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "lat_deg",
+                     "lon_deg", "height_m", "heading_rad")
+_VEHICLE_COLUMNS = ("vehicle_id", "vehicle_type", "convoy_id")
+
+
+def required_columns() -> Dict[str, tuple]:
+    """Columns every simulation run file of this layout has, per table: read off the writers'
+    own column lists (imported lazily: the store sits below the stages)."""
+    from gmtiflow.evaluate.events import EVENT_COLUMNS
+    from gmtiflow.evaluate.tracker import TRACK_COLUMNS
+    from gmtiflow.formats.geojson import EDGE_COLUMNS, NODE_COLUMNS
+    from gmtiflow.scene.vehicles import TRUTH_COLUMNS
+    from gmtiflow.sensor.model import DETECTION_COLUMNS, DWELL_COLUMNS, LOOK_COLUMNS
+    return {"dwells": tuple(DWELL_COLUMNS), "detections": tuple(DETECTION_COLUMNS),
+            "looks": tuple(LOOK_COLUMNS), "tracks": tuple(TRACK_COLUMNS),
+            "truth": tuple(TRUTH_COLUMNS), "metrics/events": tuple(EVENT_COLUMNS),
+            "roads/nodes": tuple(NODE_COLUMNS), "roads/edges": tuple(EDGE_COLUMNS),
+            "platform": _PLATFORM_COLUMNS, "vehicles": _VEHICLE_COLUMNS,
+            "detection_ancestors": ("det_id", "truth_id")}
+
 
 _CHUNK_ROWS = 65536
 _STR = h5py.string_dtype("utf-8")
@@ -40,17 +90,36 @@ def _as_storable(col: np.ndarray) -> np.ndarray:
     return col
 
 
+MIN_FREE_BYTES = 16 * 2**20
+"""Free space the run file's disk must keep beyond each block written (HDF5 metadata, close)."""
+
+
+def free_bytes(directory: os.PathLike) -> Optional[int]:
+    """Bytes available to this user on the file system of ``directory`` (None if unknown)."""
+    try:
+        st = os.statvfs(directory)
+    except (OSError, AttributeError):
+        return None
+    return int(st.f_bavail) * int(st.f_frsize)
+
+
 class RunWriter:
     """Writes a run file atomically: ``with RunWriter(path) as w: ...; w.commit()``.
 
     Leaving the ``with`` block without :meth:`commit` (an exception, an early return) deletes the
     temporary file; nothing appears at ``path``.
+
+    A full disk: HDF5 buffers its writes and, on ``ENOSPC``, prints errors from object
+    destructors and can crash the process.  So before each block the writer checks that the
+    disk keeps :data:`MIN_FREE_BYTES` beyond twice the block, and otherwise raises StoreError
+    (the temporary is deleted; one clear message instead of a segfault).
     """
 
     def __init__(self, path: os.PathLike, *, seed: int, attrs: Optional[Mapping] = None):
         self.path = Path(path)
         self.tmp_path = self.path.with_name(f".{self.path.name}.{os.getpid()}.partial")
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._check_space(0)
         self._file = h5py.File(self.tmp_path, "w", track_order=True)
         root = self._file.attrs
         root["layout_version"] = LAYOUT_VERSION
@@ -64,9 +133,22 @@ class RunWriter:
     def __enter__(self) -> "RunWriter":
         return self
 
+    def _check_space(self, n_bytes: int) -> None:
+        free = free_bytes(self.path.parent)
+        if free is not None and free < MIN_FREE_BYTES + 2 * n_bytes:
+            raise StoreError(f"{self.path}: the disk is full ({human_bytes(free)} free in "
+                             f"{self.path.parent}; writing the run file needs at least "
+                             f"{human_bytes(MIN_FREE_BYTES + 2 * n_bytes)}); free space or "
+                             f"choose another run directory")
+
     def __exit__(self, exc_type, exc, tb) -> None:
         if not self._committed:
             self.abort()
+
+    def set_attrs(self, attrs: Mapping) -> None:
+        """Set root attributes (the scene's origin and epoch, once the scene is built)."""
+        for key, value in attrs.items():
+            self._file.attrs[key] = value
 
     def write_text(self, name: str, text: str) -> None:
         """A scalar UTF-8 string dataset (e.g. ``/config``)."""
@@ -81,6 +163,7 @@ class RunWriter:
         size rather than the size of this first block.
         """
         n_rows(table)
+        self._check_space(sum(np.asarray(v).nbytes for v in table.values()))
         group = self._file.require_group(name)
         for column, values in table.items():
             data = _as_storable(values)
@@ -109,6 +192,7 @@ class RunWriter:
             raise ValueError(f"append to /{name}: columns {sorted(table)} differ from "
                              f"{sorted(group.keys())}")
         rows = n_rows(table)
+        self._check_space(sum(np.asarray(v).nbytes for v in table.values()))
         for column, values in table.items():
             ds = group[column]
             old = ds.shape[0]
@@ -117,6 +201,7 @@ class RunWriter:
 
     def commit(self) -> Path:
         """Mark the file complete, close it and rename it into place."""
+        self._check_space(0)
         self._file.attrs["complete"] = True
         self._file.close()
         os.replace(self.tmp_path, self.path)
@@ -131,8 +216,13 @@ class RunWriter:
             self.tmp_path.unlink(missing_ok=True)
 
 
-def open_run(path: os.PathLike) -> h5py.File:
-    """Open a complete run file of this layout version for reading, or raise StoreError."""
+def open_run(path: os.PathLike, *, require_columns: bool = False) -> h5py.File:
+    """Open a complete run file of this layout version for reading, or raise StoreError.
+
+    ``require_columns``: the caller reads the simulator's tables (export, report, evaluate):
+    in a simulation run (``seed >= 0``; conversions have -1) every table gmtiflow writes must
+    hold the columns its writer defines (:func:`check_columns`).
+    """
     path = Path(path)
     if not path.is_file():
         raise StoreError(f"{path}: no such run file")
@@ -157,13 +247,164 @@ def open_run(path: os.PathLike) -> h5py.File:
     if not (isinstance(complete, (bool, np.bool_)) and bool(complete)):
         f.close()
         raise StoreError(f"{path}: the run is incomplete (it was interrupted while writing)")
+    try:
+        layout = require_columns and int(_scalar(f.attrs.get("seed", -1))) >= 0
+        check_structure(f, path, layout=layout)
+        check_attrs(f, path)
+        if "config" in f:
+            read_text(f, "config")
+        if layout:
+            check_columns(f, path)
+    except StoreError:
+        f.close()
+        raise
+    except _DAMAGED as exc:
+        f.close()
+        raise StoreError(f"{path}: damaged HDF5 file ({type(exc).__name__})") from None
     return f
+
+
+def check_structure(f: h5py.File, path, *, layout: bool = False) -> None:
+    """StoreError unless every object of ``f`` is a group or a sane 1-D dataset inside it.
+
+    Refused: external links (they open other files), soft links, virtual datasets, datasets
+    with external raw storage, datasets of more than one dimension (the scalar ``/config``
+    aside), columns that claim more bytes than :data:`MAX_EXPANSION` times what they store,
+    and a table bigger than this machine's memory (a run file that cannot be read whole).
+    A text column whose name has a unit suffix is refused; with ``layout`` (a simulation run
+    read by a consumer of its tables) so is any text column of a known table but its
+    :data:`TEXT_COLUMNS`.
+    """
+    memory = available_memory_bytes()
+    count = 0
+    stack = [("", f)]
+    while stack:
+        prefix, group = stack.pop()
+        for name in group:
+            where = f"{prefix}/{name}"
+            count += 1
+            if count > MAX_OBJECTS:
+                raise StoreError(f"{path}: more than {MAX_OBJECTS} HDF5 objects; not a gmtiflow "
+                                 f"run file")
+            link = group.get(name, getlink=True)
+            if isinstance(link, h5py.ExternalLink):
+                raise StoreError(f"{path}: {where} is an external link to another file; run "
+                                 f"files must be self-contained (refused)")
+            if isinstance(link, h5py.SoftLink):
+                raise StoreError(f"{path}: {where} is a soft link; gmtiflow writes none "
+                                 f"(refused)")
+            obj = group[name]
+            if isinstance(obj, h5py.Group):
+                stack.append((where, obj))
+            elif isinstance(obj, h5py.Dataset):
+                _check_dataset(obj, where, path, memory, layout)
+
+
+def _check_dataset(ds: h5py.Dataset, where: str, path, memory: int, layout: bool) -> None:
+    if ds.is_virtual:
+        raise StoreError(f"{path}: {where} is a virtual dataset (it maps other files); "
+                         f"refused")
+    if ds.external:
+        raise StoreError(f"{path}: {where} keeps its data in external files; refused")
+    if where == "/config" or where.count("/") == 1 and ds.ndim == 0:
+        if ds.ndim != 0:
+            raise StoreError(f"{path}: {where} must be a scalar text dataset")
+        return
+    if ds.ndim != 1:
+        raise StoreError(f"{path}: {where} has shape {ds.shape}; gmtiflow columns are 1-D")
+    n_bytes = int(ds.shape[0]) * int(ds.dtype.itemsize)
+    stored = int(ds.id.get_storage_size())
+    if n_bytes > 2**20 and n_bytes > MAX_EXPANSION * stored:
+        raise StoreError(f"{path}: {where} claims {ds.shape[0]} rows ({human_bytes(n_bytes)}) "
+                         f"but stores only {human_bytes(stored)}; refused (a damaged or "
+                         f"hostile file)")
+    if n_bytes > memory:
+        raise StoreError(f"{path}: {where} holds {ds.shape[0]} rows ({human_bytes(n_bytes)}), "
+                         f"more than this machine's available memory "
+                         f"({human_bytes(memory)}; GMTIFLOW_MEMORY_BYTES)")
+    table, _, column = where[1:].rpartition("/")
+    is_text = h5py.check_string_dtype(ds.dtype) is not None or ds.dtype.kind in "SUO"
+    if is_text:    # known tables: only their text columns; any table: no text with a unit
+        known = layout and (table in TEXT_COLUMNS or table in _KNOWN_TABLES)
+        numeric = bool(unit_of(column)) or \
+            (known and column not in TEXT_COLUMNS.get(table, ()))
+        if numeric:
+            raise StoreError(f"{path}: column {where} holds text; gmtiflow stores numbers "
+                             f"there")
+    elif ds.dtype.kind not in "biuf":
+        raise StoreError(f"{path}: column {where} has the HDF5 type {ds.dtype}; gmtiflow "
+                         f"columns are numbers, booleans or text")
+
+
+def check_columns(f: h5py.File, path) -> None:
+    """StoreError if a table of a simulation run lacks a column gmtiflow writes into it."""
+    for table, columns in required_columns().items():
+        if table in f:
+            group = f[table]
+            if not isinstance(group, h5py.Group):
+                raise StoreError(f"{path}: /{table} is not a table (an HDF5 group of columns)")
+            missing = [c for c in columns if c not in group]
+            if missing:
+                raise StoreError(f"{path}: table /{table} lacks the column(s) "
+                                 f"{', '.join(missing)}; the file is damaged or was edited")
+
+
+_ISO_UTC = re.compile(r"^\d{4}-\d{2}-\d{2}([T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?)?(Z|[+-]\d{2}:?\d{2})?$")
+
+
+def _scalar(value: Any):
+    if isinstance(value, np.ndarray):
+        if value.shape not in ((), (1,)):
+            return None
+        value = value.reshape(()).item()
+    if isinstance(value, np.generic):
+        value = value.item()
+    return value
+
+
+def check_attrs(f: h5py.File, path) -> None:
+    """StoreError unless the root attributes gmtiflow reads have their types and ranges."""
+    attrs = f.attrs
+
+    def number(key, lo=-math.inf, hi=math.inf, integer=False):
+        if key not in attrs:
+            return
+        v = _scalar(attrs[key])
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) \
+            and lo <= v <= hi and (not integer or float(v).is_integer())
+        if not ok:
+            raise StoreError(f"{path}: root attribute {key} must be a finite "
+                             f"{'integer' if integer else 'number'} in [{lo:g}, {hi:g}]; "
+                             f"this one is not")
+
+    number("seed", integer=True)
+    number("origin_lat_deg", -90, 90)
+    number("origin_lon_deg", -180, 360)
+    number("origin_height_m", -1e6, 1e7)
+    number("scene_duration_s", 0)
+    for key in ("scene_epoch_utc", "gmtiflow_version", "attribution"):
+        if key in attrs:
+            v = _scalar(attrs[key])
+            if isinstance(v, bytes):
+                try:
+                    v = v.decode("utf-8")
+                except UnicodeDecodeError:
+                    v = None
+            if not isinstance(v, str) or len(v) > 10_000:
+                raise StoreError(f"{path}: root attribute {key} must be a text value")
+            simulated = isinstance(_scalar(attrs.get("seed", -1)), int) and \
+                _scalar(attrs.get("seed", -1)) >= 0
+            if key == "scene_epoch_utc" and simulated and v and not _ISO_UTC.match(v.strip()):
+                raise StoreError(f"{path}: root attribute scene_epoch_utc is not an ISO 8601 "
+                                 f"UTC time (YYYY-MM-DDTHH:MM:SSZ)")
 
 
 def read_attrs(f: h5py.File) -> dict:
     """The root attributes of an open run file as plain Python values (StoreError if damaged)."""
     try:
-        return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
+        return {k: (v.item() if isinstance(v, np.generic) else
+                    _scalar(v) if isinstance(v, np.ndarray) and v.size == 1 else v)
+                for k, v in f.attrs.items()}
     except _DAMAGED as exc:
         raise StoreError(f"{f.filename}: root attributes cannot be read, the file is damaged "
                          f"({exc})") from None
@@ -175,6 +416,17 @@ def read_table(source, name: str) -> Table:
         return _read_group(source, name)
     with open_run(source) as f:
         return _read_group(f, name)
+
+
+class StoredTable(dict):
+    """A table read from a run file: asking for a column it lacks raises StoreError."""
+
+    source: str = ""
+    name: str = ""
+
+    def __missing__(self, column):
+        raise StoreError(f"{self.source}: table /{self.name} has no column {column!r}; the file "
+                         f"is damaged or was written by another program")
 
 
 def _read_group(f: h5py.File, name: str) -> Table:
@@ -197,18 +449,59 @@ def _read_group(f: h5py.File, name: str) -> Table:
     if len(lengths) > 1 or any(np.ndim(v) != 1 for v in out.values()):
         raise StoreError(f"{f.filename}: table /{name} has columns of different lengths or "
                          f"shapes; not a gmtiflow table")
-    return out
+    table = StoredTable(out)
+    table.source, table.name = f.filename, name
+    return table
 
 
 def read_text(source, name: str) -> str:
     """Read a scalar string dataset such as ``/config``."""
     def get(f: h5py.File) -> str:
         try:
-            value = f[name][()]
-            return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+            obj = f[name]
+            if not isinstance(obj, h5py.Dataset) or obj.ndim != 0 or \
+                    h5py.check_string_dtype(obj.dtype) is None:
+                raise StoreError(f"{f.filename}: /{name} is not a text dataset")
+            value = obj[()]
+            text = value.decode("utf-8") if isinstance(value, bytes) else str(value)
         except _DAMAGED as exc:
-            raise StoreError(f"{f.filename}: /{name} cannot be read ({exc})") from None
+            raise StoreError(f"{f.filename}: /{name} cannot be read "
+                             f"({type(exc).__name__})") from None
+        if name == "config":
+            check_config_text(text, f.filename)
+        return text
     if isinstance(source, h5py.File):
         return get(source)
     with open_run(source) as f:
         return get(f)
+
+
+def check_config_text(text: str, source) -> None:
+    """StoreError unless ``text`` is a resolved YAML mapping (the run's ``/config``).
+
+    A ``${...}`` anywhere is refused: OmegaConf would evaluate it when a consumer loads the
+    config (``${oc.env:HOME}`` reads the environment), and gmtiflow stores resolved configs.
+    """
+    if len(text) > 16 * 2**20:
+        raise StoreError(f"{source}: /config is {len(text)} characters; not a gmtiflow config")
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark is not None else ""
+        raise StoreError(f"{source}: /config is not valid YAML{where}") from None
+    except RecursionError:
+        raise StoreError(f"{source}: /config is nested too deeply") from None
+    if not isinstance(doc, dict):
+        raise StoreError(f"{source}: /config is not a YAML mapping of config groups")
+    stack = [doc]
+    while stack:
+        node = stack.pop()
+        items = node.items() if isinstance(node, dict) else enumerate(node) \
+            if isinstance(node, list) else ()
+        for key, value in items:
+            if isinstance(value, (dict, list)):
+                stack.append(value)
+            elif isinstance(value, str) and "${" in value or isinstance(key, str) and "${" in key:
+                raise StoreError(f"{source}: /config holds an interpolation '${{...}}'; run files "
+                                 f"store resolved configs (refused: it would be evaluated)")

@@ -53,17 +53,18 @@ def keys_for(overrides):
 def test_keys_invalidate_exactly_the_dependent_stages():
     base = keys_for([])
     changed = lambda ov: {k for k, v in keys_for(ov).items() if v != base[k]}  # noqa: E731
+    assert set(base) == {"scene", "truth", "platform.main", "sensor.main"}
     assert changed([]) == set()
-    assert changed(["sensor.peak_power_w=800"]) == {"sensor"}
-    assert changed(["clutter=none"]) == {"sensor"}
-    assert changed(["fidelity.dwell_mode=instant_scan"]) == {"sensor"}
+    assert changed(["sensor.peak_power_w=800"]) == {"sensor.main"}
+    assert changed(["clutter=none"]) == {"sensor.main"}
+    assert changed(["fidelity.dwell_mode=instant_scan"]) == {"sensor.main"}
     assert changed(["fidelity.truth_output_dt_s=2"]) == set()      # only the /truth sampling
-    assert changed(["vehicles.random.count=13"]) == {"truth", "sensor"}
-    assert changed(["fidelity.time_step_s=1.0"]) == {"truth", "sensor"}
-    assert changed(["seed=2"]) == {"truth", "sensor"}
-    assert changed(["platform.speed_mps=140"]) == {"platform", "sensor"}
-    assert changed(["scene.duration_s=50"]) == {"truth", "sensor"}
-    assert changed(["terrain=hills"]) == {"scene", "truth", "platform", "sensor"}
+    assert changed(["vehicles.random.count=13"]) == {"truth", "sensor.main"}
+    assert changed(["fidelity.time_step_s=1.0"]) == {"truth", "sensor.main"}
+    assert changed(["seed=2"]) == {"truth", "sensor.main"}
+    assert changed(["platform.speed_mps=140"]) == {"platform.main", "sensor.main"}
+    assert changed(["scene.duration_s=50"]) == {"truth", "sensor.main"}
+    assert changed(["terrain=hills"]) == {"scene", "truth", "platform.main", "sensor.main"}
     assert changed(["tracker=none", "cache.dir=/elsewhere", "chunk_s=5"]) == set()
 
 
@@ -77,7 +78,7 @@ def test_cached_runs_are_bit_identical_to_uncached(tmp_path, caplog):
     assert "cache miss truth" in caplog.text
     caplog.clear()
     hit = pipeline.run(on[1], tmp_path / "hit")
-    for stage in ("scene", "truth", "platform", "sensor"):
+    for stage in ("scene", "truth", "platform.main", "sensor.main"):
         assert f"cache hit {stage}" in caplog.text
     assert "cache miss" not in caplog.text
     assert_same_datasets(off, miss)
@@ -113,7 +114,7 @@ def test_streamed_run_equals_whole_tables(tmp_path, monkeypatch):
     cfg = compose_app(BASE + ["cache.enabled=false", "chunk_s=7"])
     path = pipeline.run(cfg, tmp_path)
     got = datasets(path)
-    roadmap, terrain = pipeline._scene(cfg, pipeline.Runner())
+    roadmap, terrain = pipeline.build_scene(cfg)
     fleet = build_fleet(cfg.vehicles, roadmap, seed=cfg.seed, duration_s=cfg.scene.duration_s,
                         dt_s=cfg.fidelity.time_step_s)
     truth = fleet.truth_table(pipeline.sample_times(cfg.scene.duration_s,
@@ -164,7 +165,7 @@ def test_damaged_entry_is_a_miss(tmp_path, caplog):
     entry.write_bytes(entry.read_bytes()[:50])            # truncated by hand
     assert np.array_equal(cache.get_or_compute("truth", "k", lambda: np.arange(3)),
                           np.arange(3))
-    assert "unreadable" in caplog.text
+    assert "damaged" in caplog.text
     with open(entry, "rb") as f:
         assert np.array_equal(pickle.load(f), np.arange(3))
 

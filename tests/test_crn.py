@@ -21,7 +21,7 @@ def pd_of(seed, power_w):
     """P_D over the looks the sensor could see (detected, merged, or missed by the draw)."""
     cfg = compose_app(BASE + [f"seed={seed}", f"sensor.peak_power_w={power_w}",
                               "sensor.stap=false"])
-    roadmap, terrain = pipeline._scene(cfg, pipeline.Runner())
+    roadmap, terrain = pipeline.build_scene(cfg)
     fleet = build_fleet(cfg.vehicles, roadmap, seed=seed, duration_s=cfg.scene.duration_s,
                         dt_s=cfg.fidelity.time_step_s)
     out = simulate(cfg.sensor, fleet, Platform(cfg.platform, roadmap.origin), terrain, seed,

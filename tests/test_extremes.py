@@ -150,7 +150,7 @@ def test_bank_angles_near_90(turn_deg):
 def test_sharp_corner_orbit_is_finite():
     """A near-reversal at each corner: bank close to 90°, state finite everywhere."""
     cfg = PlatformConfig(waypoints_m=[[0, 0, 6000], [20000, 0, 6000], [0, 10, 6000]],
-                         speed_mps=200.0, turn_lead_s=0.01)
+                         speed_mps=200.0, turn_lead_s=0.01, max_bank_deg=90.0)
     from gmtiflow.frames import Origin
     p = Platform(cfg, Origin(50.0, 7.0, 0.0))
     with raise_all():
@@ -217,12 +217,14 @@ def test_extreme_dt_range_gives_consistent_distance():
     # angles from 0° to 90°, a stop-and-go fleet with a speed of 0 at stops
     ["sensor.az_min_deg=-89.0", "sensor.az_max_deg=89.0", "sensor.pfa=1e-15",
      "sensor.range_min_m=1", "sensor.range_max_m=1e6", "sensor.pri_s=null",
+     "sensor.integration_gain_db=21",
      "sensor.el_min_deg=-90", "sensor.el_max_deg=0"],
     # the platform right over the scene (grazing 90°) in a tight circle (bank ~ 80°)
     ["sensor.el_min_deg=-90", "sensor.el_max_deg=0", "sensor.range_min_m=1",
      "sensor.az_min_deg=-89.0", "sensor.az_max_deg=89.0",
      "platform.waypoints_m=[[0.0,-300.0,1000.0],[300.0,0.0,1000.0],[0.0,300.0,1000.0],[-300.0,0.0,1000.0]]",
-     "platform.speed_mps=100", "platform.turn_lead_s=1.5", "fidelity=full"],
+     "platform.speed_mps=100", "platform.turn_lead_s=1.5", "platform.max_bank_deg=90",
+     "fidelity=full"],
 ])
 def test_whole_run_at_extremes_is_finite(tmp_path, overrides, compose_config):
     from gmtiflow import pipeline, store

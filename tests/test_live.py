@@ -116,3 +116,15 @@ def test_a_run_streams_while_it_simulates_and_convert_receives_it(tmp_path):
     det = store.read_table(tmp_path / "live.h5", "detections")
     np.testing.assert_array_equal(det["lat_deg"], ref["detections"]["lat_deg"])
     np.testing.assert_array_equal(det["los_velocity_mps"], ref["detections"]["los_velocity_mps"])
+
+
+def test_a_stream_of_several_sensors_is_refused_before_any_work(tmp_path):
+    """Sensors are simulated one after the other, so their packets could not be paced together:
+    export.stream with two sensors is one clear error and nothing is written."""
+    from gmtiflow import pipeline
+    from gmtiflow.errors import ConfigError
+    cfg = compose_app(["experiment=two_orbits", "scene.duration_s=5", "progress=false",
+                       "export=stream", "export.stream.url=udp://127.0.0.1:9"])
+    with pytest.raises(ConfigError, match="export.stream.url: a live stream carries one sensor"):
+        pipeline.run(cfg, tmp_path / "run")
+    assert not (tmp_path / "run" / "run.h5").exists()

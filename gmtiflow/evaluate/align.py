@@ -109,8 +109,15 @@ def truth_at_grid(truth: Mapping[str, np.ndarray], grid: np.ndarray) -> Table:
 
 
 def tracks_at_grid(tracks: Mapping[str, np.ndarray], grid: np.ndarray,
-                   max_extrapolation_s: float, end_hold_s: float = np.inf) -> Table:
-    """Track states at grid instants: ``step``, track_id, x_m, y_m (sorted by step, track)."""
+                   max_extrapolation_s: float, end_hold_s: float = np.inf,
+                   open_end_s: float = None) -> Table:
+    """Track states at grid instants: ``step``, track_id, x_m, y_m (sorted by step, track).
+
+    ``open_end_s``: the end of the tracker's input (its last dwell).  A track whose last row is
+    at most ``max_extrapolation_s`` before it did not end (the tracker had no later dwell to
+    report it in): it is held, extrapolated, up to ``max_extrapolation_s`` after that row
+    instead of ``end_hold_s``.
+    """
     tid = np.asarray(tracks["track_id"], np.int64)
     tt = np.asarray(tracks["time_s"], float)
     empty = {"step": np.zeros(0, np.int64), "track_id": np.zeros(0, np.int64),
@@ -128,7 +135,10 @@ def tracks_at_grid(tracks: Mapping[str, np.ndarray], grid: np.ndarray,
     first = np.searchsorted(dense, np.arange(len(uniq)))
     last = np.searchsorted(dense, np.arange(len(uniq)), side="right") - 1
     lo = np.searchsorted(grid, tt[first] - _EPS_S)
-    hold = min(float(max_extrapolation_s), float(end_hold_s))
+    hold = np.full(len(uniq), min(float(max_extrapolation_s), float(end_hold_s)))
+    if open_end_s is not None:
+        alive = tt[last] >= float(open_end_s) - float(max_extrapolation_s) - _EPS_S
+        hold[alive] = float(max_extrapolation_s)
     hi = np.searchsorted(grid, tt[last] + hold + _EPS_S, side="right")
     counts = np.maximum(hi - lo, 0)
     qk = np.repeat(np.arange(len(uniq)), counts)

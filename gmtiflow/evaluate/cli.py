@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 import h5py
+import numpy as np
 import yaml
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
@@ -37,7 +38,9 @@ from gmtiflow import frames
 from gmtiflow.errors import GmtiflowError, InputFileError, StoreError
 from gmtiflow.evaluate import evaluate, validate_tracks
 from gmtiflow.evaluate.config import MetricsConfig
-from gmtiflow.store import RunWriter, open_run, read_table, read_text
+from gmtiflow.evaluate.external import check_times, read_track_csv
+from gmtiflow.paths import refuse_same_file
+from gmtiflow.store import RunWriter, open_run, read_attrs, read_table, read_text
 
 PROG = "gmtiflow-evaluate"
 
@@ -47,9 +50,10 @@ examples:
   gmtiflow-evaluate my_tracks.csv outputs/run/run.h5 --csv      # -> my_tracks.metrics.csv
   gmtiflow-evaluate my_tracks.csv run.h5 -o scores/mine.h5
 
-track CSV columns: time_s track_id x_m y_m (scene ENU metres, required); optional time_utc,
-vx_mps vy_mps, cov_xx_m2 cov_xy_m2 cov_yy_m2, range_rate_mps, confirmed. Rows of a track must
-be in increasing time; a track id may appear once per time. See docs/exports.md.
+track CSV columns: track_id; the time as time_s (seconds from the run's scene_epoch_utc) or
+time_utc (ISO 8601); the position as x_m y_m (scene ENU metres) or lat_deg lon_deg [height_m];
+optional vx_mps vy_mps, cov_xx_m2 cov_xy_m2 cov_yy_m2, range_rate_mps, confirmed. Rows of a
+track must be in increasing time; a track id may appear once per time. See docs/exports.md.
 exit status: 0 success, 1 bad input or output (one line on stderr), 2 bad arguments.
 """
 
@@ -74,8 +78,9 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def read_tracks(path: Path) -> dict:
-    """A track table from a CSV or an HDF5 file (FormatError / InputFileError if unreadable)."""
+def read_tracks(path: Path, epoch_utc: Optional[str] = None) -> dict:
+    """A track table from a CSV or an HDF5 file (InputFileError if unreadable); a CSV's
+    ``time_utc`` is counted in seconds from ``epoch_utc``."""
     try:
         with open(path, "rb") as f:
             head = f.read(8)
@@ -93,7 +98,7 @@ def read_tracks(path: Path) -> dict:
     if suffix not in (".csv", ".txt"):
         raise InputFileError(f"{path}: expected a track .csv or an .h5 file with /tracks, "
                              f"got suffix {suffix or '(none)'!r}")
-    return formats.read_tracks_csv(path)
+    return read_track_csv(path, epoch_utc)
 
 
 def metrics_config(run_file: h5py.File, include_unconfirmed: bool = False) -> MetricsConfig:
@@ -116,14 +121,15 @@ def metrics_config(run_file: h5py.File, include_unconfirmed: bool = False) -> Me
 
 def score(tracks_path: Path, run_path: Path, include_unconfirmed: bool = False) -> dict:
     """Metrics tables of the tracks in ``tracks_path`` against the run ``run_path``."""
-    raw = read_tracks(tracks_path)
-    with open_run(run_path) as f:
-        attrs = f.attrs
+    with open_run(run_path, require_columns=True) as f:
+        attrs = read_attrs(f)           # a damaged file: StoreError naming it
         if "origin_lat_deg" in attrs:
             origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
                                    float(attrs.get("origin_height_m", 0.0)))
         else:
             origin = None
+        epoch = str(attrs["scene_epoch_utc"]) if "scene_epoch_utc" in attrs else None
+        raw = read_tracks(tracks_path, epoch)
         tracks = validate_tracks(raw, origin, str(tracks_path))
         if "truth" not in f:
             raise StoreError(f"{run_path}: has no /truth table to score against")
@@ -132,8 +138,16 @@ def score(tracks_path: Path, run_path: Path, include_unconfirmed: bool = False) 
         looks = read_table(f, "looks") if "looks" in f else None
         vehicles = read_table(f, "vehicles") if "vehicles" in f else None
         platform = read_table(f, "platform") if "platform" in f else None
+        last_dwell_s = None          # scored up to the last dwell (docs/evaluation.md)
+        if "dwells" in f:
+            dwell_t = read_table(f, "dwells").get("time_s")
+            if dwell_t is not None and len(dwell_t):
+                last_dwell_s = float(np.max(dwell_t))
+    tt = np.asarray(truth["time_s"], float)
+    if len(tt):
+        check_times(tracks, float(tt.min()), float(tt.max()), epoch, str(tracks_path))
     return evaluate(cfg, truth, tracks, looks, vehicles, platform, origin=origin,
-                    source=str(tracks_path))
+                    source=str(tracks_path), until_s=last_dwell_s)
 
 
 def summary_text(summary: dict) -> str:
@@ -173,8 +187,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     out = args.output or args.tracks.with_name(
         args.tracks.stem + (".metrics.csv" if as_csv else ".metrics.h5"))
     try:
-        if out.resolve() in (args.tracks.resolve(), args.run.resolve()):
-            raise InputFileError(f"{out}: output would overwrite an input")
+        refuse_same_file(out, [args.tracks, args.run])
         tables = score(args.tracks, args.run, args.include_unconfirmed)
         if not tables:
             raise InputFileError("metrics are disabled")   # pragma: no cover (forced on)

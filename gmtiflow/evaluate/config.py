@@ -124,11 +124,16 @@ class MetricsConfig:
     """How far before a stop / blind gap to look for the track that held the vehicle."""
     min_gap_looks: int = 1
     """Blind gaps shorter than this many looks are not scored as events."""
+    min_truth_speed_mps: float = 0.0
+    """MDV-gated truth: a vehicle slower than this at a grid step (ground speed; stopped) is
+    not scored there — neither a miss nor a hold — and a track whose nearest vehicle is such a
+    one (within ``cutoff_m``) is not a false track there.  0 (default): every truth sample is
+    scored.  Real-data GMTI scoring sets it near the sensor's MDV (e.g. 2 m/s)."""
 
     def problems(self) -> List[Problem]:
         out = positive(self, "cutoff_m", "assoc_gate_m", "max_extrapolation_s", "event_lookback_s")
         out += positive(self, "eval_dt_s")
-        out += non_negative(self, "track_end_hold_s")
+        out += non_negative(self, "track_end_hold_s", "min_truth_speed_mps")
         out += in_range(self, "order_p", 1.0, float("inf"), hi_open=True)
         if self.gospa_alpha != 2.0:
             out.append(Problem("gospa_alpha", f"only 2 is supported, got {self.gospa_alpha!r}"))

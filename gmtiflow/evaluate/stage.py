@@ -28,7 +28,7 @@ from typing import Dict, List, Mapping, Optional, Tuple
 import numpy as np
 
 from gmtiflow import frames
-from gmtiflow.evaluate import align, events as events_mod, identity, ospa
+from gmtiflow.evaluate import align, clearmot, events as events_mod, identity, ospa
 from gmtiflow.evaluate.config import MetricsConfig
 from gmtiflow.evaluate.track_errors import track_errors
 from gmtiflow.evaluate.tracks import validate_tracks
@@ -44,7 +44,8 @@ def _summary_spec() -> List[Tuple[str, str]]:
             ("position_rmse_m", "m"), ("speed_rmse_mps", "m/s"), ("heading_rmse_rad", "rad"),
             ("range_rate_rmse_mps", "m/s"),
             ("identity_switches", ""), ("fragmentations", ""), ("coverage_mean", ""),
-            ("track_purity_mean", ""), ("convoy_confused_tracks", "")]
+            ("track_purity_mean", ""), ("convoy_confused_tracks", ""),
+            ("mota", ""), ("motp_m", "m"), ("idf1", ""), ("idp", ""), ("idr", "")]
     for kind in EVENT_KINDS:
         spec += [(f"{kind}_events", ""), (f"{kind}_events_held", ""),
                  (f"{kind}_id_kept_fraction", ""), (f"{kind}_reacquired_fraction", ""),
@@ -71,12 +72,15 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
              tracks: Mapping[str, np.ndarray], looks: Optional[Mapping[str, np.ndarray]] = None,
              vehicles: Optional[Mapping[str, np.ndarray]] = None,
              platform: Optional[Mapping[str, np.ndarray]] = None, *,
-             origin: Optional[frames.Origin] = None, source: str = "tracks"
-             ) -> Dict[str, Table]:
+             origin: Optional[frames.Origin] = None, source: str = "tracks",
+             until_s: Optional[float] = None) -> Dict[str, Table]:
     """Score ``tracks`` against ``truth``; returns the tables listed in the module docstring.
 
     ``looks`` enables the blind-gap events, ``vehicles`` (or truth's ``convoy_id``) the convoy
     confusions, ``platform`` the range-rate errors; ``origin`` converts lat/lon track tables.
+    ``until_s`` is the time of the tracker's last dwell: the grid stops there, and a track
+    reported within ``max_extrapolation_s`` of it is taken as alive to the end (without it, the
+    end of the truth).  ``cfg.min_truth_speed_mps`` gates slow truth out (MDV).
     Track tables are checked with :func:`~gmtiflow.evaluate.tracks.validate_tracks` (a bad one
     raises :class:`~gmtiflow.errors.InputFileError`).
     """
@@ -85,10 +89,18 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
     tracks = validate_tracks(tracks, origin, source)
     if cfg.confirmed_only and "confirmed" in tracks:
         tracks = {k: v[tracks["confirmed"]] for k, v in tracks.items()}
+    if until_s is not None:
+        keep = np.asarray(truth["time_s"], float) <= float(until_s) + 1e-9
+        if not keep.all():
+            truth = {k: np.asarray(v)[keep] for k, v in truth.items()}
     grid = align.evaluation_grid(truth, cfg.eval_dt_s)
     truth_at = align.truth_at_grid(truth, grid)
+    open_end = until_s if until_s is not None else (float(grid[-1]) if len(grid) else None)
     tracks_at = align.tracks_at_grid(tracks, grid, cfg.max_extrapolation_s,
-                                     cfg.track_end_hold_s)
+                                     cfg.track_end_hold_s, open_end_s=open_end)
+    if cfg.min_truth_speed_mps > 0:
+        truth_at, tracks_at = gate_slow_truth(truth_at, tracks_at, cfg.min_truth_speed_mps,
+                                              cfg.cutoff_m)
 
     ospa_tab = ospa.series(truth_at, tracks_at, grid, cfg.cutoff_m, cfg.order_p)
     assigned = identity.associate(truth_at, tracks_at, len(grid), cfg.assoc_gate_m)
@@ -117,6 +129,7 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
     else:
         convoy_of = {}
     convoys = identity.convoy_confusions(assoc["vehicle_id"], assoc["track_id"], convoy_of)
+    mot = clearmot.clear_mot(truth_at, tracks_at, assigned, idm["switches"], cfg.assoc_gate_m)
 
     values = {
         "n_truths": len(np.unique(truth_at["vehicle_id"])),
@@ -133,6 +146,8 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
         "coverage_mean": _mean(idm["truth"]["coverage"]),
         "track_purity_mean": _mean(idm["tracks"]["purity"]),
         "convoy_confused_tracks": int(convoys["n_confused_tracks"].sum()),
+        "mota": mot["mota"], "motp_m": mot["motp_m"], "idf1": mot["idf1"], "idp": mot["idp"],
+        "idr": mot["idr"],
     }
     for kind in EVENT_KINDS:
         sel = ev["kind"] == kind
@@ -151,6 +166,28 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
             "metrics/track_purity": idm["tracks"],
             "metrics/identity_switches": idm["switch_times"], "metrics/events": ev,
             "metrics/convoys": convoys}
+
+
+def gate_slow_truth(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
+                    min_speed_mps: float, cutoff_m: float):
+    """MDV gating: drop truth rows slower than ``min_speed_mps`` and the track rows whose nearest
+    truth at that step is such a one, closer than ``cutoff_m`` (one k-d tree for all steps)."""
+    from scipy.spatial import cKDTree
+    speed = np.hypot(truth_at["vx_mps"], truth_at["vy_mps"])
+    slow = speed < float(min_speed_mps)
+    if not slow.any():
+        return truth_at, tracks_at
+    lift = 4.0 * float(cutoff_m)
+    if len(tracks_at["step"]):
+        pts = np.stack([truth_at["x_m"], truth_at["y_m"], truth_at["step"] * lift], axis=1)
+        q = np.stack([tracks_at["x_m"], tracks_at["y_m"], tracks_at["step"] * lift], axis=1)
+        d, j = cKDTree(pts).query(q, distance_upper_bound=float(cutoff_m))
+        found = np.isfinite(d) & (d < float(cutoff_m))
+        drop = np.zeros(len(d), bool)
+        drop[found] = slow[j[found]]
+        tracks_at = {k: v[~drop] for k, v in tracks_at.items()}
+    truth_at = {k: v[~slow] for k, v in truth_at.items()}
+    return truth_at, tracks_at
 
 
 def summary_value(tables: Mapping[str, Table], name: str) -> float:

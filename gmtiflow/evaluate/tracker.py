@@ -45,7 +45,6 @@ import dataclasses
 from typing import Mapping, Optional
 
 import numpy as np
-from scipy.stats import chi2
 
 from gmtiflow import frames
 from gmtiflow.evaluate import kalman
@@ -184,6 +183,7 @@ class NNKalmanTracker:
         if overrides:
             cfg = dataclasses.replace(cfg, **overrides)
         self.cfg = cfg
+        from scipy.stats import chi2    # imported here: scipy.stats costs ~1 s at start-up
         self._gate = {m: float(chi2.ppf(cfg.gate_probability, m)) for m in (2, 3)}
         self.reset(SceneInfo())
 

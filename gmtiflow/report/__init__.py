@@ -9,10 +9,15 @@ from .config import ReportConfig
 __all__ = ["ReportConfig", "build_run_report", "build_sweep_report"]
 
 
+def build_run_report(cfg: ReportConfig, run_path, out_pdf):
+    """The run report (:func:`gmtiflow.report.run_report.build_run_report`), imported on first
+    call: matplotlib's PDF backend costs a second that ``import gmtiflow.pipeline`` (and with it
+    ``gmtiflow --help`` and config errors) should not pay."""
+    from .run_report import build_run_report as build
+    return build(cfg, run_path, out_pdf)
+
+
 def __getattr__(name):
-    if name == "build_run_report":
-        from .run_report import build_run_report
-        return build_run_report
     if name == "build_sweep_report":
         from .sweep_report import build_sweep_report
         return build_sweep_report

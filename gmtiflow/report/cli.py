@@ -17,6 +17,8 @@ from typing import List, Optional
 
 from gmtiflow.errors import GmtiflowError
 
+from gmtiflow.paths import refuse_same_file
+
 from .config import ReportConfig
 
 
@@ -43,6 +45,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         Path(args.dirs[0]) / "sweep_report.pdf" if len(args.dirs) == 1 else Path("sweep_report.pdf"))
     status = 0
     try:
+        refuse_same_file(out, [d / "run.h5" for d in find_job_dirs(args.dirs)])
         if args.runs:
             cfg = ReportConfig()
             for d in find_job_dirs(args.dirs):
@@ -55,6 +58,10 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(build_sweep_report(args.dirs, out))
     except GmtiflowError as exc:
         print(f"gmtiflow-report: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:      # a full disk or an unwritable output: one line, no traceback
+        print(f"gmtiflow-report: error: {exc.filename or out}: {exc.strerror or exc}",
+              file=sys.stderr)
         return 1
     return status
 

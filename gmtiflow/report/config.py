@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import List
 
-from gmtiflow.schema import Problem, positive
+from gmtiflow.schema import Problem, non_negative, positive
 
 
 @dataclass
@@ -35,13 +35,24 @@ class ReportConfig:
     """Also write an animated GIF (``report.gif``) of truth, detections and tracks per revisit."""
     animation_max_frames: int = 60
     animation_fps: float = 4.0
+    viewer: bool = False
+    """Also write the interactive scene viewer (``viewer.html``, offline; ``gmtiflow-view``)."""
+    viewer_filename: str = "viewer.html"
+    viewer_max_frames: int = 150
+    """Most viewer frames (revisits, evenly spread over the run)."""
+    viewer_max_labels: int = 60
+    """Id labels, trails and covariance ellipses only while a frame shows at most this many."""
     sweep_filename: str = "sweep_report.pdf"
     """Name of the comparison report written into a sweep dir by the Hydra callback."""
 
     def problems(self) -> List[Problem]:
         out = positive(self, "max_points", "max_footprints", "max_timeline_vehicles",
                        "max_track_lines", "snr_bin_db", "dpi", "animation_max_frames",
-                       "animation_fps")
+                       "animation_fps", "viewer_max_frames")
+        out += non_negative(self, "viewer_max_labels")
+        if not self.viewer_filename.endswith(".html") or "/" in self.viewer_filename:
+            out.append(Problem("viewer_filename", f"must be a file name ending in .html, got "
+                                                  f"{self.viewer_filename!r}"))
         for key in ("filename", "sweep_filename"):
             name = getattr(self, key)
             if not name.endswith(".pdf") or "/" in name:

@@ -22,7 +22,7 @@ from gmtiflow.tables import Table
 TABLES = ("roads/nodes", "roads/edges", "vehicles", "truth", "platform", "dwells", "detections",
           "detection_ancestors", "looks", "tracks", "metrics", "metrics/ospa",
           "metrics/track_errors", "metrics/identity_switches", "metrics/events",
-          "metrics/truth_identity", "metrics/association")
+          "metrics/truth_identity", "metrics/association", "metrics/sensors")
 
 # Looks where the beam was on a visible target: the Swerling draw happened.
 DRAWN = (Outcome.DETECTED, Outcome.DOPPLER_BLIND, Outcome.PD_MISS, Outcome.MERGED)
@@ -60,7 +60,7 @@ def load_run(run_path, tables: Iterable[str] = TABLES) -> RunData:
     otherwise)."""
     path = Path(run_path)
     names = tuple(tables)
-    with open_run(path) as f:
+    with open_run(path, require_columns=True) as f:
         attrs = read_attrs(f)
         try:
             config = yaml.safe_load(read_text(f, "config")) if "config" in f else {}

@@ -8,7 +8,8 @@ Pipeline hook (the runner calls it after the run file is committed)::
 
 Pages (``PAGES``): title (scene summary, key numbers), map, physics sanity (P_D vs SNR and
 normalised measurement errors), range rate vs azimuth (clutter notch, blind speeds), per-vehicle
-timeline, track errors (paper Fig. 5), OSPA/GOSPA and identity events.  The PDF is written under
+timeline, track errors (paper Fig. 5), OSPA/GOSPA and identity events; with several sensors a
+"sensors" page (per-sensor and fused coverage) follows the title.  The PDF is written under
 a temporary name and renamed when complete, so an interrupted report never looks finished.
 """
 from __future__ import annotations
@@ -20,6 +21,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 from matplotlib.backends.backend_pdf import PdfPages
+from tqdm import tqdm
 from matplotlib.figure import Figure
 
 from gmtiflow.formats import atomic_path
@@ -28,17 +30,19 @@ from gmtiflow import __version__
 from . import figures as F
 from .config import ReportConfig
 from .data import RunData, key_numbers, load_run, n, summary
+from .sensors_page import sensors_figure
 
 log = logging.getLogger(__name__)
 
 PAGES = ("title", "map", "sensor", "range_rate", "timeline", "track_errors", "ospa")
+"""The pages of a one-sensor run; a run with several sensors adds "sensors" after the title."""
 
 
 def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[], Figure]]]:
     """The report's pages in order, as (name, builder) pairs (built lazily, one at a time)."""
     t = run.table
     tracker_on = bool(run.cfg("tracker.enabled", True))
-    return [
+    pages = [
         ("title", lambda: F.title_figure(run.attrs, run.config, key_numbers(run),
                                          summary(t("metrics")), str(run.path))),
         ("map", lambda: F.map_figure(t("roads/nodes"), t("roads/edges"), t("truth"), t("platform"),
@@ -49,7 +53,8 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
                                      max_track_lines=cfg.max_track_lines)),
         ("sensor", lambda: F.sensor_figure(t("looks"), t("detections"),
                                            float(run.cfg("sensor.pfa", 1e-6)),
-                                           snr_bin_db=cfg.snr_bin_db)),
+                                           snr_bin_db=cfg.snr_bin_db,
+                                           expected_false_alarms=_expected_false_alarms(run))),
         ("range_rate", lambda: F.range_rate_figure(t("looks"), t("detections"), t("dwells"),
                                                    max_points=cfg.max_points)),
         ("timeline", lambda: F.timeline_figure(t("vehicles"), t("truth"), t("looks"),
@@ -62,6 +67,30 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
                                        cutoff_m=float(run.cfg("metrics.cutoff_m", float("nan"))),
                                        tracker_enabled=tracker_on)),
     ]
+    sensors = t("metrics/sensors")
+    if len(sensors.get("name", ())) > 2:    # several sensors (one row each, and the fused row)
+        window_s = 2.0 * max(float(run.cfg("sensor.revisit_s", 0.0)), *(
+            float(s.get("sensor", {}).get("revisit_s", 0.0))
+            for s in (run.cfg("sensors", {}) or {}).values()))
+        pages.insert(1, ("sensors", lambda: sensors_figure(sensors, window_s)))
+    return pages
+
+
+def _expected_false_alarms(run: RunData) -> Optional[float]:
+    """The detector's expected noise false alarms of the run (P_FA × cells per dwell × dwells),
+    None when the run's config does not say (an older run) or they were switched off."""
+    from gmtiflow.sensor.config import SensorConfig
+    sensor = run.cfg("sensor", None)
+    if not isinstance(sensor, dict):
+        return None
+    names = set(SensorConfig.__dataclass_fields__) - {"rcs", "merge"}
+    try:
+        cfg = SensorConfig(**{k: v for k, v in sensor.items() if k in names})
+        if not cfg.noise_false_alarms or "noise_false_alarms" not in sensor:
+            return None
+        return cfg.expected_false_alarms_per_dwell * n(run.table("dwells"))
+    except (TypeError, ValueError):
+        return None
 
 
 def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
@@ -77,12 +106,20 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
     with atomic_path(out_pdf) as tmp, PdfPages(
             tmp, metadata={"Title": f"gmtiflow run report: {run.path}",
                            "Creator": f"gmtiflow {__version__}"}) as pdf:
-        for page, builder in run_figures(run, cfg):
+        pages = run_figures(run, cfg)
+        for page, builder in tqdm(pages, desc="report", unit="page", leave=False, delay=2.0,
+                                  disable=None):   # a bar on a terminal when it takes > 2 s
             t0 = time.perf_counter()
             fig = builder()
             pdf.savefig(fig, dpi=cfg.dpi)
             fig.clear()
             seconds[page] = time.perf_counter() - t0
+    if cfg.viewer:
+        from .viewer import build_viewer
+        t0 = time.perf_counter()
+        build_viewer(run.path, out_pdf.parent / cfg.viewer_filename,
+                     max_frames=cfg.viewer_max_frames, max_labels=cfg.viewer_max_labels)
+        seconds["viewer"] = time.perf_counter() - t0
     if cfg.animation:
         t0 = time.perf_counter()
         gif = write_animation(run, out_pdf.with_suffix(".gif"), cfg)
@@ -96,13 +133,18 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
 
 
 def write_animation(run: RunData, out_gif: Path, cfg: ReportConfig) -> Optional[Path]:
-    """An animated GIF, one frame per revisit (at most ``animation_max_frames``): truth positions
-    with short tails, that revisit's detections, and confirmed tracks with tails.
+    """An animated GIF, one frame per revisit (at most ``animation_max_frames``): truth positions,
+    that revisit's detections, and confirmed tracks.
 
-    Uses matplotlib's PillowWriter; returns None (with a log line) when pillow is missing.
+    Blitted: the roads, axes and legend are drawn once; each frame restores that background,
+    draws only the three moving layers and the title, and hands the pixels to pillow (adaptive
+    palette per frame).  Matplotlib's FuncAnimation + PillowWriter redrew the whole figure per
+    frame (24.5 s for 60 frames of the 1,000-vehicle scene).  Returns None (with a log line)
+    when pillow is missing.
     """
-    from matplotlib import animation
-    if not animation.PillowWriter.isAvailable():
+    try:
+        from PIL import Image
+    except ImportError:
         log.warning("animation skipped: pillow is not installed")
         return None
     truth, det, tracks, dwells = (run.table(k) for k in ("truth", "detections", "tracks", "dwells"))
@@ -129,12 +171,13 @@ def write_animation(run: RunData, out_gif: Path, cfg: ReportConfig) -> Optional[
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("east (km)")
     ax.set_ylabel("north (km)")
-    truth_sc = ax.scatter([], [], s=25, color="#35978f", label="truth", zorder=3)
-    det_sc = ax.scatter([], [], s=14, color="#2166ac", label="detections (this revisit)", zorder=4)
+    truth_sc = ax.scatter([], [], s=25, color="#35978f", label="truth", zorder=3, animated=True)
+    det_sc = ax.scatter([], [], s=14, color="#2166ac", label="detections (this revisit)", zorder=4,
+                        animated=True)
     trk_sc = ax.scatter([], [], s=30, marker="s", facecolor="none", edgecolor="k",
-                        label="confirmed tracks", zorder=5)
-    ax.legend(loc="upper left", fontsize=8)
-    title = ax.set_title("")
+                        label="confirmed tracks", zorder=5, animated=True)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False)
+    title = ax.set_title("revisit 0000, t = 00000.0 s", animated=True)
     tt = np.asarray(truth["time_s"]) if n(truth) else np.zeros(0)
     tr_t = np.asarray(tracks["time_s"]) if n(tracks) else np.zeros(0)
     conf = np.asarray(tracks["confirmed"], bool) if n(tracks) and "confirmed" in tracks else np.ones(len(tr_t), bool)
@@ -154,7 +197,18 @@ def write_animation(run: RunData, out_gif: Path, cfg: ReportConfig) -> Optional[
         title.set_text(f"revisit {int(r)}, t = {te:.1f} s")
         return truth_sc, det_sc, trk_sc, title
 
-    anim = animation.FuncAnimation(fig, draw, frames=list(frames), blit=False)
+    fig.set_dpi(80)
+    canvas = fig.canvas
+    canvas.draw()                                  # the static layers, once
+    background = canvas.copy_from_bbox(fig.bbox)
+    images = []
+    for r in frames:
+        canvas.restore_region(background)
+        for artist in draw(r):
+            artist.axes.draw_artist(artist) if artist.axes is not None else fig.draw_artist(artist)
+        rgb = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+        images.append(Image.fromarray(rgb).quantize(colors=64, method=Image.Quantize.MEDIANCUT))
     with atomic_path(out_gif, suffix=".partial.gif") as tmp:
-        anim.save(tmp, writer=animation.PillowWriter(fps=cfg.animation_fps), dpi=80)
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], loop=0,
+                       duration=int(round(1000.0 / cfg.animation_fps)))
     return out_gif

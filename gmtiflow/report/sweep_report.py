@@ -34,6 +34,7 @@ from typing import Dict, Iterable, List, Optional, Sequence
 import numpy as np
 import yaml
 from matplotlib.backends.backend_pdf import PdfPages
+import matplotlib.cm as cm
 from matplotlib.figure import Figure
 
 from gmtiflow.formats import atomic_path
@@ -268,9 +269,41 @@ def _groups(jobs: Sequence[Job], param: str, others: Sequence[str]):
     return out
 
 
+LOG_PARAMS = re.compile(r"(pfa|power|density|_w$|rate)", re.I)
+
+
+def mean_ci95(values) -> tuple:
+    """(mean, half-width of the 95 % t-interval, n) of the finite values; half-width 0 for n < 2.
+
+    Student's t quantile t_{0.975, n−1}: the runs of one point differ by their seed only.
+    """
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if not len(v):
+        return float("nan"), float("nan"), 0
+    if len(v) < 2:
+        return float(v.mean()), 0.0, len(v)
+    from scipy.stats import t as student_t     # imported here: scipy.stats is slow to import
+    half = float(student_t.ppf(0.975, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v)))
+    return float(v.mean()), half, len(v)
+
+
+def _x_axis(values: Sequence[str], param: str):
+    """(positions, numeric, log) of the parameter values: numbers on a linear or log axis (log
+    when all > 0 and spanning ≥ 50×, or a P_FA/power/density-like key), else categories."""
+    numeric = bool(values) and all(_number(v) is not None for v in values)
+    if numeric:
+        nums = [float(v) for v in values]
+        log_x = min(nums) > 0 and (max(nums) / min(nums) >= 50 or
+                                   (LOG_PARAMS.search(param) is not None and max(nums) > min(nums)))
+        return {v: float(v) for v in values}, True, log_x
+    return {v: float(i) for i, v in enumerate(values)}, False, False
+
+
 def parameter_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Figure:
-    """Every result against one swept parameter; one line per combination of the other swept
-    parameters (seed excluded: seeds are the spread), mean ± std where several jobs share a point."""
+    """Every result against one swept parameter, mean ± 95 % interval over the seeds of a point
+    (the jobs' own values as dots).  Numbers: one line per combination of the other swept
+    parameters, log axis for P_FA/power-like keys or ranges ≥ 50×; categories: grouped bars."""
     ok = [j for j in jobs if j.ok]
     others = [k for k in keys if k != param and k != "seed"]
     results = [r for r in RESULTS if any(math.isfinite(j.values.get(r[0], float("nan"))) for j in ok)]
@@ -278,49 +311,133 @@ def parameter_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Fi
     ncols = 3 if len(results) > 4 else 2
     nrows = max(1, math.ceil(len(results) / ncols))
     axes = fig.subplots(nrows, ncols, squeeze=False,
-                        gridspec_kw=dict(left=0.07, right=0.98, top=0.86, bottom=0.1,
-                                         hspace=0.55, wspace=0.3))
+                        gridspec_kw=dict(left=0.07, right=0.98, top=0.86, bottom=0.14,
+                                         hspace=0.6, wspace=0.3))
     values = list(dict.fromkeys(j.overrides.get(param, "–") for j in ok))
-    numeric = all(_number(v) is not None for v in values)
-    if numeric:
+    if values and all(_number(v) is not None for v in values):
         values.sort(key=float)
-    pos = {v: (float(v) if numeric else i) for i, v in enumerate(values)}
+    pos, numeric, log_x = _x_axis(values, param)
     groups = _groups(ok, param, others)
-    colours = F.cm.tab10(np.arange(len(groups)) % 10)
+    colours = cm.tab10(np.arange(len(groups)) % 10)
+    n_groups = max(len(groups), 1)
+    width = 0.8 / n_groups
     repeats = max((len(js) for g in groups.values() for js in g.values()), default=1)
     for ax, (key, label, unit) in zip(axes.ravel(), results):
-        for (g, by_x), c in zip(groups.items(), colours):
+        for gi, ((g, by_x), c) in enumerate(zip(groups.items(), colours)):
             xs = [x for x in values if x in by_x]
-            means, stds = [], []
-            for x in xs:
-                v = np.array([j.values.get(key, np.nan) for j in by_x[x]], float)
-                v = v[np.isfinite(v)]
-                means.append(v.mean() if len(v) else np.nan)
-                stds.append(v.std(ddof=1) if len(v) > 1 else 0.0)
-                ax.scatter([pos[x]] * len(v), v, s=10, color=c, alpha=0.45, lw=0)
+            stats = [mean_ci95([j.values.get(key, np.nan) for j in by_x[x]]) for x in xs]
+            means = [s[0] for s in stats]
+            halves = [s[1] for s in stats]
             lab = ", ".join(f"{k}={v}" for k, v in zip(others, g)) or None
-            ax.errorbar([pos[x] for x in xs], means, yerr=stds if repeats > 1 else None, color=c,
-                        marker="o", ms=4, lw=1.2, capsize=3, label=lab)
+            if numeric:
+                px = [pos[x] for x in xs]
+                ax.errorbar(px, means, yerr=halves if repeats > 1 else None, color=c, marker="o",
+                            ms=4, lw=1.2, capsize=3, label=lab)
+            else:
+                px = [pos[x] + (gi - (n_groups - 1) / 2) * width for x in xs]
+                ax.bar(px, means, width=width * 0.95, color=c, alpha=0.75, label=lab,
+                       yerr=halves if repeats > 1 else None, capsize=2,
+                       error_kw=dict(lw=0.8))
+            for x0, x in zip(px, xs):
+                v = np.array([j.values.get(key, np.nan) for j in by_x[x]], float)
+                ax.scatter([x0] * len(v), v, s=8, color="k" if not numeric else c, alpha=0.4,
+                           lw=0, zorder=3)
         ax.set_title(label + (f" ({unit})" if unit else ""), fontsize=9)
         ax.grid(alpha=0.3)
+        if log_x:
+            ax.set_xscale("log")
         if not numeric:
             ax.set_xticks(list(pos.values()))
             ax.set_xticklabels([textwrap.shorten(v, 14) for v in values], fontsize=7,
                                rotation=20 if len(values) > 3 else 0)
         ax.tick_params(labelsize=7)
-        ax.set_xlabel(param, fontsize=8)
+        ax.set_xlabel(param + (" (log)" if log_x else ""), fontsize=8)
     for ax in axes.ravel()[len(results):]:
         ax.axis("off")
     if not results:
-        _ax = axes.ravel()[0]
-        F._note(_ax, "no completed jobs: nothing to plot")
+        F._note(axes.ravel()[0], "no completed jobs: nothing to plot")
     handles, labels = axes.ravel()[0].get_legend_handles_labels()
     if labels:
         fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8,
                    frameon=False)
-    spread = (f"; points = jobs, bars = mean ± std over {repeats} runs per point"
+    spread = (f"; mean ± 95 % interval (t) over up to {repeats} seeds per point, dots = jobs"
               if repeats > 1 else "")
     fig.suptitle(f"Results vs {param}{spread}", fontsize=13, weight="bold", x=0.04, ha="left")
+    return fig
+
+
+def paired_deltas(jobs: Sequence[Job], param: str, others: Sequence[str], key: str):
+    """Per (other-parameter combination, value ≠ baseline): the per-seed differences
+    value(x, seed) − value(baseline, seed) over the seeds run at both.  Baseline: the first
+    value in order.  Returns (baseline, {group: {x: array of deltas}})."""
+    ok = [j for j in jobs if j.ok]
+    values = list(dict.fromkeys(j.overrides.get(param, "–") for j in ok))
+    if values and all(_number(v) is not None for v in values):
+        values.sort(key=float)
+    if len(values) < 2:
+        return None, {}
+    base = values[0]
+    out: Dict[tuple, Dict[str, np.ndarray]] = {}
+    cell: Dict[tuple, Dict[str, Dict[str, float]]] = {}
+    for j in ok:
+        g = tuple(j.overrides.get(k, "–") for k in others)
+        cell.setdefault(g, {}).setdefault(j.overrides.get(param, "–"), {})[
+            j.overrides.get("seed", "–")] = j.values.get(key, float("nan"))
+    for g, by_x in cell.items():
+        b = by_x.get(base, {})
+        for x in values[1:]:
+            seeds = sorted(set(b) & set(by_x.get(x, {})))
+            d = np.array([by_x[x][s] - b[s] for s in seeds], float)
+            out.setdefault(g, {})[x] = d[np.isfinite(d)]
+    return base, out
+
+
+def paired_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Figure:
+    """Changes against the baseline value of ``param``, paired by seed: the common random
+    numbers make every seed's truth and noise the same across values, so per-seed differences
+    are far tighter than the spread of either side."""
+    others = [k for k in keys if k != param and k != "seed"]
+    ok = [j for j in jobs if j.ok]
+    results = [r for r in RESULTS if r[0] != "wall_s" and
+               any(math.isfinite(j.values.get(r[0], float("nan"))) for j in ok)]
+    fig = F.new_figure()
+    ncols = 3 if len(results) > 4 else 2
+    nrows = max(1, math.ceil(len(results) / ncols))
+    axes = fig.subplots(nrows, ncols, squeeze=False,
+                        gridspec_kw=dict(left=0.07, right=0.98, top=0.86, bottom=0.14,
+                                         hspace=0.6, wspace=0.3))
+    base = None
+    for ax, (key, label, unit) in zip(axes.ravel(), results):
+        base, deltas = paired_deltas(jobs, param, others, key)
+        xs = list(dict.fromkeys(x for by_x in deltas.values() for x in by_x))
+        n_groups = max(len(deltas), 1)
+        width = 0.8 / n_groups
+        colours = cm.tab10(np.arange(n_groups) % 10)
+        for gi, ((g, by_x), c) in enumerate(zip(deltas.items(), colours)):
+            px, means, halves = [], [], []
+            for i, x in enumerate(xs):
+                m, h, k = mean_ci95(by_x.get(x, []))
+                px.append(i + (gi - (n_groups - 1) / 2) * width)
+                means.append(m)
+                halves.append(h)
+            lab = ", ".join(f"{k}={v}" for k, v in zip(others, g)) or None
+            ax.bar(px, means, width=width * 0.95, color=c, alpha=0.75, yerr=halves, capsize=2,
+                   error_kw=dict(lw=0.8), label=lab)
+        ax.axhline(0, color="k", lw=0.7)
+        ax.set_xticks(range(len(xs)))
+        ax.set_xticklabels([textwrap.shorten(str(x), 14) for x in xs], fontsize=7)
+        ax.set_title(f"Δ {label}" + (f" ({unit})" if unit else ""), fontsize=9)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3, axis="y")
+        ax.set_xlabel(param, fontsize=8)
+    for ax in axes.ravel()[len(results):]:
+        ax.axis("off")
+    handles, labels = axes.ravel()[0].get_legend_handles_labels()
+    if labels:
+        fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8,
+                   frameon=False)
+    fig.suptitle(f"Paired by seed: change from {param}={base} (mean ± 95 % interval of the "
+                 f"per-seed differences)", fontsize=12, weight="bold", x=0.04, ha="left")
     return fig
 
 
@@ -331,7 +448,7 @@ def speed_accuracy_figure(jobs: Sequence[Job], param: str = "fidelity") -> Figur
     fig = F.new_figure()
     axes = fig.subplots(2, 2, squeeze=False, gridspec_kw=dict(left=0.08, right=0.98, top=0.86,
                                                                bottom=0.08, hspace=0.35, wspace=0.25))
-    colours = F.cm.tab10(np.arange(len(presets)) % 10)
+    colours = cm.tab10(np.arange(len(presets)) % 10)
     labels = {k: (lab, u) for k, lab, u in RESULTS}
     for ax, key in zip(axes.ravel(), ACCURACY):
         for p, c in zip(presets, colours):
@@ -384,9 +501,13 @@ def failures_figure(jobs: Sequence[Job]) -> Figure:
 def sweep_figures(jobs: Sequence[Job], sources: Sequence) -> List[Figure]:
     keys = swept_keys(jobs)
     figs = table_figures(jobs, keys, sources)
-    plot_params = [k for k in keys if k != "seed"] or (["seed"] if "seed" in keys else [])
+    plot_params = [k for k in keys if k != "seed"]     # seeds are the spread, not a parameter
     for k in plot_params:
         figs.append(parameter_figure(jobs, k, keys))
+        others = [o for o in keys if o not in (k, "seed")]
+        if "seed" in keys and any(len(d) for by_x in paired_deltas(
+                jobs, k, others, "detections")[1].values() for d in by_x.values()):
+            figs.append(paired_figure(jobs, k, keys))   # only when some seed ran at two values
     fidelity_key = next((k for k in keys if k == "fidelity" or k == "fidelity.name"), None)
     if fidelity_key:
         figs.append(speed_accuracy_figure(jobs, fidelity_key))

@@ -23,14 +23,18 @@ from pathlib import Path
 from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.linalg
 
 from gmtiflow.errors import InputFileError
+from gmtiflow.paths import check_input_file, excerpt
 
 log = logging.getLogger(__name__)
 
 SRTM_VOID = -32768
+MAX_VOID_COMPONENT = 100_000
+"""Largest connected void (samples, 4-connected) filled by one sparse solve; a bigger one
+(about 316 x 316 samples, 9.5 x 9.5 km of SRTM3) is refused: no data to interpolate from."""
+MAX_ASCII_GRID_BYTES = 2 * 2**30
+"""ESRI ASCII grids are parsed in memory (about 12 times their size)."""
 #: samples per side of an SRTM tile -> name of the product
 SRTM_SIZES = {1201: "SRTM3 (3 arc-second)", 3601: "SRTM1 (1 arc-second)"}
 _HGT_NAME = re.compile(r"^([NS])(\d{2})([EW])(\d{3})\.hgt$", re.IGNORECASE)
@@ -133,17 +137,47 @@ def fill_voids(values: np.ndarray, void: np.ndarray) -> np.ndarray:
     """Fill the ``void`` cells of ``values`` by Laplace interpolation, in place and returned.
 
     Each void cell takes the mean of its 4 neighbours (fewer at the grid edge), valid neighbours
-    held fixed: one sparse linear solve over all voids. This is the smoothest surface through the
-    valid rim of each hole (a membrane), bounded by the rim's min and max, the usual way to
-    patch SRTM voids. Every hole has a valid rim unless the whole grid is void, which raises
-    ValueError.
+    held fixed: the smoothest surface through the valid rim of each hole (a membrane), bounded
+    by the rim's min and max, the usual way to patch SRTM voids.  The holes are independent
+    (4-connected components of the void mask): they are solved in batches of at most
+    :data:`MAX_VOID_COMPONENT` unknowns, so time and memory stay bounded; a single hole larger
+    than that, or a grid that is all void, raises ValueError.
     """
+    import scipy.ndimage
     void = np.asarray(void, bool)
     n_void = int(void.sum())
     if n_void == 0:
         return values
     if n_void == void.size:
         raise ValueError("every sample is void: nothing to interpolate from")
+    labels, n_comp = scipy.ndimage.label(void)
+    sizes = np.bincount(labels.ravel(), minlength=n_comp + 1)[1:]
+    biggest = int(sizes.max())
+    if biggest > MAX_VOID_COMPONENT:
+        k = int(np.argmax(sizes)) + 1
+        rows, cols = np.nonzero(labels == k)
+        raise ValueError(
+            f"a void of {biggest} samples (rows {rows.min()}-{rows.max()}, columns "
+            f"{cols.min()}-{cols.max()}) is larger than the {MAX_VOID_COMPONENT} samples that "
+            f"can be interpolated; use a DEM with fewer voids or terrain.voids=refuse")
+    # batches of whole components, each at most MAX_VOID_COMPONENT unknowns
+    batch_of = np.zeros(n_comp + 1, np.int64)
+    total, batch = 0, 0
+    for k, size in enumerate(sizes, start=1):
+        if total + size > MAX_VOID_COMPONENT:
+            batch, total = batch + 1, 0
+        batch_of[k] = batch
+        total += size
+    batch_map = batch_of[labels]
+    for b in range(batch + 1):
+        _laplace_solve(values, void & (batch_map == b))
+    return values
+
+
+def _laplace_solve(values: np.ndarray, void: np.ndarray) -> np.ndarray:
+    """Laplace-fill the ``void`` cells of ``values`` in place: one sparse solve over them
+    (each a union of whole 4-connected void components, so no void neighbour lies outside)."""
+    n_void = int(void.sum())
     nr, nc = values.shape
     idx = -np.ones(values.shape, dtype=np.intp)
     rows, cols = np.nonzero(void)
@@ -166,6 +200,8 @@ def fill_voids(values: np.ndarray, void: np.ndarray) -> np.ndarray:
         np.add.at(rhs, kv, values[rr[kv], cc[kv]])
     off_r = np.concatenate(a_rows)
     off_c = np.concatenate(a_cols)
+    import scipy.sparse    # imported here: scipy.sparse costs ~0.5 s at start-up
+    import scipy.sparse.linalg
     mat = scipy.sparse.csr_matrix(
         (np.concatenate([diag, -np.ones(off_r.size)]),
          (np.concatenate([np.arange(n_void), off_r]), np.concatenate([np.arange(n_void), off_c]))),
@@ -204,6 +240,10 @@ def hgt_corner(path: Path) -> Tuple[int, int]:
             f"south-west corner: N/S two-digit latitude, E/W three-digit longitude)")
     lat = int(m.group(2)) * (1 if m.group(1).upper() == "N" else -1)
     lon = int(m.group(4)) * (1 if m.group(3).upper() == "E" else -1)
+    if not (-90 <= lat <= 89 and -180 <= lon <= 179):
+        raise InputFileError(
+            f"{path}: no SRTM tile has its south-west corner at lat {lat}, lon {lon}; the "
+            f"corner's latitude is in [S90, N89] and its longitude in [W180, E179]")
     return lat, lon
 
 
@@ -316,6 +356,7 @@ def read_ascii_grid(path, voids: str = "fill") -> EnuGrid:
     if not path.is_file():
         raise InputFileError(f"{path}: ASCII grid not found (relative paths are taken from the "
                              f"current directory {Path.cwd()}; pass an absolute path)")
+    check_input_file(path, "ASCII grid", MAX_ASCII_GRID_BYTES, memory_factor=12.0)
     try:
         lines = path.read_text().splitlines()
     except UnicodeDecodeError:
@@ -335,17 +376,18 @@ def read_ascii_grid(path, voids: str = "fill") -> EnuGrid:
         parts = text.split()
         key = parts[0].lower()
         if key not in _ASC_KEYS:
-            raise InputFileError(f"{path}, line {lineno + 1}: unknown header key {parts[0]!r}; "
+            raise InputFileError(f"{path}, line {lineno + 1}: unknown header key "
+                                 f"{excerpt(parts[0])}; "
                                  f"expected one of ncols nrows xllcorner yllcorner cellsize "
                                  f"NODATA_value")
         if len(parts) != 2:
             raise InputFileError(f"{path}, line {lineno + 1}: header line must be 'KEY VALUE', "
-                                 f"got {text!r}")
+                                 f"got {len(parts)} fields")
         try:
             value = float(parts[1])
         except ValueError:
             raise InputFileError(f"{path}, line {lineno + 1}: {parts[0]} must be a number, got "
-                                 f"{parts[1]!r}") from None
+                                 f"{excerpt(parts[1])}") from None
         header[key] = value
         header_line[key] = lineno + 1
         lineno += 1
@@ -380,7 +422,7 @@ def read_ascii_grid(path, voids: str = "fill") -> EnuGrid:
             rows.append(np.array(text.split(), dtype=float))
         except ValueError:
             bad = next(t for t in text.split() if not _is_number(t))
-            raise InputFileError(f"{path}, line {k + 1}: {bad!r} is not a number") from None
+            raise InputFileError(f"{path}, line {k + 1}: {excerpt(bad)} is not a number") from None
         row_line.append(k + 1)
     data = np.concatenate(rows) if rows else np.zeros(0)
     if data.size != nrows * ncols:

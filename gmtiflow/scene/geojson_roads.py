@@ -21,8 +21,27 @@ import numpy as np
 
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError, RoadMapError
+from gmtiflow.paths import check_input_file
 from gmtiflow.scene.osm import parse_maxspeed
-from gmtiflow.scene.roadmap import RoadMap, RoadmapConfig
+from gmtiflow.scene.road_network import RoadMap
+from gmtiflow.scene.roadmap_config import RoadmapConfig
+
+
+MAX_GEOJSON_BYTES = 2 * 2**30
+"""GeoJSON is parsed in memory (about 10 times its size): larger files are refused."""
+
+
+def _all_numbers(part: Any) -> bool:
+    """Whether ``part`` is a list of positions whose members are JSON numbers (not booleans)."""
+    if not isinstance(part, list):
+        return False
+    for pos in part:
+        if not isinstance(pos, list):
+            return False
+        for v in pos:
+            if type(v) not in (int, float):
+                return False
+    return True
 
 
 def _truthy(value: Any) -> bool:
@@ -59,10 +78,16 @@ def load_geojson(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
     p = Path(path)
     if not p.is_file():
         raise InputFileError(f"{p}: GeoJSON file not found")
+    check_input_file(p, "GeoJSON file", MAX_GEOJSON_BYTES, memory_factor=10.0)
     try:
         doc = json.loads(p.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise RoadMapError(f"{p}: not valid JSON: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise RoadMapError(f"{p}: not UTF-8 text (byte {exc.start})") from None
+    except json.JSONDecodeError as exc:
+        raise RoadMapError(f"{p}: not valid JSON (line {exc.lineno}, column {exc.colno}): "
+                           f"{exc.msg}") from None
+    except ValueError:          # an integer of more than 4,300 digits (Python's limit)
+        raise RoadMapError(f"{p}: holds a number too long to be a coordinate") from None
     except RecursionError:      # json recurses per nesting level: '[[[[...' exhausts the stack
         raise RoadMapError(f"{p}: JSON nested too deeply to be a GeoJSON road map") from None
     except OSError as exc:
@@ -87,6 +112,10 @@ def load_geojson(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         if not isinstance(parts, list):
             raise RoadMapError(f"{p}: features[{i}] {gtype} has no coordinates list")
         for part in parts:
+            if not _all_numbers(part):
+                raise RoadMapError(f"{p}: features[{i}]: coordinates must be [lon, lat] or "
+                                   f"[lon, lat, height] numbers (true, false, null and text "
+                                   f"are not)")
             try:
                 pts = np.asarray(part, dtype=float)
             except (TypeError, ValueError):

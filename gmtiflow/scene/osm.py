@@ -32,7 +32,12 @@ from lxml import etree
 
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError, RoadMapError
-from gmtiflow.scene.roadmap import OSM_ATTRIBUTION, RoadMap, RoadmapConfig
+from gmtiflow.paths import check_input_file
+from gmtiflow.scene.road_network import RoadMap
+from gmtiflow.scene.roadmap_config import OSM_ATTRIBUTION, RoadmapConfig
+
+MAX_OSM_BYTES = 4 * 2**30
+"""OSM XML is parsed in memory (about 5 times its size): larger extracts are refused."""
 
 _MAXSPEED = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(km/h|kmh|kph|mph|knots)?\s*$", re.IGNORECASE)
 _UNIT_MPS = {None: 1 / 3.6, "km/h": 1 / 3.6, "kmh": 1 / 3.6, "kph": 1 / 3.6,
@@ -69,7 +74,9 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         raise InputFileError("roadmap.path: an OSM road map needs a file path")
     p = Path(path)
     if not p.is_file():
-        raise InputFileError(f"{p}: OSM file not found")
+        raise InputFileError(f"{p}: OSM file not found (roadmap.path; experiment=monaco reads "
+                             f"monaco.osm and N43E007.hgt from the folder in GMTIFLOW_DATA_DIR)")
+    check_input_file(p, "OSM file", MAX_OSM_BYTES, memory_factor=6.0)
     try:
         root = etree.parse(str(p), hardened_parser()).getroot()
     except etree.XMLSyntaxError as exc:
@@ -94,6 +101,7 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
                            f"file; it holds no road network")
     needed = {r for _, _, _, refs in ways for r in refs}
     coords: Dict[str, tuple] = {}
+    lines: Dict[str, int] = {}
     for node in root.iterfind("node"):
         nid = node.get("id")
         if nid in needed and not _deleted(node):
@@ -106,7 +114,12 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
                 raise RoadMapError(f"{p}: node {nid} (line {node.sourceline}): lat {lat!r}, "
                                    f"lon {lon!r} out of range (lat in [-90, 90], lon in "
                                    f"[-180, 180] degrees)")
+            if nid in coords and coords[nid] != (lat, lon):
+                raise RoadMapError(f"{p}: node {nid} appears twice with different positions "
+                                   f"(lines {lines[nid]} and {node.sourceline}); node ids must "
+                                   f"be unique")
             coords[nid] = (lat, lon)
+            lines.setdefault(nid, node.sourceline)
     names: List[str] = []
     index: Dict[str, int] = {}
     ef, et, one, lim, inv, cls = [], [], [], [], [], []
@@ -152,11 +165,17 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
     bounds = root.find("bounds")
     if bounds is not None:
         try:
-            lat0 = 0.5 * (float(bounds.get("minlat")) + float(bounds.get("maxlat")))
-            lon0 = 0.5 * (float(bounds.get("minlon")) + float(bounds.get("maxlon")))
+            b = {k: float(bounds.get(k)) for k in ("minlat", "maxlat", "minlon", "maxlon")}
         except (TypeError, ValueError):
             raise RoadMapError(f"{p}: <bounds> (line {bounds.sourceline}) lacks numeric "
                                f"minlat/maxlat/minlon/maxlon") from None
+        if not (-90 <= b["minlat"] <= b["maxlat"] <= 90
+                and -180 <= b["minlon"] <= b["maxlon"] <= 180):      # also NaN, inf
+            raise RoadMapError(f"{p}: <bounds> (line {bounds.sourceline}) out of range: "
+                               f"need -90 <= minlat <= maxlat <= 90 and -180 <= minlon <= "
+                               f"maxlon <= 180 degrees")
+        lat0 = 0.5 * (b["minlat"] + b["maxlat"])
+        lon0 = 0.5 * (b["minlon"] + b["maxlon"])
     else:
         lat0 = float(0.5 * (latlon[:, 0].min() + latlon[:, 0].max()))
         lon0 = float(0.5 * (latlon[:, 1].min() + latlon[:, 1].max()))

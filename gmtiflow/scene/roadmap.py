@@ -19,271 +19,28 @@ Loaders (chosen by :attr:`RoadmapConfig.kind`):
 * ``osm``: OpenStreetMap XML (:mod:`gmtiflow.scene.osm`);
 * ``geojson``: GeoJSON LineStrings (:mod:`gmtiflow.scene.geojson_roads`).
 """
+
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from enum import Enum
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Dict, List
 
-import networkx as nx
 import numpy as np
 
-from gmtiflow import frames, schema
+from gmtiflow import frames
 from gmtiflow.errors import RoadMapError
-from gmtiflow.tables import Table
+from gmtiflow.scene.geojson_roads import load_geojson
+from gmtiflow.scene.osm import load_osm
+from gmtiflow.scene.road_network import RoadMap
+from gmtiflow.scene.roadmap_config import (DEFAULT_LAKE_POLYGON_M, DEFAULT_ORIGIN,
+                                           DRIVABLE_HIGHWAY_CLASSES, OSM_ATTRIBUTION,
+                                           RoadmapConfig, RoadmapKind, RoadSpec)
 
-OSM_ATTRIBUTION = "© OpenStreetMap contributors"
-
-#: Lake of the default scene (ENU metres, counter-clockwise): no default road enters it, and
-#: clutter configs may point a lake-wave region at it.
-DEFAULT_LAKE_POLYGON_M = [[1500.0, 1500.0], [3500.0, 1200.0], [4200.0, 2500.0],
-                          [3000.0, 3500.0], [1600.0, 3000.0]]
-
-#: Origin of the default scene (WGS-84).
-DEFAULT_ORIGIN = frames.Origin(50.63, 7.13, 150.0)
-
-#: OSM highway classes a vehicle may drive on (all others, e.g. footway, steps, path,
-#: cycleway, pedestrian, track, bridleway, are dropped).
-DRIVABLE_HIGHWAY_CLASSES = [
-    "motorway", "motorway_link", "trunk", "trunk_link", "primary", "primary_link",
-    "secondary", "secondary_link", "tertiary", "tertiary_link", "unclassified", "residential",
-    "living_street", "service", "road",
-]
+__all__ = ["DEFAULT_LAKE_POLYGON_M", "DEFAULT_ORIGIN", "DRIVABLE_HIGHWAY_CLASSES",
+           "OSM_ATTRIBUTION", "RoadMap", "RoadSpec", "RoadmapConfig", "RoadmapKind",
+           "default_scene_config", "from_inline", "load_roadmap", "point_in_polygon"]
 
 
-class RoadmapKind(Enum):
-    """Where the road map comes from."""
-
-    default = "default"
-    inline = "inline"
-    osm = "osm"
-    geojson = "geojson"
-
-
-@dataclass
-class RoadSpec:
-    """One inline road from node ``from_node`` to node ``to_node``.
-
-    ``from``/``to`` are Python keywords, hence ``from_node``/``to_node`` (the names of the
-    ``/roads/edges`` columns). ``via``: intermediate curve points [x, y] or [x, y, z] (ENU m).
-    """
-
-    from_node: str = "???"
-    to_node: str = "???"
-    oneway: bool = False
-    speed_limit_mps: Optional[float] = None
-    invisible: bool = False
-    road_class: str = "road"
-    via: List[Any] = field(default_factory=list)     # [[x, y(, z)], ...]: see schema.point_problems
-
-    def problems(self) -> List[schema.Problem]:
-        out = schema.positive(self, "speed_limit_mps")
-        for i, point in enumerate(self.via):
-            out += schema.point_problems(f"via[{i}]", point)
-        return out
-
-
-@dataclass
-class RoadmapConfig:
-    """Schema of the ``roadmap`` config group.
-
-    Fields:
-        kind: default | inline | osm | geojson.
-        path: road map file (osm, geojson).
-        origin_lat_deg, origin_lon_deg, origin_height_m: ENU origin (WGS-84). ``None`` = the
-            default scene's origin (50.63 N, 7.13 E, 150 m) for default/inline maps, and for
-            files the centre of the OSM ``<bounds>`` (or of the road nodes) at height 0.
-        nodes: inline nodes, name -> [x, y, z] (ENU m; z may be omitted = 0).
-        roads: inline roads (:class:`RoadSpec`).
-        drivable_classes: OSM/GeoJSON ``highway`` values kept (GeoJSON features without a
-            ``highway`` property are always kept).
-        implied_oneway: treat ``highway=motorway`` and ``junction=roundabout`` as oneway unless
-            tagged ``oneway=no`` (OSM convention).
-        merge_decimals: GeoJSON vertices whose lon/lat agree to this many decimals are one node.
-        attribution: credit line for outputs; ``None`` = automatic ("© OpenStreetMap
-            contributors" for OSM files, "" otherwise).
-    """
-
-    kind: RoadmapKind = RoadmapKind.default
-    path: Optional[str] = None
-    origin_lat_deg: Optional[float] = None
-    origin_lon_deg: Optional[float] = None
-    origin_height_m: Optional[float] = None
-    nodes: Dict[str, Any] = field(default_factory=dict)   # name -> [x, y(, z)] metres
-    roads: List[RoadSpec] = field(default_factory=list)
-    drivable_classes: List[str] = field(default_factory=lambda: list(DRIVABLE_HIGHWAY_CLASSES))
-    implied_oneway: bool = True
-    merge_decimals: int = 7
-    attribution: Optional[str] = None
-
-    def problems(self) -> List[schema.Problem]:
-        out = schema.in_range(self, "origin_lat_deg", -90.0, 90.0)
-        out += schema.in_range(self, "origin_lon_deg", -180.0, 180.0)
-        out += schema.in_range(self, "origin_height_m", -1000.0, 10000.0)
-        out += schema.in_range(self, "merge_decimals", 0, 12)
-        kind = RoadmapKind(self.kind)
-        if kind in (RoadmapKind.osm, RoadmapKind.geojson) and not schema.optional_path(self.path):
-            label = "an OSM" if kind == RoadmapKind.osm else "a GeoJSON"
-            out.append(schema.Problem("path", f"{label} road map needs a file path, e.g. "
-                                              f"roadmap.path=/data/map.{kind.value}"))
-        if kind == RoadmapKind.inline:
-            if not self.nodes or not self.roads:
-                out.append(schema.Problem("roads", "an inline road map needs at least one node "
-                                                   "and one road"))
-            for name, xyz in self.nodes.items():
-                out += schema.point_problems(f"nodes.{name}", xyz)
-            for i, road in enumerate(self.roads):
-                out += schema.prefixed(f"roads[{i}]", road.problems())
-                for end in ("from_node", "to_node"):
-                    ref = getattr(road, end)
-                    if str(ref) not in self.nodes:
-                        out.append(schema.Problem(f"roads[{i}].{end}",
-                                                  f"unknown node {ref!r}"))
-        return out
-
-
-# --------------------------------------------------------------------------------------------
-class RoadMap:
-    """Nodes and edges tables, the routing graph, the ENU origin and the data attribution."""
-
-    def __init__(self, origin: frames.Origin, nodes: Table, edges: Table,
-                 attribution: str = "", source: str = "road map"):
-        self.origin = origin
-        self.nodes = nodes
-        self.edges = edges
-        self.attribution = attribution
-        self.source = source
-        self.graph = _build_graph(nodes, edges)
-        self._name_to_id = {str(n): i for i, n in enumerate(nodes["name"])}
-        self._xyz = np.column_stack([nodes["x_m"], nodes["y_m"], nodes["z_m"]])
-        self._tree = None
-        self._routing_csr = None  # built on first use by gmtiflow.scene.routes
-
-    @classmethod
-    def from_lists(cls, origin: frames.Origin, names: Sequence[str], xyz_m: np.ndarray,
-                   edge_from: Sequence[int], edge_to: Sequence[int], oneway: Sequence[bool],
-                   speed_limit_mps: Sequence[float], invisible: Sequence[bool],
-                   road_class: Sequence[str], attribution: str = "",
-                   source: str = "road map") -> "RoadMap":
-        """Build the tables (lengths, geodetic coordinates) from plain lists and check them."""
-        xyz = np.asarray(xyz_m, dtype=float).reshape(-1, 3)
-        n = len(names)
-        if n == 0 or len(edge_from) == 0:
-            raise RoadMapError(f"{source}: the road map is empty (no {'roads' if n else 'nodes'}"
-                               f" to drive on)")
-        if not np.all(np.isfinite(xyz)):
-            bad = int(np.flatnonzero(~np.all(np.isfinite(xyz), axis=1))[0])
-            raise RoadMapError(f"{source}: node {names[bad]!r} has a non-finite position "
-                               f"{xyz[bad].tolist()}")
-        if len(set(map(str, names))) != n:
-            seen, dup = set(), None
-            for name in map(str, names):
-                if name in seen:
-                    dup = name
-                    break
-                seen.add(name)
-            raise RoadMapError(f"{source}: node name {dup!r} is used twice")
-        lat, lon, h = frames.enu_to_geodetic(origin, xyz[:, 0], xyz[:, 1], xyz[:, 2])
-        nodes = {
-            "node_id": np.arange(n, dtype=np.int64),
-            "name": np.asarray([str(s) for s in names], dtype=str),
-            "x_m": xyz[:, 0].copy(), "y_m": xyz[:, 1].copy(), "z_m": xyz[:, 2].copy(),
-            "lat_deg": np.atleast_1d(lat), "lon_deg": np.atleast_1d(lon),
-            "height_m": np.atleast_1d(h),
-        }
-        f = np.asarray(edge_from, dtype=np.int64)
-        t = np.asarray(edge_to, dtype=np.int64)
-        edges = {
-            "edge_id": np.arange(len(f), dtype=np.int64),
-            "from_node": f, "to_node": t,
-            "length_m": np.linalg.norm(xyz[t] - xyz[f], axis=1),
-            "oneway": np.asarray(oneway, dtype=bool),
-            "speed_limit_mps": np.asarray([np.nan if v is None else float(v)
-                                           for v in speed_limit_mps], dtype=float),
-            "invisible": np.asarray(invisible, dtype=bool),
-            "road_class": np.asarray([str(c) for c in road_class], dtype=str),
-        }
-        return cls(origin, nodes, edges, attribution=attribution, source=source)
-
-    def draped(self, height_at, offset_m: float = 0.0) -> "RoadMap":
-        """A copy with every node's z set to ``height_at(x_m, y_m) + offset_m`` (ENU metres).
-
-        ``height_at`` is e.g. ``Terrain.height_at``; edge lengths, geodetic columns and the graph
-        are recomputed. Tunnel nodes are draped too (their roads stay invisible).
-        """
-        n = self.nodes
-        z = np.asarray(height_at(n["x_m"], n["y_m"]), dtype=float) + float(offset_m)
-        if z.shape != n["x_m"].shape or not np.all(np.isfinite(z)):
-            raise RoadMapError(f"{self.source}: height_at returned no finite height for every "
-                               f"road node")
-        e = self.edges
-        xyz = np.column_stack([n["x_m"], n["y_m"], z])
-        out = RoadMap.from_lists(self.origin, n["name"].tolist(), xyz, e["from_node"],
-                                 e["to_node"], e["oneway"], e["speed_limit_mps"].tolist(),
-                                 e["invisible"], e["road_class"].tolist(),
-                                 attribution=self.attribution, source=self.source)
-        return out
-
-    # -- queries ------------------------------------------------------------------------------
-    @property
-    def n_nodes(self) -> int:
-        return len(self.nodes["node_id"])
-
-    def node_xyz(self, node_ids) -> np.ndarray:
-        """ENU positions (n, 3) of the given node ids."""
-        return self._xyz[np.asarray(node_ids, dtype=np.int64)]
-
-    def node_index(self, ref: Any) -> int:
-        """Node id of a reference: a node name, an OSM id (int), or [x, y] (nearest node)."""
-        if ref is None:
-            raise RoadMapError(f"{self.source}: a node reference is missing (null)")
-        if isinstance(ref, (list, tuple)) or (hasattr(ref, "__len__") and
-                                                not isinstance(ref, str)):
-            vals = list(ref)
-            if len(vals) not in (2, 3):
-                raise RoadMapError(f"{self.source}: node reference {vals!r} must be a name, an "
-                                   f"OSM id or [x, y] in metres")
-            try:
-                xy = np.asarray([float(vals[0]), float(vals[1])])
-            except (TypeError, ValueError):
-                raise RoadMapError(f"{self.source}: node reference {vals!r} is not [x, y] in "
-                                   f"metres") from None
-            if self._tree is None:
-                from scipy.spatial import cKDTree
-                self._tree = cKDTree(self._xyz[:, :2])
-            return int(self._tree.query(xy)[1])
-        if isinstance(ref, float) and ref.is_integer():
-            ref = int(ref)
-        key = str(ref)
-        if key not in self._name_to_id:
-            raise RoadMapError(f"{self.source}: unknown node {ref!r} (not a node name or OSM id "
-                               f"of this road map)")
-        return self._name_to_id[key]
-
-    def largest_component(self) -> np.ndarray:
-        """Node ids of the largest strongly connected component (sorted)."""
-        comps = nx.strongly_connected_components(self.graph)
-        best = max(comps, key=lambda c: (len(c), -min(c)))
-        return np.asarray(sorted(best), dtype=np.int64)
-
-
-def _build_graph(nodes: Table, edges: Table) -> nx.DiGraph:
-    """Directed routing graph: both directions unless oneway; the first road between a pair wins."""
-    g = nx.DiGraph()
-    g.add_nodes_from(range(len(nodes["node_id"])))
-    for eid, f, t, length, one in zip(edges["edge_id"].tolist(), edges["from_node"].tolist(),
-                                      edges["to_node"].tolist(), edges["length_m"].tolist(),
-                                      edges["oneway"].tolist()):
-        if f == t:
-            continue
-        for a, b in ((f, t),) if one else ((f, t), (t, f)):
-            if not g.has_edge(a, b):
-                g.add_edge(a, b, length_m=length, edge_id=eid)
-    return g
-
-
-# --------------------------------------------------------------------------------------------
 def load_roadmap(cfg: RoadmapConfig) -> RoadMap:
     """The road map the config asks for (raises RoadMapError / InputFileError on bad input)."""
     roadmap = _load(cfg)
@@ -299,10 +56,8 @@ def _load(cfg: RoadmapConfig) -> RoadMap:
     if kind == RoadmapKind.inline:
         return from_inline(cfg, source="roadmap (inline)")
     if kind == RoadmapKind.osm:
-        from gmtiflow.scene.osm import load_osm
         return load_osm(cfg.path, cfg)
     if kind == RoadmapKind.geojson:
-        from gmtiflow.scene.geojson_roads import load_geojson
         return load_geojson(cfg.path, cfg)
     raise RoadMapError(f"roadmap.kind: unknown kind {cfg.kind!r}")  # pragma: no cover
 
@@ -322,8 +77,14 @@ def from_inline(cfg: RoadmapConfig, source: str = "roadmap (inline)") -> RoadMap
     xyz: List[List[float]] = []
     index: Dict[str, int] = {}
 
+    origin = _origin(cfg, DEFAULT_ORIGIN)
+
     def add_node(name: str, point) -> int:
-        vals = [float(c) for c in point]
+        try:        # [x, y(, z)] metres or {lat_deg, lon_deg, height_m} (frames.point_to_enu)
+            vals = frames.point_to_enu(point, origin)
+        except (KeyError, TypeError, ValueError):
+            raise RoadMapError(f"{source}: node {name!r} must be [x, y], [x, y, z] in metres or "
+                               f"{{lat_deg, lon_deg, height_m}}, got {point!r}") from None
         if len(vals) == 2:
             vals.append(0.0)
         if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
@@ -356,7 +117,7 @@ def from_inline(cfg: RoadmapConfig, source: str = "roadmap (inline)") -> RoadMap
             lim.append(road.speed_limit_mps)
             inv.append(bool(road.invisible))
             cls.append(road.road_class)
-    return RoadMap.from_lists(_origin(cfg, DEFAULT_ORIGIN), names, np.asarray(xyz), ef, et, one,
+    return RoadMap.from_lists(origin, names, np.asarray(xyz), ef, et, one,
                               lim, inv, cls, source=source)
 
 

@@ -14,8 +14,6 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from gmtiflow.errors import RoadMapError
 from gmtiflow.scene.roadmap import RoadMap
@@ -70,6 +68,7 @@ def _csr(roadmap: RoadMap):
         cols = np.asarray([b for _, b, _ in arcs], dtype=np.int64)
         # Explicit zeros would read as "no arc": a zero-length road gets a negligible weight.
         w = np.maximum(np.asarray([d["length_m"] for _, _, d in arcs], dtype=float), 1e-9)
+        from scipy.sparse import csr_matrix   # here: scipy.sparse is slow to import
         csr = csr_matrix((w, (rows, cols)), shape=(n, n))
         edge_of = {(a, b): d["edge_id"] for a, b, d in arcs}
         cached = (csr, edge_of)
@@ -90,6 +89,7 @@ def shortest_route(roadmap: RoadMap, start: Any, end: Any, stopovers: Sequence[A
     for a, b in zip(ids[:-1], ids[1:]):
         if a == b:
             continue
+        from scipy.sparse.csgraph import dijkstra
         _, pred = dijkstra(csr, directed=True, indices=a, return_predecessors=True)
         if pred[b] < 0:
             names = roadmap.nodes["name"]

@@ -1,6 +1,7 @@
 """Terrain: ground heights and line-of-sight shadowing in the scene's ENU frame (issue 4).
 
-``build_terrain(cfg, origin)`` turns a :class:`TerrainConfig` into a :class:`Terrain`:
+``build_terrain(cfg, origin)`` turns a :class:`~gmtiflow.scene.terrain_config.TerrainConfig`
+into a :class:`Terrain`:
 
 * ``flat`` -- the plane ``z = flat_height_m`` of the ENU frame. No DEM; ``line_of_sight`` is
   all True and marches nothing.
@@ -18,15 +19,9 @@ vertical the scene uses -- is found by a fixed point: z <- z + (h_DEM(lat, lon) 
 with (lat, lon, h) = enu2geodetic(x, y, z), from z = 0, until it moves < 0.1 mm (3 iterations at
 50 km from the origin). The result lies on the DEM surface to < 1 mm.
 
-Line of sight (``line_of_sight``) samples every ray at ``step_m`` from the target end, all rays
-at once and in chunks of ``chunk_samples`` samples; a ray is blocked if at some sample the ground
-is more than ``clearance_m`` above the ray. Samples within ``end_skip_m`` (default: one grid
-cell) of either end are not tested, so a target's own ground cell never shadows it. Two exact
-shortcuts: the part of a ray above the highest ground is not sampled, and of the ~1 km segments
-left only those that the highest ground within reach (a cached running-maximum grid) comes up to
-are sampled. Geodetic DEMs compare heights above the ellipsoid along the local normal: the
-segment ends are converted with pymap3d and the samples interpolated linearly in between
-(error < 2 cm in height, < 1 mm horizontally). Straight rays: no atmospheric refraction.
+Line of sight (``line_of_sight``) is the ray march of :mod:`gmtiflow.scene.ray_march`:
+straight rays sampled every ``step_m``; a ray is blocked where the ground is more than
+``clearance_m`` above it.
 
 ``intersect`` (first ground point of a ray) and ``geolocate`` (ground point at a slant range and
 azimuth, as a GMTI processor places a report) give the ground points of measurements.
@@ -37,134 +32,31 @@ InputFileError, ``line_of_sight`` treats unknown ground as not blocking, and
 """
 from __future__ import annotations
 
-import enum
 import logging
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import List, Optional, Sequence
+from typing import Optional
 
 import numpy as np
 import pymap3d
 
-from gmtiflow import frames, schema
+from gmtiflow import frames
 from gmtiflow.errors import InputFileError
 from gmtiflow.scene import dem
+from gmtiflow.scene.hills import HillConfig, hills_grid, hills_height
+from gmtiflow.scene.ray_march import max_filter, march
+from gmtiflow.scene.terrain_config import TerrainConfig, TerrainKind, VoidPolicy
+
+__all__ = ["FlatTerrain", "GeoTerrain", "GridTerrain", "HillConfig", "SUGGESTED_STEP_M",
+           "Terrain", "TerrainConfig", "TerrainKind", "VoidPolicy", "build_terrain",
+           "drape_points", "hills_grid", "hills_height", "resolve_path"]
 
 log = logging.getLogger(__name__)
 
-#: segment length along a ray (metres): the screen against the ground's maximum, and the
-#: spacing of the ENU -> geodetic conversions for geodetic DEMs
-KNOT_M = 1000.0
 #: suggested ray steps for conf/fidelity (metres): fast, standard, full
 SUGGESTED_STEP_M = {"fast": 90.0, "standard": 30.0, "full": 10.0}
 
 
-class TerrainKind(enum.Enum):
-    flat = "flat"
-    srtm = "srtm"
-    ascii_grid = "ascii_grid"
-    hills = "hills"
-
-
-class VoidPolicy(enum.Enum):
-    fill = "fill"      # Laplace interpolation from the neighbours, logged with the count
-    refuse = "refuse"  # InputFileError naming the file and the count
-
-
-@dataclass
-class HillConfig:
-    """A Gaussian hill (``length_m = 0``) or ridge in ENU metres.
-
-    Height ``height_m * exp(-d² / (2 sigma_m²))`` where d is the horizontal distance to the crest:
-    the point (x_m, y_m) for a hill, or the segment of ``length_m`` centred there and running
-    along ``azimuth_deg`` (clockwise from north: 90 = east-west) for a ridge.
-    """
-
-    x_m: float = 0.0
-    y_m: float = 0.0
-    height_m: float = 100.0
-    sigma_m: float = 500.0
-    length_m: float = 0.0
-    azimuth_deg: float = 90.0
-
-    def problems(self) -> List[schema.Problem]:
-        out = schema.positive(self, "sigma_m")
-        out += schema.non_negative(self, "length_m")
-        for name in ("x_m", "y_m", "height_m", "azimuth_deg"):
-            v = getattr(self, name)
-            if not math.isfinite(v):
-                out.append(schema.Problem(name, f"must be finite, got {v!r}"))
-        return out
-
-
-@dataclass
-class TerrainConfig:
-    """Terrain config group (``conf/terrain/*.yaml``). Units in the field names."""
-
-    kind: TerrainKind = TerrainKind.flat
-    #: flat: ENU z of the ground plane
-    flat_height_m: float = 0.0
-    #: srtm: .hgt tiles (absolute, or relative to the current directory), stitched into one grid
-    paths: List[str] = field(default_factory=list)
-    #: ascii_grid: ESRI ASCII grid in scene ENU metres (heights = ENU z)
-    path: Optional[str] = None
-    #: void samples (SRTM -32768, ASCII NODATA): fill (interpolate) or refuse (error)
-    voids: VoidPolicy = VoidPolicy.fill
-    #: srtm: geoid undulation N (m), ellipsoid height = DEM height + N; required for srtm
-    geoid_offset_m: Optional[float] = None
-    #: hills: the hills and ridges, the base height around them, the grid spacing
-    hills: List[HillConfig] = field(default_factory=list)
-    hills_base_height_m: float = 0.0
-    grid_spacing_m: float = 25.0
-    #: line of sight: blocked only where the ground is more than this above the ray
-    clearance_m: float = 1.0
-    #: line of sight: untested length at each end of a ray (None = one grid cell)
-    end_skip_m: Optional[float] = None
-    #: line of sight: samples per vectorised chunk (memory bound: ~100 B per sample)
-    chunk_samples: int = 2_000_000
-
-    def problems(self) -> List[schema.Problem]:
-        out: List[schema.Problem] = []
-        out += schema.positive(self, "grid_spacing_m")
-        out += schema.non_negative(self, "clearance_m", "end_skip_m")
-        if not math.isfinite(self.flat_height_m):
-            out.append(schema.Problem("flat_height_m", f"must be finite, got {self.flat_height_m!r}"))
-        if not math.isfinite(self.hills_base_height_m):
-            out.append(schema.Problem("hills_base_height_m",
-                                      f"must be finite, got {self.hills_base_height_m!r}"))
-        if not (isinstance(self.chunk_samples, int) and self.chunk_samples >= 1000):
-            out.append(schema.Problem("chunk_samples", f"must be an integer >= 1000, "
-                                                       f"got {self.chunk_samples!r}"))
-        kind = TerrainKind(self.kind)
-        if kind is TerrainKind.srtm:
-            if not self.paths:
-                out.append(schema.Problem("paths", "kind=srtm needs at least one .hgt tile"))
-            if self.geoid_offset_m is None:
-                out.append(schema.Problem(
-                    "geoid_offset_m", "kind=srtm needs the geoid undulation N in metres "
-                    "(SRTM heights are above EGM96; ellipsoid height = DEM height + N; "
-                    "about +50 at Monaco)"))
-            else:
-                out += schema.in_range(self, "geoid_offset_m", -110.0, 90.0)
-        if kind is TerrainKind.ascii_grid and not schema.optional_path(self.path):
-            out.append(schema.Problem("path", "kind=ascii_grid needs the grid file"))
-        if kind is TerrainKind.hills:
-            for i, hill in enumerate(self.hills):
-                out += schema.prefixed(f"hills[{i}]", hill.problems())
-            if not out and self.hills:
-                x0, x1, y0, y1 = _hills_extent(self.hills, self.grid_spacing_m)
-                cells = ((x1 - x0) / self.grid_spacing_m + 1) * ((y1 - y0) / self.grid_spacing_m + 1)
-                if cells > 50e6:
-                    out.append(schema.Problem(
-                        "grid_spacing_m", f"the hills grid would have {cells:.3g} nodes "
-                        f"(> 5e7); use a coarser spacing or narrower hills"))
-        return out
-
-
-# --------------------------------------------------------------------------------------------
-# Terrain objects
-# --------------------------------------------------------------------------------------------
 def _as_points(a, name: str) -> np.ndarray:
     a = np.asarray(a, dtype=float)
     if a.ndim == 1:
@@ -185,6 +77,7 @@ class Terrain:
     end_skip_m: float = 0.0
     chunk_samples: int = 2_000_000
     z_ceiling_m: float = math.inf  # no ground point has ENU z above this
+    ray_sag_m: float = 0.0      # how far the ground coordinate c sags below a segment's chord
 
     # -- heights --------------------------------------------------------------------------
     def height_at(self, x_m, y_m) -> np.ndarray:
@@ -239,7 +132,7 @@ class Terrain:
             step_m = 0.5 * self.cell_m
         if not (math.isfinite(step_m) and step_m > 0):
             raise ValueError(f"step_m must be a finite number > 0, got {step_m!r}")
-        return ~_march(self, p_from, p_to, float(step_m))
+        return ~march(self, p_from, p_to, float(step_m))
 
     # Hooks of the march. "Terrain coordinates" (a, b, c) are (x, y, z) for ENU grids and
     # (lat, lon, h above the ellipsoid) for geodetic DEMs: c is what the ground is compared with.
@@ -419,7 +312,7 @@ class GridTerrain(Terrain):
         g = self.grid
         hx = int(math.ceil(radius_m / g.dx_m)) + 2
         hy = int(math.ceil(radius_m / g.dy_m)) + 2
-        top = _max_filter(self, (hy, hx), g.z)
+        top = max_filter(self, (hy, hx), g.z)
         i = np.clip(np.round((np.asarray(b) - g.y0_m) / g.dy_m), 0, g.z.shape[0] - 1).astype(np.intp)
         j = np.clip(np.round((np.asarray(a) - g.x0_m) / g.dx_m), 0, g.z.shape[1] - 1).astype(np.intp)
         bound = top[i, j]
@@ -432,6 +325,7 @@ class GeoTerrain(Terrain):
     """Terrain on a geodetic grid of heights above the geoid (SRTM)."""
 
     kind = "srtm"
+    ray_sag_m = 0.05   # a height above the ellipsoid sags < 5 cm below its chord over 1 km
 
     def __init__(self, grid: dem.GeoGrid, origin: frames.Origin, geoid_offset_m: float, *,
                  clearance_m=1.0, end_skip_m=None, chunk_samples=2_000_000):
@@ -501,158 +395,12 @@ class GeoTerrain(Terrain):
         g = self.grid
         hy = int(math.ceil(radius_m / self.cell_m)) + 2
         hx = int(math.ceil(radius_m / self.cell_ew_min_m)) + 2
-        top = _max_filter(self, (hy, hx), g.values)
+        top = max_filter(self, (hy, hx), g.values)
         i = np.clip(np.round((g.lat_max_deg - np.asarray(a)) / g.step_deg), 0,
                     g.values.shape[0] - 1)
         j = np.clip(np.round((np.asarray(b) - g.lon_min_deg) / g.step_deg), 0,
                     g.values.shape[1] - 1)
         return top[i.astype(np.intp), j.astype(np.intp)] + self.geoid_offset_m
-
-
-def _max_filter(terrain: Terrain, half: tuple, values: np.ndarray) -> np.ndarray:
-    """Running maximum of ``values`` over (2*half + 1) windows, NaN (unknown) as -inf; cached."""
-    cache = terrain.__dict__.setdefault("_max_cache", {})
-    if half not in cache:
-        import scipy.ndimage
-        v = np.where(np.isnan(values), -np.inf, values)
-        cache[half] = scipy.ndimage.maximum_filter(v, size=(2 * half[0] + 1, 2 * half[1] + 1),
-                                                   mode="nearest")
-    return cache[half]
-
-
-def _march(terrain: Terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float) -> np.ndarray:
-    """Blocked flag per ray by vectorised ray sampling (see the module docstring).
-
-    Samples sit at distances ``s = s_lo + k*step_m`` from the target end ``p_to``, where
-    [s_lo, s_hi] is the part of [end_skip, length - end_skip] on which the ray is not above the
-    highest ground. They are grouped in segments of ``C`` samples (about ``KNOT_M``): each
-    segment's ends are converted to terrain coordinates (pymap3d for geodetic DEMs), and a
-    segment is sampled only if the highest ground within reach of it (a max-filtered grid) comes
-    up to the ray; the samples inside are interpolated between the ends. Skipping a segment is
-    exact: no ground under it can block. Rays are grouped into chunks of at most
-    ``chunk_samples`` samples (a single longer ray is its own chunk).
-    """
-    n = len(p_from)
-    blocked = np.zeros(n, dtype=bool)
-    d = p_from - p_to
-    length = np.sqrt(np.einsum("ij,ij->i", d, d))
-    finite = np.isfinite(length)
-    good = finite & (length > 0)
-    u = np.zeros_like(d)
-    u[good] = d[good] / length[good, None]
-    skip = terrain.end_skip_m
-    s_lo = np.full(n, skip)
-    s_hi = np.where(finite, length - skip, -np.inf)
-    uz = u[:, 2]
-    z_to = np.where(finite, p_to[:, 2], 0.0)
-    room = terrain.z_ceiling_m - z_to  # the ray can be blocked only where its z rise <= room
-    lim = np.divide(room, uz, out=np.zeros(n), where=uz != 0)
-    s_hi = np.where(uz > 0, np.minimum(s_hi, lim), s_hi)
-    s_lo = np.where(uz < 0, np.maximum(s_lo, lim), s_lo)
-    s_hi = np.where((uz == 0) & (room < 0), -np.inf, s_hi)
-    s_hi = np.where(good, s_hi, -np.inf)
-    count = np.zeros(n, dtype=np.int64)
-    ok = s_hi >= s_lo
-    count[ok] = np.floor((s_hi[ok] - s_lo[ok]) / step_m).astype(np.int64) + 1
-    per_seg = max(1, int(round(KNOT_M / step_m)))
-    seg_m = per_seg * step_m
-    n_seg = (count + per_seg - 1) // per_seg
-    cum = np.cumsum(count)
-    budget = terrain.chunk_samples
-    clr = terrain.clearance_m
-    sag = 0.05 if isinstance(terrain, GeoTerrain) else 0.0  # h below its chord over a segment
-    start = 0
-    while start < n:
-        base = cum[start - 1] if start else 0
-        end = max(int(np.searchsorted(cum, base + budget, side="right")), start + 1)
-        ns = n_seg[start:end]
-        total_seg = int(ns.sum())
-        if total_seg:
-            # segment ends: ray r has ns[r] segments and ns[r] + 1 ends
-            n_end = np.where(ns > 0, ns + 1, 0)
-            first_end = np.cumsum(n_end) - n_end
-            e_ray = np.repeat(np.arange(start, end), n_end)
-            e_idx = np.arange(int(n_end.sum())) - np.repeat(first_end, n_end)
-            e_s = np.minimum(s_lo[e_ray] + e_idx * seg_m, s_hi[e_ray])
-            ea, eb, ec = terrain._coords(p_to[e_ray] + u[e_ray] * e_s[:, None])
-            # segments: ends k and k + 1
-            g_ray = np.repeat(np.arange(start, end), ns)
-            g_idx = np.arange(total_seg) - np.repeat(np.cumsum(ns) - ns, ns)
-            ka = first_end[g_ray - start] + g_idx
-            kb = ka + 1
-            reach = 0.5 * seg_m + step_m
-            bound = terrain._ground_bound(0.5 * (ea[ka] + ea[kb]), 0.5 * (eb[ka] + eb[kb]), reach)
-            may = bound > np.minimum(ec[ka], ec[kb]) - sag + clr
-            g_ray, g_idx, ka, kb = g_ray[may], g_idx[may], ka[may], kb[may]
-            if len(g_ray):
-                # fine samples of the kept segments
-                first_k = g_idx * per_seg
-                n_in = np.minimum(per_seg, count[g_ray] - first_k)
-                f_seg = np.repeat(np.arange(len(g_ray)), n_in)
-                k = (np.arange(int(n_in.sum())) - np.repeat(np.cumsum(n_in) - n_in, n_in)
-                     + first_k[f_seg])
-                rid = g_ray[f_seg]
-                s = s_lo[rid] + k * step_m
-                sa = e_s[ka[f_seg]]
-                sb = e_s[kb[f_seg]]
-                f = np.divide(s - sa, sb - sa, out=np.zeros(len(s)), where=sb > sa)
-                a0, b0 = ka[f_seg], kb[f_seg]
-                a = ea[a0] + (ea[b0] - ea[a0]) * f
-                b = eb[a0] + (eb[b0] - eb[a0]) * f
-                c = ec[a0] + (ec[b0] - ec[a0]) * f
-                hit = terrain._ground(a, b) > c + clr  # NaN (unknown ground) -> False
-                blocked[start:end] = np.bincount(rid[hit] - start, minlength=end - start) > 0
-        start = end
-    blocked[~finite] = True
-    return blocked
-
-
-# --------------------------------------------------------------------------------------------
-# factory
-# --------------------------------------------------------------------------------------------
-def _hills_extent(hills: Sequence[HillConfig], spacing: float):
-    xs, ys = [], []
-    for h in hills:
-        az = math.radians(h.azimuth_deg)
-        ax, ay = 0.5 * h.length_m * math.sin(az), 0.5 * h.length_m * math.cos(az)
-        r = 5.0 * h.sigma_m + spacing
-        xs += [h.x_m - abs(ax) - r, h.x_m + abs(ax) + r]
-        ys += [h.y_m - abs(ay) - r, h.y_m + abs(ay) + r]
-    x0 = math.floor(min(xs) / spacing) * spacing
-    y0 = math.floor(min(ys) / spacing) * spacing
-    x1 = math.ceil(max(xs) / spacing) * spacing
-    y1 = math.ceil(max(ys) / spacing) * spacing
-    return x0, x1, y0, y1
-
-
-def hills_height(hills: Sequence[HillConfig], x_m, y_m, base_m: float = 0.0) -> np.ndarray:
-    """Exact (analytic) height of a hills terrain at ENU (x, y): base + sum of the hills."""
-    x = np.asarray(x_m, float)
-    y = np.asarray(y_m, float)
-    z = np.full(np.broadcast_shapes(x.shape, y.shape), float(base_m))
-    for h in hills:
-        az = math.radians(h.azimuth_deg)
-        ax, ay = math.sin(az), math.cos(az)
-        dx, dy = x - h.x_m, y - h.y_m
-        along = np.clip(dx * ax + dy * ay, -0.5 * h.length_m, 0.5 * h.length_m)
-        ex, ey = dx - along * ax, dy - along * ay
-        z = z + h.height_m * np.exp(-(ex * ex + ey * ey) / (2.0 * h.sigma_m ** 2))
-    return z
-
-
-def hills_grid(hills: Sequence[HillConfig], spacing_m: float, base_m: float = 0.0) -> dem.EnuGrid:
-    """The generated grid of a hills terrain (covers every hill to 5 sigma; base outside)."""
-    if not hills:
-        x0 = y0 = -spacing_m
-        x1 = y1 = spacing_m
-    else:
-        x0, x1, y0, y1 = _hills_extent(hills, spacing_m)
-    xs = x0 + spacing_m * np.arange(int(round((x1 - x0) / spacing_m)) + 1)
-    ys = y0 + spacing_m * np.arange(int(round((y1 - y0) / spacing_m)) + 1)
-    z = hills_height(hills, xs[None, :], ys[:, None], base_m)
-    return dem.EnuGrid(z=z, x0_m=float(xs[0]), y0_m=float(ys[0]), dx_m=spacing_m, dy_m=spacing_m,
-                       source=f"hills terrain ({len(hills)} hills, {spacing_m:g} m grid)",
-                       outside_z_m=float(base_m))
 
 
 def resolve_path(path: str) -> Path:

@@ -34,12 +34,12 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
 import numpy as np
-from scipy.signal import lfilter
 from scipy.special import ndtri
 
 from gmtiflow import frames, rng, schema
 from gmtiflow.errors import ConfigError, RoadMapError
 from gmtiflow.scene import motion
+from gmtiflow.scene import wander as wander_mod
 from gmtiflow.scene.roadmap import RoadMap
 from gmtiflow.scene.routes import Route, off_road_route, shortest_route
 from gmtiflow.tables import Table
@@ -137,7 +137,7 @@ class VehicleSpec:
             if len(self.off_road) < 2:
                 out.append(schema.Problem("off_road", "needs at least two waypoints"))
             for i, point in enumerate(self.off_road):
-                out += schema.point_problems(f"off_road[{i}]", point)
+                out += schema.point_problems(f"off_road[{i}]", point, geodetic=True)
             if self.stop_points or self.speed_changes:
                 out.append(schema.Problem("off_road", "an off-road vehicle has no road nodes for "
                                                       "stop_points or speed_changes"))
@@ -278,7 +278,12 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
     for spec in specs:
         who = f"vehicle {spec.name!r}"
         if spec.off_road:
-            route = off_road_route(spec.off_road, who=who)
+            try:    # waypoints in metres or {lat_deg, lon_deg, height_m} (frames.point_to_enu)
+                pts = [frames.point_to_enu(p, roadmap.origin) for p in spec.off_road]
+            except (KeyError, TypeError, ValueError):
+                raise RoadMapError(f"{who}: off_road waypoints must be [x, y(, z)] metres or "
+                                   f"{{lat_deg, lon_deg, height_m}}") from None
+            route = off_road_route(pts, who=who)
         else:
             try:
                 route = shortest_route(roadmap, spec.start, spec.end, spec.stopovers, who=who)
@@ -380,6 +385,9 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
                 dt_s: float, progress: bool = False) -> "Fleet":
     """Route every vehicle, draw its randomness from its own stream and run the profiles
     (``progress``: a tqdm bar over the time steps, on a terminal only)."""
+    from scipy.signal import lfilter   # imported here: scipy.signal/special cost ~1 s at start-up
+    from scipy.special import ndtri
+
     _check(cfg)
     if not (dt_s > 0 and math.isfinite(dt_s)):
         raise ConfigError(f"vehicles: time step dt_s must be > 0, got {dt_s!r}")
@@ -395,24 +403,29 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
     normal = np.zeros((K, P))
     u_stop = np.ones((K, P))
     u_wait = np.full((K, P), 0.5)
-    pos_noise = np.zeros((K + 1, N, 3))
+    knots, knot_off = [], [0]
+    w_t0 = np.zeros(N)
+    w_h = np.ones(N)
     for vi, veh in enumerate(vehicles):
-        # One stream per vehicle, drawn step-major so a longer run extends, never changes, it.
-        u = rng.stream(seed, "truth", "vehicle", veh.name).random((K + 1, 6)) + _HALF_ULP
         if veh.offset_m == 0.0:
+            # One stream per vehicle, drawn step-major so a longer run extends, never changes,
+            # it; only the steps from the vehicle's own start to the scene's end are drawn.
             p = veh.profile
-            normal[:, p] = ndtri(u[:K, 0])
-            u_stop[:, p] = u[:K, 1]
-            u_wait[:, p] = u[:K, 2]
+            k_v = min(K, max(int(math.ceil((float(duration_s) - t0[p]) / dt - 1e-9)), 1))
+            u = rng.stream(seed, "truth", "vehicle", veh.name).random((k_v + 1, 6)) + _HALF_ULP
+            normal[:k_v, p] = ndtri(u[:k_v, 0])
+            u_stop[:k_v, p] = u[:k_v, 1]
+            u_wait[:k_v, p] = u[:k_v, 2]
+        n_k = 0
         if np.any(veh.sigma_pos > 0):
-            z = ndtri(u[:, 3:6])
-            if veh.pos_corr_s > 0:
-                # Stationary Gauss-Markov on the grid: x_k = rho x_{k-1} + sqrt(1-rho^2) n_k.
-                rho = math.exp(-dt / veh.pos_corr_s)
-                c = math.sqrt(1.0 - rho * rho)
-                z[0] /= c if c > 0 else 1.0
-                z = lfilter([c], [1.0, -rho], z, axis=0) if c > 0 else np.repeat(z[:1], K + 1, 0)
-            pos_noise[:, vi, :] = z * veh.sigma_pos
+            w_t0[vi] = t0[veh.profile]
+            w_h[vi] = wander_mod.knot_spacing_s(veh.pos_corr_s, dt)
+            n_k = wander_mod.n_knots(w_t0[vi], t0[veh.profile] + K * dt, w_h[vi])
+            gen = rng.stream(seed, "truth", "vehicle", veh.name, "wander")
+            knots.append(wander_mod.draw_knots(gen, veh.sigma_pos, n_k))
+        knot_off.append(knot_off[-1] + n_k)
+    wander = (np.concatenate(knots) if knots else np.zeros((0, 3)),
+              np.asarray(knot_off, np.int64), w_t0, w_h)
 
     seg_start, seg_target, seg_off = [], [], [0]
     stop_m, stop_off = [], [0]
@@ -443,19 +456,19 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
                                   dtype=np.int64),
         normal=normal, u_stop=u_stop, u_wait=u_wait)
     prof = (motion.simulate_profiles(inp, dt, K, progress=progress) if P else None)
-    return Fleet(vehicles, profiles, routes, prof, pos_noise, t0, roadmap)
+    return Fleet(vehicles, profiles, routes, prof, wander, t0, roadmap)
 
 
 # --------------------------------------------------------------------------------------------
 class Fleet:
     """All vehicles of a scene; truth at any instant (``state_at``) and ``/truth`` tables."""
 
-    def __init__(self, vehicles, profiles, routes, prof, pos_noise, t0, roadmap):
+    def __init__(self, vehicles, profiles, routes, prof, wander, t0, roadmap):
         self._veh = vehicles
         self._routes = routes
         self.routes = [routes[v.route] for v in vehicles]
         self.profiles = prof
-        self._noise = pos_noise
+        self._w_knots, self._w_off, self._w_t0, self._w_h = wander
         self.roadmap = roadmap
         n = len(vehicles)
         self._profile = np.asarray([v.profile for v in vehicles], dtype=np.int64)
@@ -494,6 +507,18 @@ class Fleet:
                          if routes else np.zeros(0, bool))
         route_of_vx = np.repeat(np.arange(len(routes)), np.diff(self._vx_off))
         self._vx_key = self._vx_s + route_of_vx * self._span
+        # Road-frame heading per segment (indexed by its first vertex) and the corner blend
+        # (half-width, turn) per vertex, for the wander's smoothly turning frame.
+        psi, blend, turn = [], [], []
+        for r in routes:
+            h = wander_mod.segment_headings(r.xyz_m)
+            b, t = wander_mod.corner_blends(r.s_m, h)
+            psi.append(pad(h, h[-1] if len(h) else 0.0))
+            blend.append(b)
+            turn.append(t)
+        self._seg_psi = np.concatenate(psi) if routes else np.zeros(0)
+        self._vx_blend = np.concatenate(blend) if routes else np.zeros(0)
+        self._vx_turn = np.concatenate(turn) if routes else np.zeros(0)
 
     @property
     def n_vehicles(self) -> int:
@@ -548,22 +573,27 @@ class Fleet:
             f = np.where(seg_len > 0, (s - self._vx_s[j]) / safe, 0.0)
             unit = d / safe[:, None]
             pos = p0 + f[:, None] * d
-            # Position noise: grid values interpolated in local time, rotated to the road frame.
-            dt = self.profiles.dt_s
-            K = self.profiles.n_steps
-            x = np.clip(tau[idx] / dt, 0.0, float(K))
-            k0 = np.minimum(np.floor(x).astype(np.int64), K - 1)
-            w = (x - k0)[:, None]
-            nz = self._noise[k0, v_ids] * (1.0 - w) + self._noise[k0 + 1, v_ids] * w
-            horiz = np.hypot(unit[:, 0], unit[:, 1])
-            hs = np.where(horiz > 0, horiz, 1.0)
-            across = np.column_stack([-unit[:, 1] / hs, unit[:, 0] / hs, np.zeros(idx.size)])
-            pos = pos + nz[:, :1] * unit + nz[:, 1:2] * across
-            pos[:, 2] += nz[:, 2]
-            out["x_m"][idx], out["y_m"][idx], out["z_m"][idx] = pos.T
             vel = speed[:, None] * unit
-            out["vx_mps"][idx], out["vy_mps"][idx], out["vz_mps"][idx] = vel.T
             accel = acc[:, None] * unit
+            # Wander: a smooth process in continuous time, in a frame that turns smoothly
+            # through corners; its rates are added, so velocity = d/dt position exactly.
+            moving = np.flatnonzero(self._w_off[v_ids + 1] > self._w_off[v_ids])
+            if moving.size:
+                m_ids = v_ids[moving]
+                n, nd, ndd = wander_mod.evaluate(t[idx][moving], m_ids, self._w_knots,
+                                                 self._w_off, self._w_t0, self._w_h)
+                jm = j[moving]
+                psi, dpsi, d2psi = wander_mod.corner_heading(
+                    s[moving], self._vx_s[jm], self._vx_s[jm + 1], self._seg_psi[jm],
+                    self._vx_blend[jm], self._vx_turn[jm], self._vx_blend[jm + 1],
+                    self._vx_turn[jm + 1])
+                off, v_off, a_off = wander_mod.world_offset(n, nd, ndd, psi, dpsi, d2psi,
+                                                            speed[moving], acc[moving])
+                pos[moving] += off
+                vel[moving] += v_off
+                accel[moving] += a_off
+            out["x_m"][idx], out["y_m"][idx], out["z_m"][idx] = pos.T
+            out["vx_mps"][idx], out["vy_mps"][idx], out["vz_mps"][idx] = vel.T
             out["ax_mps2"][idx], out["ay_mps2"][idx], out["az_mps2"][idx] = accel.T
             out["speed_mps"][idx] = speed
             out["heading_rad"][idx] = frames.heading_rad(unit[:, 0], unit[:, 1])

@@ -42,8 +42,10 @@ a real processor sees it), then wraps it with :mod:`gmtiflow.sensor.ambiguity`.
 
 SNR
 ---
-``snr`` is linear power over noise. ``exceedance`` (default): a square-law detector's noise
-sample that crossed the threshold η = ln(1/P_FA): η + Exp(1) (the exponential is memoryless).
+``snr`` is the reported SNR (linear), in the targets' convention z − 1 (z the square-law
+detector output over noise, :mod:`gmtiflow.sensor.detect`). ``exceedance`` (default): a sample
+that crossed the sensor's threshold η = ln(1/P_FA) (``sensor.pfa``, the same threshold as the
+targets'): z = η + Exp(1) (the exponential is memoryless), reported z − 1 ≥ η − 1.
 ``uniform_db``: uniform in dB between ``low_db`` and ``high_db`` (e.g. strong turbine returns).
 A region without an ``snr`` entry uses the config-level ``snr``.
 """
@@ -55,11 +57,11 @@ from typing import Any, Callable, List, Optional
 import math
 
 import numpy as np
-from scipy import stats
 
 from gmtiflow import rng, schema
 from gmtiflow.errors import ConfigError
 from gmtiflow.schema import Problem
+from gmtiflow.sensor import detect
 from gmtiflow.sensor import regions as geo
 from gmtiflow.tables import Table
 
@@ -99,8 +101,8 @@ class RangeRateConfig:
 class SnrConfig:
     """Distribution of a false alarm's reported SNR (linear power over noise)."""
 
-    kind: str = "exceedance"      # exceedance | uniform_db
-    pfa: float = 1.0e-6           # exceedance: threshold η = ln(1/pfa), SNR = η + Exp(1)
+    kind: str = "exceedance"      # exceedance | uniform_db (threshold: sensor.pfa)
+    pfa: Optional[float] = None   # removed: must stay unset (the threshold is sensor.pfa's)
     low_db: float = 10.0          # uniform_db only
     high_db: float = 20.0         # uniform_db only
 
@@ -108,7 +110,9 @@ class SnrConfig:
         out = []
         if self.kind not in SNR_KINDS:
             out.append(Problem("kind", f"must be one of {list(SNR_KINDS)}, got {self.kind!r}"))
-        out += schema.in_range(self, "pfa", 0.0, 1.0, lo_open=True, hi_open=True)
+        if self.pfa is not None:
+            out.append(Problem("pfa", "is no longer a clutter setting: clutter false alarms use "
+                                      "the detector's threshold, set sensor.pfa instead"))
         bad_db = [Problem(name, f"must be a finite number of dB, got {getattr(self, name)!r}")
                   for name in ("low_db", "high_db") if not schema.is_number(getattr(self, name))]
         out += bad_db or schema.ordered(self, "low_db", "high_db", strict=False)
@@ -141,7 +145,7 @@ class ClutterRegionConfig:
             out.append(Problem("name", "must be a non-empty string (it names the region's random stream)"))
         elif self.name == FOV_STREAM:
             out.append(Problem("name", f"{FOV_STREAM!r} is reserved for the FoV-wide false alarms"))
-        out += schema.non_negative(self, "density_per_km2")
+        out += schema.in_range(self, "density_per_km2", 0.0, MAX_DENSITY_PER_KM2)
         if self.shape not in SHAPES:
             out.append(Problem("shape", f"must be one of {list(SHAPES)}, got {self.shape!r}"))
         elif self.shape in ("circle", "ring"):
@@ -201,6 +205,11 @@ def _default_fov_range_rate() -> RangeRateConfig:
     return RangeRateConfig(kind="uniform", mean_mps=0.0, sigma_mps=0.0, half_width_mps=30.0)
 
 
+MAX_DENSITY_PER_KM2 = 1e4
+"""One false alarm per 100 m² per dwell is already far beyond any radar's clutter: the cap
+bounds the Poisson draws (issue 17, item 11)."""
+
+
 @dataclass
 class ClutterConfig:
     """False-alarm configuration (config group ``clutter``).
@@ -217,7 +226,7 @@ class ClutterConfig:
     regions: List[ClutterRegionConfig] = field(default_factory=list)
 
     def problems(self) -> List[Problem]:
-        out = schema.non_negative(self, "fov_density_per_km2")
+        out = schema.in_range(self, "fov_density_per_km2", 0.0, MAX_DENSITY_PER_KM2)
         out += schema.prefixed("fov_range_rate", self.fov_range_rate.problems())
         out += schema.prefixed("snr", self.snr.problems())
         seen = {}
@@ -276,6 +285,7 @@ def _poisson_counts(key, dwell_id: np.ndarray, mean: np.ndarray) -> np.ndarray:
     counts = np.zeros(len(dwell_id), dtype=np.int64)
     pos = mean > 0
     if np.any(pos):
+        from scipy import stats   # imported here: scipy.stats costs ~1 s at start-up
         counts[pos] = stats.poisson.ppf(u[pos], mean[pos]).astype(np.int64)
     return counts
 
@@ -298,10 +308,10 @@ def _draw_range_rate(key, d, i, cfg: RangeRateConfig) -> np.ndarray:
     return cfg.mean_mps + cfg.half_width_mps * u1 * np.sin(2.0 * np.pi * u2)
 
 
-def _draw_snr(key, d, i, cfg: SnrConfig) -> np.ndarray:
+def _draw_snr(key, d, i, cfg: SnrConfig, pfa: float) -> np.ndarray:
     u = rng.pair_uniform(key, d, i, _CH_SNR)
     if cfg.kind == "exceedance":
-        return np.log(1.0 / cfg.pfa) - np.log(u)
+        return detect.false_alarm_snr(u, pfa)
     return 10.0 ** ((cfg.low_db + (cfg.high_db - cfg.low_db) * u) / 10.0)
 
 
@@ -312,7 +322,8 @@ def _empty() -> Table:
 
 
 def _draw_source(seed: int, name: str, region_index: int, dwell_id: np.ndarray, mean: np.ndarray,
-                 place: Callable, keep: Callable, rr: RangeRateConfig, snr: SnrConfig) -> Table:
+                 place: Callable, keep: Callable, rr: RangeRateConfig, snr: SnrConfig,
+                 pfa: float) -> Table:
     """Poisson counts, placement in the bounding shape, thinning, marks — for one source."""
     key = rng.counter_key(seed, "clutter", name)
     counts = _poisson_counts(key, dwell_id, mean)
@@ -321,7 +332,7 @@ def _draw_source(seed: int, name: str, region_index: int, dwell_id: np.ndarray, 
     x, y = place(rng.pair_uniform(key, d, index, _CH_U1), rng.pair_uniform(key, d, index, _CH_U2), batch)
     ok = keep(x, y, batch)
     batch, index, d, x, y = batch[ok], index[ok], d[ok], x[ok], y[ok]
-    s = _draw_snr(key, d, index, snr)
+    s = _draw_snr(key, d, index, snr, pfa)
     return {"dwell_id": d.astype(np.int64), "x_m": x, "y_m": y,
             "clutter_range_rate_mps": _draw_range_rate(key, d, index, rr),
             "snr": s, "snr_db": 10.0 * np.log10(s),
@@ -329,8 +340,8 @@ def _draw_source(seed: int, name: str, region_index: int, dwell_id: np.ndarray, 
 
 
 def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
-                 in_fov: Optional[Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = None
-                 ) -> Table:
+                 in_fov: Optional[Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = None,
+                 *, fov_sectors=None, pfa: float = 1.0e-6) -> Table:
     """False alarms of a batch of dwells.
 
     Parameters
@@ -348,6 +359,14 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
         An extra FoV predicate applied to every candidate point (e.g. the sensor's exact range,
         azimuth and grazing limits, or terrain visibility). Called once per source with all the
         batch's candidate points.
+    fov_sectors : (n, 6) array ``x_m, y_m, g_min_m, g_max_m, az_start_rad, span_rad``, optional
+        Instead of ``fov_polygons``: an annular sector per dwell (centre, ground ranges, world
+        azimuths clockwise from north) containing its footprint, with ``in_fov`` the exact
+        footprint test.  FoV-wide false alarms are drawn uniformly in the sector itself (no
+        polygon built or tested, no bounding-box rejection; what the sensor stage uses).
+    pfa : float
+        The detector's false-alarm probability (``sensor.pfa``): the threshold of the
+        ``exceedance`` SNR.
 
     Returns
     -------
@@ -360,6 +379,13 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
     if not is_active(cfg):
         return _empty()
     dwell_id = np.asarray(dwell_id, dtype=np.int64).ravel()
+    sectors = None
+    if fov_sectors is not None:
+        if fov_polygons is not None or in_fov is None:
+            raise ValueError("fov_sectors goes with an exact in_fov predicate and no fov_polygons")
+        sectors = np.asarray(fov_sectors, float).reshape(-1, 6)
+        if len(sectors) != len(dwell_id):
+            raise ValueError(f"fov_sectors has {len(sectors)} sectors for {len(dwell_id)} dwells")
     if fov_polygons is None and in_fov is None:
         raise ValueError("false_alarms needs the dwells' footprints (fov_polygons) or an in_fov "
                          "predicate: nothing may be drawn outside the field of view")
@@ -370,6 +396,8 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
             raise ValueError(f"fov_polygons has {len(polys)} footprints for {len(dwell_id)} dwells")
         fx0, fy0 = polys[:, :, 0].min(axis=1), polys[:, :, 1].min(axis=1)
         fx1, fy1 = polys[:, :, 0].max(axis=1), polys[:, :, 1].max(axis=1)
+    elif sectors is not None:
+        fx0, fy0, fx1, fy1 = sector_boxes(sectors)
 
     def in_footprint(x, y, batch):
         ok = np.ones(len(x), dtype=bool)
@@ -381,16 +409,26 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
 
     out = []
     if cfg.fov_density_per_km2 > 0:
-        if polys is None:
+        if polys is None and sectors is None:
             raise ValueError("fov_density_per_km2 > 0 needs fov_polygons (the footprints bound the "
                              "FoV-wide draws); an in_fov predicate alone cannot give an area")
-        box_area = (fx1 - fx0) * (fy1 - fy0)
+        if sectors is not None:
+            cx, cy, g0, g1, a0, span = sectors.T
+            fov_area = 0.5 * span * (g1 * g1 - g0 * g0)
 
-        def place_fov(u1, u2, batch):
-            return fx0[batch] + u1 * (fx1 - fx0)[batch], fy0[batch] + u2 * (fy1 - fy0)[batch]
+            def place_fov(u1, u2, batch):
+                # uniform over the annulus: g^2 uniform between g0^2 and g1^2
+                g = np.sqrt(g0[batch] ** 2 + u1 * (g1[batch] ** 2 - g0[batch] ** 2))
+                a = a0[batch] + u2 * span[batch]
+                return cx[batch] + g * np.sin(a), cy[batch] + g * np.cos(a)
+        else:
+            fov_area = (fx1 - fx0) * (fy1 - fy0)
 
-        out.append(_draw_source(seed, FOV_STREAM, -1, dwell_id, cfg.fov_density_per_km2 * box_area / _KM2,
-                                place_fov, in_footprint, cfg.fov_range_rate, cfg.snr))
+            def place_fov(u1, u2, batch):
+                return fx0[batch] + u1 * (fx1 - fx0)[batch], fy0[batch] + u2 * (fy1 - fy0)[batch]
+
+        out.append(_draw_source(seed, FOV_STREAM, -1, dwell_id, cfg.fov_density_per_km2 * fov_area / _KM2,
+                                place_fov, in_footprint, cfg.fov_range_rate, cfg.snr, pfa))
 
     for j, region in enumerate(cfg.regions):
         if region.density_per_km2 <= 0:
@@ -417,13 +455,27 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
 
             keep = in_footprint
         mean = np.full(len(dwell_id), region.density_per_km2 * area / _KM2)
-        if polys is not None:  # skip dwells whose footprint box misses the region (same result)
+        if polys is not None or sectors is not None:  # skip dwells whose box misses the region
             mean[(fx1 < bx0) | (fx0 > bx1) | (fy1 < by0) | (fy0 > by1)] = 0.0
         out.append(_draw_source(seed, region.name, j, dwell_id, mean, place, keep,
-                                region.range_rate, region.snr or cfg.snr))
+                                region.range_rate, region.snr or cfg.snr, pfa))
     if not out:
         return _empty()
     return {name: np.concatenate([t[name] for t in out]) for name in out[0]}
+
+
+def sector_boxes(sectors: np.ndarray, n_arc: int = 16):
+    """Bounding boxes ``(x_min, y_min, x_max, y_max)`` of annular sectors
+    ``(x, y, g_min, g_max, az_start, span)`` (arrays over the sectors, no Python loop): the
+    extremes of ``n_arc`` points per arc, the far arc pushed out by its chord sag."""
+    cx, cy, g0, g1, a0, span = np.asarray(sectors, float).T
+    az = a0[:, None] + span[:, None] * np.linspace(0.0, 1.0, n_arc)[None, :]
+    sag = g1 * (1.0 - np.cos(0.5 * span / (n_arc - 1)))
+    far = (g1 + sag)[:, None]
+    near = g0[:, None]
+    xs = np.concatenate([far * np.sin(az), near * np.sin(az)], axis=1) + cx[:, None]
+    ys = np.concatenate([far * np.cos(az), near * np.cos(az)], axis=1) + cy[:, None]
+    return xs.min(axis=1), ys.min(axis=1), xs.max(axis=1), ys.max(axis=1)
 
 
 def annular_sector_polygon(centre_m, range_min_m: float, range_max_m: float, az_min_rad: float,

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from enum import Enum
-from typing import Dict, List, Optional
+from typing import Any, Dict, List, Optional
 
 from gmtiflow import schema
 from gmtiflow.schema import Problem
@@ -77,19 +77,32 @@ class Centroid(str, Enum):
     power = "power"
 
 
+class MergeCells(str, Enum):
+    """Which resolution cells two targets must share to be unresolved."""
+
+    range_azimuth_range_rate = "range_azimuth_range_rate"   # a range-Doppler processor
+    range_azimuth = "range_azimuth"                         # the paper's eq. 18 without Doppler
+
+
 @dataclass
 class MergeConfig:
     """Merging of close targets in one dwell (paper eq. 18, DESIGN §5.6).
 
     P_u = exp(-1/2 d^T R_u^-1 d), R_u = A / (2 ln 2), A = diag(cell^2): P_u = 1/2 one resolution
     cell apart (range cell Δr, azimuth cell = the dwell's beamwidth, range-rate cell λΔf_D/2).
+    ``cells``: by default d includes the range rate (targets in different Doppler cells are
+    resolved, as by any range-Doppler processor); ``range_azimuth`` leaves it out.
     """
 
     enabled: bool = True
     mode: MergeMode = MergeMode.draw
     threshold: float = 0.5
-    use_range_rate: bool = False       # include range rate in d (targets separable in Doppler)
+    cells: MergeCells = MergeCells.range_azimuth_range_rate
     centroid: Centroid = Centroid.plain
+
+    @property
+    def use_range_rate(self) -> bool:
+        return _value(self.cells) == MergeCells.range_azimuth_range_rate.value
 
     def problems(self) -> List[Problem]:
         return schema.in_range(self, "threshold", 0.0, 1.0, lo_open=True)
@@ -124,7 +137,7 @@ class SensorConfig:
     beamwidth_factor: float = 1.0           # k in BW = k λ / d_a
     mount_deg: float = 90.0                 # φ_d, boresight vs flight direction; 90 = right
     stap: bool = True                       # apply the STAP clutter notch (eq. 10)
-    mdv_mps: float = 2.0                    # v_MDV, minimum detectable (radial) velocity
+    mdv_mps: Any = 2.0                      # v_MDV (m/s), or "auto": from v_p, λ, d_a, scan
 
     # --- field of view (antenna frame) and scan ---------------------------------------------
     az_min_deg: float = -10.0               # scan sector, + clockwise from boresight
@@ -139,6 +152,9 @@ class SensorConfig:
 
     # --- detection (eq. 6, 11) --------------------------------------------------------------
     pfa: float = 1.0e-6                     # false-alarm probability per resolution cell
+    noise_false_alarms: bool = True         # draw the detector's thermal-noise false alarms
+    max_false_alarms_per_dwell: float = 1.0e5   # refuse P_FA x cells above this (memory guard)
+    horizon_k_factor: float = 4.0 / 3.0     # effective earth radius factor of the radar horizon
     snr_form: str = "radar_equation"        # radar_equation | reference
     snr0_db: float = 20.0                   # reference form: SNR_0 at R_0 for σ_0
     r0_m: float = 30_000.0
@@ -171,6 +187,14 @@ class SensorConfig:
         return self.beamwidth_factor * self.wavelength_m / self.aperture_m
 
     @property
+    def n_dwells(self) -> int:
+        """Beam positions (dwells) per scan: the sector in sine space over the dwell spacing
+        (docs/sensor.md "Scan"; :mod:`gmtiflow.sensor.scan` lays them out)."""
+        span = math.sin(math.radians(self.az_max_deg)) - math.sin(math.radians(self.az_min_deg))
+        step = self.dwell_spacing_beamwidths * self.beamwidth_sine
+        return max(1, math.ceil(span / step - 1e-9))
+
+    @property
     def range_resolution_m(self) -> float:
         """Δr = k c / (2B)."""
         return self.range_resolution_factor * C_MPS / (2.0 * self.bandwidth_hz)
@@ -179,6 +203,11 @@ class SensorConfig:
     def doppler_cell_hz(self) -> float:
         """Δf_D = k_D / CPI."""
         return self.k_d / self.cpi_s
+
+    @property
+    def mdv_auto(self) -> bool:
+        """``mdv_mps: auto``: the notch width follows the main-lobe clutter spread per dwell."""
+        return isinstance(self.mdv_mps, str) and self.mdv_mps == "auto"
 
     @property
     def blind_speed_mps(self) -> Optional[float]:
@@ -192,12 +221,50 @@ class SensorConfig:
 
     @property
     def integration_gain(self) -> float:
-        """G_I (linear): the configured value, else CPI/PRI (number of pulses)."""
+        """G_I (linear): the configured value, else CPI/PRI (number of pulses).
+
+        ``pri_s: null`` needs ``integration_gain_db`` (``problems()`` refuses it otherwise), so
+        the gain is never silently 1."""
         if self.integration_gain_db is not None:
             return 10.0 ** (self.integration_gain_db / 10.0)
         if self.pri_s is None:
-            return 1.0
+            raise ValueError("sensor.pri_s is null: set sensor.integration_gain_db")
         return self.cpi_s / self.pri_s
+
+    @property
+    def doppler_band_hz(self) -> float:
+        """Width of the Doppler band the detector searches: the PRF, or without a PRI the
+        equivalent G_I / CPI (one Doppler filter per integrated pulse)."""
+        if self.pri_s is not None:
+            return 1.0 / self.pri_s
+        return self.integration_gain / self.cpi_s
+
+    @property
+    def range_rate_band_mps(self) -> float:
+        """Half-width of the range-rate interval the Doppler band covers, λ·band/4 (m/s):
+        λ·PRF/4, the wrap velocity, with a PRI."""
+        return self.wavelength_m * self.doppler_band_hz / 4.0
+
+    @property
+    def noise_cells(self) -> tuple:
+        """(range, Doppler, angle) resolution cells the detector tests in one dwell.
+
+        Range: the slant-range window [range_min_m, range_max_m] (cut at the unambiguous range
+        c·PRI/2 with a PRI) over Δr.  Doppler: the searched band over Δf_D (PRF·CPI/k_D, the
+        number of pulses with k_D = 1).  Angle: 1, the dwell's beam (monopulse refines a
+        detection's angle inside its beam; it does not test separate angle cells)."""
+        r_hi = self.range_max_m
+        if self.pri_s is not None:
+            r_hi = min(r_hi, C_MPS * self.pri_s / 2.0)
+        n_range = max(r_hi - self.range_min_m, 0.0) / self.range_resolution_m
+        n_doppler = self.doppler_band_hz / self.doppler_cell_hz
+        return n_range, n_doppler, 1.0
+
+    @property
+    def expected_false_alarms_per_dwell(self) -> float:
+        """P_FA × range cells × Doppler cells × angle cells (before masks)."""
+        n_r, n_d, n_a = self.noise_cells
+        return self.pfa * n_r * n_d * n_a
 
     def normalised(self) -> "SensorConfig":
         """A copy with ``snr_form`` as a plain string (an Enum is accepted by its value)."""
@@ -212,7 +279,13 @@ class SensorConfig:
                              "revisit_s", "dwell_spacing_beamwidths", "footprint_beamwidths",
                              "r0_m", "gamma_az", "gamma_r", "gamma_rr",
                              "kappa_az", "kappa_r", "kappa_rr", "range_resolution_factor", "k_d")
-        p += schema.non_negative(self, "noise_figure_db", "losses_db", "mdv_mps", "range_min_m")
+        p += schema.non_negative(self, "noise_figure_db", "losses_db", "range_min_m")
+        if isinstance(self.mdv_mps, str):
+            if self.mdv_mps != "auto":
+                p.append(Problem("mdv_mps", f"must be a number of m/s or 'auto', got "
+                                            f"{self.mdv_mps!r}"))
+        else:
+            p += schema.non_negative(self, "mdv_mps")
         p += schema.positive(self, "range_max_m")
         if not (isinstance(self.n_elements, int) and not isinstance(self.n_elements, bool)
                 and self.n_elements >= 1):
@@ -227,6 +300,11 @@ class SensorConfig:
         p += schema.in_range(self, "el_min_deg", -90.0, 90.0)
         p += schema.in_range(self, "el_max_deg", -90.0, 90.0)
         p += schema.in_range(self, "pfa", 0.0, 1.0, lo_open=True, hi_open=True)
+        p += schema.positive(self, "max_false_alarms_per_dwell", "horizon_k_factor")
+        if self.pri_s is None and self.integration_gain_db is None:
+            p.append(Problem("integration_gain_db", "must be set when pri_s is null (without a "
+                                                    "PRI the number of integrated pulses "
+                                                    "CPI/PRI is unknown)"))
         p += schema.ordered(self, "az_min_deg", "az_max_deg", strict=False)
         p += schema.ordered(self, "el_min_deg", "el_max_deg")
         p += schema.ordered(self, "range_min_m", "range_max_m")
@@ -249,16 +327,24 @@ class SensorConfig:
         if self.beamwidth_sine >= 1.0:
             p.append(Problem("aperture_m", f"beamwidth k*lambda/d_a = {self.beamwidth_sine:.3g} "
                                            "must be < 1 (aperture too small for the wavelength)"))
-        if self.stap and self.mdv_mps <= 0:
+        if self.stap and not self.mdv_auto and self.mdv_mps <= 0:
             p.append(Problem("mdv_mps", f"must be > 0 when stap is true, got {self.mdv_mps!r}"))
-        if self.stap and self.blind_speed_mps is not None and \
+        if self.stap and not self.mdv_auto and self.blind_speed_mps is not None and \
                 self.mdv_mps >= self.blind_speed_mps / 2.0:
             p.append(Problem("mdv_mps", f"must be < half the blind speed lambda*PRF/2 "
                                         f"({self.blind_speed_mps / 2.0:.4g} m/s), got "
                                         f"{self.mdv_mps!r}"))
-        from gmtiflow.sensor import scan  # local import: scan imports this module
-        n_dwells = scan.n_dwells(self)
+        n_dwells = self.n_dwells
         scan_s = n_dwells * self.cpi_s
+        if self.noise_false_alarms and \
+                self.expected_false_alarms_per_dwell > self.max_false_alarms_per_dwell:
+            n_r, n_d, _ = self.noise_cells
+            p.append(Problem("pfa", f"gives {self.expected_false_alarms_per_dwell:.4g} noise "
+                                    f"false alarms per dwell (P_FA {self.pfa!r} x {n_r:.4g} "
+                                    f"range cells x {n_d:.4g} Doppler cells), more than "
+                                    f"max_false_alarms_per_dwell = "
+                                    f"{self.max_false_alarms_per_dwell!r}: narrow the range "
+                                    "window, lower pfa or raise the limit"))
         if self.revisit_s < scan_s:
             p.append(Problem("revisit_s", f"must be >= the scan time n_dwells * cpi_s = "
                                           f"{n_dwells} * {self.cpi_s} = {scan_s:.4g} s, got "

@@ -20,6 +20,10 @@ inversion, ``z = −(1 + SNR) ln U`` is exactly the exponential detector output,
 SNR is the processor's noise-subtracted estimate ``z − 1`` (unbiased over all looks:
 E[z − 1] = SNR), floored at :data:`gmtiflow.sensor.snr.SNR_MIN`.  It is always ≥ T − 1, so weak
 targets that are detected report at least the threshold SNR, as real plots do.
+
+A noise false alarm follows the same convention (:func:`false_alarm_snr`): noise alone gives
+z ~ Exp(1); given that it crossed T, z = T + E (memoryless) and the reported SNR is z − 1 ≥ T − 1,
+the same floor as a target's.  (For P_FA > 1/e, T − 1 < 0 and the floor SNR_MIN applies.)
 """
 from __future__ import annotations
 
@@ -46,4 +50,15 @@ def detected(uniform, snr, pfa: float):
 def reported_snr(uniform, snr):
     """Noise-subtracted detector output z − 1 with z = −(1 + SNR) ln U (linear)."""
     z = -(1.0 + np.asarray(snr, float)) * np.log(uniform)
+    return np.maximum(z - 1.0, SNR_MIN)
+
+
+def threshold(pfa: float) -> float:
+    """Detection threshold T = −ln P_FA on z = |s + n|²/N₀ (linear)."""
+    return -np.log(pfa)
+
+
+def false_alarm_snr(uniform, pfa: float):
+    """Reported SNR z − 1 of a noise false alarm, z = T − ln U (noise above the threshold)."""
+    z = threshold(pfa) - np.log(np.asarray(uniform, float))
     return np.maximum(z - 1.0, SNR_MIN)

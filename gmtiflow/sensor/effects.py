@@ -7,10 +7,15 @@ Each effect is a callable ``(ctx, detections, looks) -> (detections, looks)`` ca
    merge into one report at their centroid with their summed power; its ``truth_id`` is the
    strongest ancestor's and ``merged`` is set; the other ancestors' looks become ``merged``
    (outcome 6) and point at the merged report, which is how ``/detection_ancestors`` is built.
-   The merged report keeps the strongest ancestor's σ's and true values.
-2. :class:`FalseAlarms` (§5.4): Poisson false alarms over each dwell's ground cell (the
+   The merged report keeps the strongest ancestor's true values; its σ's follow from its
+   summed SNR. No chaining: every ancestor lies within one resolution cell of the report.
+2. :class:`NoiseFalseAlarms` (§5.4): the detector's thermal-noise false alarms, a Poisson
+   number per dwell with mean P_FA × resolution cells, uniform over the dwell's range window,
+   beam cell and range-rate band (:mod:`gmtiflow.sensor.noise`).
+   :class:`FalseAlarms`: Poisson false alarms over each dwell's ground cell (the
    annular sector between the near and far ground ranges and the dwell's beam cell), from the
-   constant FoV density and the clutter regions, thinned by the sensor's exact field of view.
+   constant FoV density and the clutter regions, thinned by the sensor's exact field of view,
+   the radar horizon and terrain shadow; their SNR uses the detector's threshold (sensor.pfa).
    A false alarm's position is the drawn point itself (a uniform point plus a Gaussian error is
    still uniform), its range rate is the ground's (``−v_p·ℓ``) plus the region's own radial
    speed, its σ's follow from its SNR like a target's, ``truth_id = −1``.
@@ -28,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from gmtiflow import frames
-from gmtiflow.sensor import ambiguity, clutter, measurement, merge, scan
+from gmtiflow.sensor import ambiguity, clutter, measurement, merge, noise, scan, visibility
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.outcome import Outcome
 from gmtiflow.tables import Table, take
@@ -108,6 +113,11 @@ class Merging:
         out["truth_id"] = res.truth_id
         out["merged"] = merged
         rows = np.flatnonzero(merged)
+        # σ's follow from the merged report's (summed) SNR, as for any report
+        s_r, s_az, s_rr = measurement.sigmas(cfg, res.snr[rows], beam_cell[res.strongest[rows]])
+        out["sigma_range_m"][rows] = s_r
+        out["sigma_azimuth_rad"][rows] = s_az
+        out["sigma_range_rate_mps"][rows] = s_rr
         _set_ground(ctx, out, rows, out["dwell_id"][rows], out["range_m"][rows],
                     out["azimuth_rad"][rows])
         # Looks: an ancestor that is not the strongest is now "merged" into the group's report.
@@ -127,77 +137,79 @@ class Merging:
         return reindex(out, looks)
 
 
+class NoiseFalseAlarms:
+    """The detector's thermal-noise false alarms, P_FA per resolution cell
+    (:mod:`gmtiflow.sensor.noise`)."""
+
+    def __init__(self, cfg: SensorConfig, seed: int):
+        self.cfg = cfg
+        self.seed = seed
+
+    def __call__(self, ctx, detections: Table, looks: Table):
+        rows = noise.draw(ctx, self.cfg, self.seed)
+        if len(rows["dwell_id"]) == 0:
+            return detections, looks
+        rows["det_id"] = rows["det_id"] + _next_det_id(detections)
+        return reindex(noise.append_rows(detections, rows), looks)
+
+
+def _next_det_id(detections: Table) -> int:
+    return int(detections["det_id"].max()) + 1 if len(detections["det_id"]) else 0
+
+
 class FalseAlarms:
-    """False alarms over the dwells' ground cells (paper §5.4, DESIGN §5.7)."""
+    """False alarms of clutter regions and the FoV-wide density over the dwells' ground cells
+    (paper §5.4, DESIGN §5.7), masked like targets (field of view, horizon, terrain shadow)."""
 
     def __init__(self, cfg: SensorConfig, clutter_cfg: clutter.ClutterConfig, seed: int):
         self.cfg = cfg
         self.clutter = clutter_cfg
         self.seed = seed
 
-    def footprints(self, ctx) -> list:
-        """Per dwell of the chunk: the ground annular sector of its beam cell."""
+    def footprint_sectors(self, ctx) -> np.ndarray:
+        """(n, 6) ``x, y, g_min, g_max, az_start, span`` per dwell of the chunk: the ground
+        annular sector (centre = the platform, ground ranges in m, world azimuths clockwise from
+        north in rad) that contains the dwell's cell, for all dwells at once."""
         d = ctx.dwells
         lo, hi = ctx.dwell_cell_rad(d["dwell_id"])
         to_world = d["beam_az_rad"] - d["beam_scan_rad"]
         h_agl = d["platform_z_m"] - np.nan_to_num(
             np.asarray(ctx.terrain.height_at(d["platform_x_m"], d["platform_y_m"]), float))
-        # The polygon only bounds the draws (in_cell thins them exactly), so it must contain
-        # the cell: pad the ground ranges for terrain relief and the azimuths for the way a
-        # bank turns antenna-frame angles against world azimuths.
+        # The sector only bounds the draws (in_cell thins them exactly), so it must contain the
+        # cell: pad the ground ranges for terrain relief, the azimuths for the way bank and
+        # pitch turn antenna-frame angles against world azimuths (exact when level).
         g_min = 0.97 * np.sqrt(np.maximum(self.cfg.range_min_m ** 2 - h_agl ** 2, 0.0))
         g_max = 1.03 * np.sqrt(np.maximum(self.cfg.range_max_m ** 2 - h_agl ** 2, 0.0)) + 500.0
-        pad = 0.5 * (hi - lo) + np.abs(d["platform_bank_rad"]) + 1e-3
-        return [clutter.annular_sector_polygon((d["platform_x_m"][i], d["platform_y_m"][i]),
-                                               g_min[i], g_max[i], to_world[i] + lo[i] - pad[i],
-                                               to_world[i] + hi[i] + pad[i])
-                for i in range(len(lo))]
+        pad = (0.05 * (hi - lo) + np.abs(d["platform_bank_rad"])
+               + np.abs(d["platform_pitch_rad"]) + 1e-3)
+        return np.column_stack([d["platform_x_m"], d["platform_y_m"], g_min, g_max,
+                                to_world + lo - pad, (hi - lo) + 2.0 * pad])
 
     def __call__(self, ctx, detections: Table, looks: Table):
         d = ctx.dwells
         lo, hi = ctx.dwell_cell_rad(d["dwell_id"])
+        cfg = self.cfg
 
         def in_cell(dwell_id, x, y):
             z = np.nan_to_num(np.asarray(ctx.terrain.height_at(x, y), float))
-            _, az, _ = ctx.antenna_angles(dwell_id, x, y, z)
+            r, az, el = ctx.antenna_angles(dwell_id, x, y, z)
             k = _local_rows(ctx, dwell_id)
-            return ctx.in_fov(dwell_id, x, y, z) & (az >= lo[k]) & (az < hi[k])
+            ok = visibility.in_field_of_view(cfg, az, el, r) & (az >= lo[k]) & (az < hi[k])
+            i = np.flatnonzero(ok)
+            ok[i] = ctx.visible(dwell_id[i], x[i], y[i], z[i])
+            return ok
 
-        fa = clutter.false_alarms(self.clutter, self.seed, d["dwell_id"], self.footprints(ctx),
-                                  in_fov=in_cell)
+        fa = clutter.false_alarms(self.clutter, self.seed, d["dwell_id"], in_fov=in_cell,
+                                  fov_sectors=self.footprint_sectors(ctx), pfa=cfg.pfa)
         m = len(fa["dwell_id"])
         if m == 0:
             return detections, looks
-        cfg = self.cfg
-        dwell_id = fa["dwell_id"]
-        k = _local_rows(ctx, dwell_id)
         x, y = fa["x_m"], fa["y_m"]
         z = np.nan_to_num(np.asarray(ctx.terrain.height_at(x, y), float))
-        rng_m, _, _ = ctx.antenna_angles(dwell_id, x, y, z)
-        az = _world_azimuth(x - d["platform_x_m"][k], y - d["platform_y_m"][k])
-        rr = ctx.range_rate_of_ground(dwell_id, x, y, z) + fa["clutter_range_rate_mps"]
-        bw = scan.broadened_beamwidth_rad(cfg, d["beam_scan_rad"][k])
-        s_r, s_az, s_rr = measurement.sigmas(cfg, fa["snr"], bw)
-        lat, lon, h = frames.enu_to_geodetic(ctx.origin, x, y, z)
-        start = int(detections["det_id"].max()) + 1 if len(detections["det_id"]) else 0
-        false = np.zeros(m, bool)
-        rows = {
-            "det_id": start + np.arange(m, dtype=np.int64), "dwell_id": dwell_id,
-            "time_s": d["time_s"][k], "range_m": rng_m, "azimuth_rad": az,
-            "range_rate_mps": rr, "true_range_m": rng_m, "true_azimuth_rad": az,
-            "true_range_rate_mps": rr, "snr_db": fa["snr_db"], "sigma_range_m": s_r,
-            "sigma_azimuth_rad": s_az, "sigma_range_rate_mps": s_rr, "x_m": x, "y_m": y,
-            "z_m": z, "lat_deg": np.atleast_1d(lat), "lon_deg": np.atleast_1d(lon),
-            "height_m": np.atleast_1d(h), "truth_id": np.full(m, -1, np.int64),
-            "merged": false, "range_folded": false.copy(), "doppler_wrapped": false.copy(),
-            "implausible": false.copy(), "rcs_dbsm": np.full(m, np.nan),
-            "wrap_velocity_mps": np.full(m, cfg.wrap_velocity_mps),
-        }
-        combined = {name: np.concatenate([np.asarray(detections[name]),
-                                          np.asarray(rows[name]).astype(
-                                              np.asarray(detections[name]).dtype, copy=False)])
-                    for name in detections}
-        return reindex(combined, looks)
+        rows = noise.false_alarm_rows(ctx, cfg, fa["dwell_id"], x, y, z,
+                                      fa["clutter_range_rate_mps"], fa["snr"],
+                                      _next_det_id(detections))
+        return reindex(noise.append_rows(detections, rows), looks)
 
 
 class Ambiguities:
@@ -247,6 +259,8 @@ def build_effects(cfg: SensorConfig, clutter_cfg, seed: int, merge_iterate: bool
     effects = []
     if cfg.merge.enabled:
         effects.append(Merging(cfg, seed, merge_iterate))
+    if cfg.noise_false_alarms:
+        effects.append(NoiseFalseAlarms(cfg, seed))
     if clutter_cfg is not None and clutter.is_active(clutter_cfg):
         effects.append(FalseAlarms(cfg, clutter_cfg, seed))
     if cfg.pri_s is not None:

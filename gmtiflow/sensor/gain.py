@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 
+from gmtiflow.sensor import antenna
+
 LN2 = math.log(2.0)
 
 
@@ -61,5 +63,37 @@ def stap_notch(own_range_rate_mps, mdv_mps: float, blind_speed_mps=None):
     ``own_range_rate_mps`` is ṙ − ṙ_MLC.  Zero for a stopped or tangential target; ½ at exactly
     the MDV; repeating at the blind speeds when ``blind_speed_mps`` is given.
     """
-    x = blind_offset(own_range_rate_mps, blind_speed_mps) / mdv_mps
-    return -np.expm1(-LN2 * x * x)
+    mdv = np.asarray(mdv_mps, float)
+    off = blind_offset(own_range_rate_mps, blind_speed_mps)
+    x = off / np.where(mdv > 0, mdv, 1.0)
+    return np.where(mdv > 0, -np.expm1(-LN2 * x * x), 1.0)   # width 0: no notch
+
+
+def mainlobe_clutter_halfwidth_mps(platform_vel, scan_rad, el_rad, b, h, u, half_width_sine):
+    """Half the spread of the clutter range rate ṙ_MLC = −v_p·ℓ across ±``half_width_sine`` in
+    sine space (u = sin az) about the beam's scan angle, at elevation ``el_rad`` (m/s, per dwell;
+    vectors are 3-tuples of arrays):  ½ |v_p · (ℓ(u_b + Δu) − ℓ(u_b − Δu))|.
+
+    For a side-looking antenna in level flight ṙ_MLC = v_p cos(el) u exactly, so this is
+    v_p cos(el) Δu at any scan angle: with Δu = BW₀/2 (the 3-dB beam) half the main-beam clutter
+    width, ½ v_p cos(el) kλ/d_a — wider for a faster platform, a longer wavelength or a smaller
+    aperture (Skolnik, *Radar Handbook*, 3rd ed., ch. 5: main-beam clutter spectral width
+    Δf = 2 v_p θ_B sin θ_v / λ, θ_v the beam's angle to the velocity; in range rate Δṙ = Δf λ/2
+    = v_p θ_B sin θ_v).  A squinted antenna's spread varies with the scan angle."""
+    ub = np.sin(np.asarray(scan_rad, float))
+    hi = np.arcsin(np.clip(ub + half_width_sine, -1.0, 1.0))
+    lo = np.arcsin(np.clip(ub - half_width_sine, -1.0, 1.0))
+    lp = antenna.direction(hi, el_rad, b, h, u)
+    lm = antenna.direction(lo, el_rad, b, h, u)
+    return 0.5 * np.abs(sum(platform_vel[k] * (lp[k] - lm[k]) for k in range(3)))
+
+
+def clutter_band_gain(offset_mps, band_mps, blind_speed_mps=None):
+    """Receive-gain factor of a non-adaptive Doppler filter that rejects the main-lobe clutter
+    band |Δ| < band (Δ = ṙ − ṙ_MLC of the beam centre, folded to the nearest blind speed):
+    0 inside, then 1 − exp(−ln2 ((|Δ| − band)/(band/2))²) (half power half a band outside);
+    1 everywhere for a band of 0 (no clutter)."""
+    band = np.asarray(band_mps, float)
+    excess = np.abs(blind_offset(offset_mps, blind_speed_mps)) - band
+    x = np.maximum(excess, 0.0) / np.where(band > 0, 0.5 * band, 1.0)
+    return np.where(band > 0, -np.expm1(-LN2 * x * x), 1.0)

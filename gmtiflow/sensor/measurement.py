@@ -12,7 +12,12 @@
 
 Δr = k c/(2B), Δf_D = k_D/CPI, BW the beam's (broadened) 3-dB width in angle at its scan angle.
 The paper prints ``min`` in eq. 14 and 17; its text (accuracy bounded for strong targets) means a
-floor, hence ``max``.  SNR is the detection's reported (fluctuated) SNR: accuracy follows the
+floor, hence ``max``.  Each σ is also capped at its resolution cell over √12 (Δr/√12, BW/√12,
+λΔf_D/(2√12)): a detection places the return in the cell that crossed the threshold, whose
+uniform spread has that σ, and the 1/√SNR law (a high-SNR bound) says nothing beyond it.  The cap
+binds only below SNR (γ√12)² (7.8 dB in range and range rate, 3.7 dB in azimuth with the default
+γ's), i.e. for detections at P_FA ≳ 1e-3 or false alarms; it keeps σ finite and bounded for any
+P_FA in (0, 1) (a reported SNR of 1e-12 would otherwise give σ_r = 2e6 m).  SNR is the detection's reported (fluctuated) SNR: accuracy follows the
 energy actually received, and a tracker that recomputes σ from the reported SNR gets the
 simulator's σ back.
 
@@ -28,6 +33,8 @@ from gmtiflow import rng
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.snr import SNR_MIN
 
+_INV_SQRT12 = 1.0 / np.sqrt(12.0)   # σ of a uniform spread over one cell, in cells
+
 
 def sigmas(cfg: SensorConfig, snr, beamwidth_rad):
     """(σ_range_m, σ_azimuth_rad, σ_range_rate_mps) for linear SNRs and beamwidths (rad)."""
@@ -35,9 +42,12 @@ def sigmas(cfg: SensorConfig, snr, beamwidth_rad):
     bw = np.asarray(beamwidth_rad, float)
     dr = cfg.range_resolution_m
     dfd = cfg.doppler_cell_hz
-    s_az = np.maximum(cfg.gamma_az * bw * inv, cfg.kappa_az * bw / 10.0)
-    s_r = np.maximum(cfg.gamma_r * dr * inv, cfg.kappa_r * dr / 10.0)
-    s_rr = np.maximum(cfg.gamma_rr * dfd * inv, cfg.kappa_rr * dfd / 10.0) * cfg.wavelength_m / 2
+    s_az = np.minimum(np.maximum(cfg.gamma_az * bw * inv, cfg.kappa_az * bw / 10.0),
+                      bw * _INV_SQRT12)
+    s_r = np.minimum(np.maximum(cfg.gamma_r * dr * inv, cfg.kappa_r * dr / 10.0),
+                     dr * _INV_SQRT12)
+    s_rr = np.minimum(np.maximum(cfg.gamma_rr * dfd * inv, cfg.kappa_rr * dfd / 10.0),
+                      dfd * _INV_SQRT12) * cfg.wavelength_m / 2
     return s_r, s_az, s_rr
 
 

@@ -22,16 +22,25 @@ Decision per pair (``mode``):
   the XOR of its ancestors' hashes). The draw of a pair therefore depends only on the seed, the dwell and the two targets
   (common random numbers: adding a far-away target changes nothing here).
 
+No chaining.  A merged report's ancestors all lie within one resolution cell of it (separation
+s ≤ 1 in the scaled metric, range rate included when given): merges are made in rounds; in each
+round a candidate pair of (possibly merged) reports is kept only if every original ancestor of
+both lies within one cell of their merged centroid, and each report merges with its most
+probable kept candidate when that candidate's best is it too (a matching under one global order
+of the pairs, P_u descending, then the lower and higher report number: the globally most probable
+kept pair always merges, so every round merges something until none is left).  A line of
+targets one cell apart therefore becomes reports of at most three, not one report of all of them
+(the paper's transitive one pass gave up to 54 ancestors in one report, 8 cells from a member).
+
 Passes (``iterate``):
 
-* ``False`` (sparse, the paper's one pass): every accepted pair is merged, and merging is
-  *transitive*: the reports form the connected groups of the accepted-pair graph (A~B and B~C give
-  one report ABC even if A and C alone would not merge). This is the paper's "all elements with a
-  merging probability exceeding the threshold are merged".
-* ``True`` (dense): after each pass the merged reports replace their ancestors (at their new
-  centroids) and pairs are evaluated again, until a pass accepts no pair. In draw mode a pair of
-  unchanged reports keeps its draw, so it is not re-rolled and the loop terminates (every pass
-  that accepts something removes at least one report).
+* ``False`` (sparse): the pair decisions are made once, on the original reports; the rounds then
+  merge groups linked by an accepted original pair (priority: its P_u).
+* ``True`` (dense): after the first round the current reports (merged ones at their centroids)
+  are tested again, until a round merges nothing. In draw mode a pair of unchanged reports
+  keeps its draw, so it is not re-rolled; a merged report has a new identity and a new draw.
+
+``passes`` counts the rounds that merged something.
 
 Merged report: at the centroid of its (original) ancestors in range, azimuth and range rate —
 ``centroid="plain"`` (default; the paper's "geometrical average", DESIGN §5.6) or ``"power"``
@@ -62,8 +71,6 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
-from scipy import sparse
-from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from gmtiflow import rng
@@ -245,43 +252,132 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
     ident0 = report_identity(truth_id if pair_id is None else pair_id) if mode == "draw" else None
 
     label = np.arange(n, dtype=np.int64)
-    m = n
     passes = 0
-    while m > 1:
-        passes += 1
-        wsum = np.bincount(label, weights=weight, minlength=m)
-        pts = np.column_stack([np.bincount(label, weights=weight * scaled0[:, k], minlength=m) / wsum
-                               for k in range(scaled0.shape[1])])
-        g_rank = np.zeros(m, dtype=np.int64)
-        g_rank[label] = dw_rank
-        span = np.ptp(pts, axis=0).max() if m else 0.0
-        sep = span + 2.0 * radius + 1.0  # larger than any within-dwell distance + the radius
-        tree = cKDTree(np.column_stack([pts, g_rank * sep]))
-        pairs = tree.query_pairs(radius * (1.0 + 1e-9) + 1e-12, output_type="ndarray")
-        if len(pairs) == 0:
-            break
-        i, j = pairs[:, 0], pairs[:, 1]
-        same = g_rank[i] == g_rank[j]  # always true by construction; kept as a guard
-        i, j = i[same], j[same]
-        s2 = np.sum((pts[i] - pts[j]) ** 2, axis=1)
-        p = np.exp2(-s2)
-        if mode == "threshold":
-            accept = p >= threshold
-        else:
-            ident = _group_reduce_xor(ident0, label, m)
-            g_dwell = np.zeros(m, dtype=np.int64)
-            g_dwell[label] = dwell_id
-            accept = draw_uniform(seed, g_dwell[i], ident[i], ident[j]) < p
-        if not np.any(accept):
-            break
-        graph = sparse.coo_matrix((np.ones(int(accept.sum())), (i[accept], j[accept])), shape=(m, m))
-        m, comp = csgraph.connected_components(graph, directed=False)
-        label = comp[label].astype(np.int64)
-        if not iterate:
-            break
+    if n > 1:
+        g_dwell = dwell_id.copy()
+        # pass 1: every pair of original reports within the cut-off, decided once
+        i, j, p = _near_pairs(scaled0, dw_rank, radius)
+        accept = _decide(p, mode, threshold, seed, dwell_id[i], ident0, i, j)
+        edges = (i[accept], j[accept], p[accept])
+        while True:
+            m = int(label.max()) + 1
+            if iterate and passes > 0:
+                # dense: re-test the current reports (merged ones at their centroids)
+                pts = _centroids(label, m, weight, scaled0)
+                g_rank = np.zeros(m, dtype=np.int64)
+                g_rank[label] = dw_rank
+                gi, gj, gp = _near_pairs(pts, g_rank, radius)
+                g_dwell = np.zeros(m, dtype=np.int64)
+                g_dwell[label] = dwell_id
+                ident = _group_reduce_xor(ident0, label, m) if mode == "draw" else None
+                ok = _decide(gp, mode, threshold, seed, g_dwell[gi], ident, gi, gj)
+                gi, gj, gp = gi[ok], gj[ok], gp[ok]
+            else:
+                # sparse (and the first dense pass): the accepted pairs of original reports
+                # link their current groups, with the pair's probability as priority
+                gi, gj, gp = _group_edges(label[edges[0]], label[edges[1]], edges[2])
+            if len(gi) == 0:
+                break
+            passes += 1
+            pairs = _merge_round(label, m, weight, scaled0, gi, gj, gp)
+            if pairs is None:
+                break
+            label = _relabel(label, m, *pairs)
 
     return _build(label, dwell_id, range_m, az, azimuth_rad, range_rate_mps if use_rr else None, snr,
                   truth_id, weight, circular_azimuth, passes)
+
+
+def _near_pairs(pts: np.ndarray, rank: np.ndarray, radius: float):
+    """Pairs (i < j) of points of the same dwell within ``radius`` cells, and their P_u: one
+    kd-tree over the scaled coordinates plus a dwell coordinate that separates dwells."""
+    if len(pts) < 2:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, np.zeros(0)
+    span = np.ptp(pts, axis=0).max()
+    sep = span + 2.0 * radius + 1.0  # larger than any within-dwell distance + the radius
+    tree = cKDTree(np.column_stack([pts, rank * sep]))
+    pairs = tree.query_pairs(radius * (1.0 + 1e-9) + 1e-12, output_type="ndarray")
+    if len(pairs) == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, np.zeros(0)
+    i, j = pairs[:, 0].astype(np.int64), pairs[:, 1].astype(np.int64)
+    same = rank[i] == rank[j]            # always true by construction; kept as a guard
+    i, j = i[same], j[same]
+    return i, j, np.exp2(-np.sum((pts[i] - pts[j]) ** 2, axis=1))
+
+
+def _decide(p, mode, threshold, seed, dwell, ident, i, j) -> np.ndarray:
+    """Eq. 18's decision per pair: threshold, or a counter-based draw below P_u."""
+    if mode == "threshold":
+        return p >= threshold
+    return draw_uniform(seed, dwell, ident[i], ident[j]) < p
+
+
+def _centroids(label, m, weight, scaled0):
+    wsum = np.bincount(label, weights=weight, minlength=m)
+    return np.column_stack([np.bincount(label, weights=weight * scaled0[:, k], minlength=m) / wsum
+                            for k in range(scaled0.shape[1])])
+
+
+def _group_edges(a, b, p):
+    """Distinct group pairs (lo < hi) linked by accepted report pairs, with the highest P_u."""
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    keep = lo != hi
+    lo, hi, p = lo[keep], hi[keep], p[keep]
+    if len(lo) == 0:
+        return lo, hi, p
+    order = np.lexsort((-p, hi, lo))
+    lo, hi, p = lo[order], hi[order], p[order]
+    first = np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])]
+    return lo[first], hi[first], p[first]
+
+
+def _merge_round(label, m, weight, scaled0, gi, gj, gp):
+    """One round of merges without chaining: drop candidate group pairs whose merged report
+    would have an ancestor more than one resolution cell from its centroid, then merge every
+    pair that is each group's most probable candidate (a matching).  The globally most probable
+    valid pair is always chosen, so each round merges something while valid pairs remain.
+    Returns the (a, b) groups to merge, or None."""
+    n = len(label)
+    lo, hi = np.minimum(gi, gj), np.maximum(gi, gj)
+    # --- the no-chaining test, exact over every ancestor of both groups -------------------
+    order = np.argsort(label, kind="stable")
+    count = np.bincount(label, minlength=m)
+    start = np.cumsum(count) - count
+    wsum = np.bincount(label, weights=weight, minlength=m)
+    wx = np.column_stack([np.bincount(label, weights=weight * scaled0[:, k], minlength=m)
+                          for k in range(scaled0.shape[1])])
+    centre = (wx[lo] + wx[hi]) / (wsum[lo] + wsum[hi])[:, None]
+    k_q = count[lo] + count[hi]
+    q = np.repeat(np.arange(len(lo)), k_q)
+    within = np.arange(int(k_q.sum())) - np.repeat(np.cumsum(k_q) - k_q, k_q)
+    in_lo = within < count[lo][q]
+    member = np.where(in_lo, order[np.minimum(start[lo][q] + within, n - 1)],
+                      order[np.minimum(start[hi][q] + within - count[lo][q], n - 1)])
+    d2 = np.sum((scaled0[member] - centre[q]) ** 2, axis=1)
+    worst = np.zeros(len(lo))
+    np.maximum.at(worst, q, d2)
+    ok = worst <= 1.0 + 1e-9
+    lo, hi, gp = lo[ok], hi[ok], gp[ok]
+    if len(lo) == 0:
+        return None
+    # --- matching: each group's best candidate under one global order of the pairs --------
+    rank = np.empty(len(lo), dtype=np.int64)
+    rank[np.lexsort((hi, lo, -gp))] = np.arange(len(lo))
+    best = np.full(m, np.iinfo(np.int64).max)
+    np.minimum.at(best, lo, rank)
+    np.minimum.at(best, hi, rank)
+    chosen = (best[lo] == rank) & (best[hi] == rank)
+    return lo[chosen], hi[chosen]
+
+
+def _relabel(label, m, a, b):
+    """Groups ``b`` join groups ``a`` (disjoint pairs); labels renumbered 0..m'-1."""
+    target = np.arange(m)
+    target[b] = a
+    _, new = np.unique(target, return_inverse=True)
+    return new.ravel()[label].astype(np.int64)
 
 
 def _build(label, dwell_id, range_m, az, az_in, range_rate_mps, snr, truth_id, weight, circular, passes):

@@ -94,6 +94,7 @@ class ChunkContext:
     boresight: tuple                 # antenna axes per dwell of the chunk: 3-tuples of arrays
     scan_axis: tuple
     antenna_up: tuple
+    los_step_m: float = 30.0         # terrain line-of-sight ray step (fidelity.terrain_step_m)
 
     def _local(self, dwell_id) -> np.ndarray:
         return np.asarray(dwell_id, np.int64) - int(self.dwells["dwell_id"][0])
@@ -119,6 +120,19 @@ class ChunkContext:
             z_m = np.nan_to_num(np.asarray(self.terrain.height_at(x_m, y_m), float))
         rng_m, az, el = self.antenna_angles(dwell_id, x_m, y_m, z_m)
         return visibility.in_field_of_view(self.cfg, az, el, rng_m)
+
+    def visible(self, dwell_id, x_m, y_m, z_m):
+        """Points seen from the dwell's platform position: above the radar horizon and, on a
+        non-flat terrain, with a clear terrain line of sight (the targets' masks)."""
+        k = self._local(dwell_id)
+        pts = (np.asarray(x_m, float), np.asarray(y_m, float), np.asarray(z_m, float))
+        plat = self._platform(k)
+        ok = visibility.within_horizon(plat, pts, self.cfg.horizon_k_factor)
+        if not getattr(self.terrain, "flat", False) and np.any(ok):
+            i = np.flatnonzero(ok)
+            ok[i] = visibility.terrain_clear(self.terrain, antenna.take(plat, i),
+                                             antenna.take(pts, i), self.los_step_m)
+        return ok
 
     def dwell_cell_rad(self, dwell_id):
         """(low, high) antenna-frame scan angles of each dwell's cell: the sine-space interval
@@ -162,6 +176,7 @@ class _Poses:
     h: tuple
     u: tuple
     state: Table
+    mdv: Optional[np.ndarray] = None   # per dwell: the notch half-width (set with the dwell table)
 
 
 def _poses(cfg: SensorConfig, platform, time_s: np.ndarray) -> _Poses:
@@ -187,8 +202,9 @@ def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, o
     else:
         plat, plon, ph = frames.enu_to_geodetic(origin, *poses.pos)
     r_centre = np.full(n, 0.5 * (cfg.range_min_m + cfg.range_max_m))
-    centre, _, _ = geolocate.geolocate(poses.pos, r_centre, beam, poses.b, poses.h, poses.u,
-                                       terrain)
+    centre, el_centre, _ = geolocate.geolocate(poses.pos, r_centre, beam, poses.b, poses.h,
+                                               poses.u, terrain)
+    poses.mdv = _mdv_per_dwell(cfg, poses, beam, el_centre)
     alat, alon, _ = frames.enu_to_geodetic(origin, *centre)
     return {
         "dwell_id": dwell_ids.astype(np.int64),
@@ -209,9 +225,22 @@ def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, o
         "area_lat_deg": alat, "area_lon_deg": alon,
         "range_half_extent_m": np.full(n, 0.5 * (cfg.range_max_m - cfg.range_min_m)),
         "angle_half_extent_rad": 0.5 * scan.broadened_beamwidth_rad(cfg, beam),
-        "mdv_mps": np.full(n, cfg.mdv_mps if cfg.stap else 0.0),
+        "mdv_mps": poses.mdv,
         "wrap_velocity_mps": np.full(n, cfg.wrap_velocity_mps),
     }
+
+
+def _mdv_per_dwell(cfg, poses, beam, el_rad):
+    """The clutter notch's half-width per dwell (m/s): ``mdv_mps``, or with ``auto``: with STAP
+    half the main-beam clutter spread across the 3-dB beam (:func:`gain.mainlobe_clutter_halfwidth_mps`,
+    Δu = half a beamwidth in sine space).  Without STAP the Doppler filter must reject the
+    whole main-lobe clutter band, to the first nulls (Δu = the footprint, one beamwidth): its
+    half-width, twice the STAP value, centred on the beam centre's clutter."""
+    if not cfg.mdv_auto:     # a fixed width (without STAP, 0 = no clutter: the paper's case)
+        return np.full(len(beam), float(cfg.mdv_mps))
+    half = (0.5 if cfg.stap else cfg.footprint_beamwidths) * cfg.beamwidth_sine
+    return gain.mainlobe_clutter_halfwidth_mps(poses.vel, beam, el_rad, poses.b, poses.h,
+                                                poses.u, half)
 
 
 def _azimuth(east, north):
@@ -278,6 +307,10 @@ def _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     A vehicle's sine coordinate is taken at the scan's middle dwell; over the scan it moves by
     at most (|v_p| + |v_t|)·Δt / R plus the antenna's rotation (turns), which widens the
     window of candidate beams.  The exact footprint test runs later at each dwell's time.
+
+    Also returns, per group, whether the vehicle is active at the middle dwell (``mid_active``)
+    and that dwell (``mid_dwell``), so a vehicle that leaves or appears mid-scan and is inactive
+    at all its candidate dwells still gets its one look row (at the middle dwell).
     """
     n_d = sched.n_dwells
     n_v = len(vehicle_ids)
@@ -298,12 +331,14 @@ def _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     margin = move / np.maximum(rng_m - move, 1.0) + np.repeat(rot, n_v) + 0.02 * bw
     w = cfg.footprint_beamwidths * bw + margin
     rev = np.repeat(np.arange(n_rev), n_v)
+    mid_active = active
     if not np.all(active):
         # a vehicle inactive at the middle may still be active at one end of the scan
         keep = active | _active_at_ends(sched, poses, fleet, v_rep, rev)
         s, w, rev, v_rep = s[keep], w[keep], rev[keep], v_rep[keep]
         s = np.where(active[keep], s, 0.0)
         w = np.where(active[keep], w, 2.0)     # unknown position: try every beam
+        mid_active = active[keep]
     # beams are uniform in sine space, u_i = u_0 + i Δ: index arithmetic instead of a search
     # (a candidate window one beam too wide costs nothing: the exact test follows)
     if n_d > 1:
@@ -322,7 +357,7 @@ def _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     starts = np.cumsum(count) - count
     within = np.arange(total) - starts[group]
     dwell_local = rev[group] * n_d + lo[group] + within
-    return dwell_local, v_rep[group], group
+    return dwell_local, v_rep[group], group, mid_active, rev * n_d + n_d // 2
 
 
 def _active_at_ends(sched, poses, fleet, v_rep, rev):
@@ -389,32 +424,65 @@ def _select_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev):
         dl, veh = dl[sel], veh[sel]
         sel = np.arange(len(dl))
     else:
-        dl, veh, group = _candidate_pairs(cfg, sched, poses, fleet, vehicle_ids, n_rev)
+        dl, veh, group, mid_active, mid_dwell = _candidate_pairs(cfg, sched, poses, fleet,
+                                                                 vehicle_ids, n_rev)
         n_eval = len(dl)
         geo = _pair_geometry(poses, dl, fleet.state_at(poses.time_s[dl], veh))
         active = geo["active"]
-        dist = np.where((geo["lb"] > 0) & active, np.abs(geo["sin_az"] - u_beam_all[dl % n_d]),
-                        1e300)
-        in_fp = dist <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12)
-        geo["in_fp"] = in_fp
-        # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps one
-        # row: its first candidate of least sine-space distance (the nearest dwell)
+        sel = np.zeros(0, np.int64)
+        extra = False
         if group.size:
+            # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps
+            # one row: its first candidate of least sine-space distance (the nearest dwell)
             starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
             gidx = np.cumsum(np.r_[False, group[1:] != group[:-1]])
-            any_fp = np.logical_or.reduceat(in_fp, starts)
             g_active = np.logical_or.reduceat(active, starts)
-            gmin = np.minimum.reduceat(dist, starts)
+            # active at the middle dwell but at none of its candidate dwells (it left or
+            # appeared mid-scan): one more candidate, the middle dwell itself
+            lost = np.flatnonzero(~g_active & mid_active[group[starts]])
+            if lost.size:
+                extra = True
+                g_lost = group[starts[lost]]
+                dl_x, veh_x = mid_dwell[g_lost], veh[starts[lost]]
+                geo_x = _pair_geometry(poses, dl_x, fleet.state_at(poses.time_s[dl_x], veh_x))
+                n_eval += lost.size
+                geo = {k: np.concatenate([v, geo_x[k]]) for k, v in geo.items()}
+                dl, veh = np.concatenate([dl, dl_x]), np.concatenate([veh, veh_x])
+                gidx = np.concatenate([gidx, lost])
+                active = geo["active"]
+                g_active[lost] = active[-lost.size:]
+            dist = np.where((geo["lb"] > 0) & active,
+                            np.abs(geo["sin_az"] - u_beam_all[dl % n_d]), 1e300)
+            in_fp = dist <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12)
+            if extra:     # the extra rows sit after every group: unbuffered group reductions
+                any_fp = np.zeros(len(starts), bool)
+                np.logical_or.at(any_fp, gidx, in_fp)
+                gmin = np.full(len(starts), np.inf)
+                np.minimum.at(gmin, gidx, dist)
+            else:
+                any_fp = np.logical_or.reduceat(in_fp, starts)
+                gmin = np.minimum.reduceat(dist, starts)
             is_min = active & (dist <= gmin[gidx])
-            fallback = ~any_fp[gidx] & g_active[gidx] & _first_in_group(gidx, is_min)
+            if extra:
+                first = np.zeros(len(dl), bool)
+                cand = np.flatnonzero(is_min)
+                _, first_of = np.unique(gidx[cand], return_index=True)
+                first[cand[first_of]] = True
+            else:
+                first = _first_in_group(gidx, is_min)
+            fallback = ~any_fp[gidx] & g_active[gidx] & first
             sel = np.flatnonzero((in_fp & active) | fallback)
+            geo["in_fp"] = in_fp
         else:
-            sel = np.zeros(0, np.int64)
+            geo["in_fp"] = np.zeros(0, bool)
     # candidates come grouped by (revisit, vehicle), dwells ascending: a stable sort on the
     # dwell orders rows by (dwell, vehicle); int16 keys sort by radix
-    key = dl[sel]
-    key = key.astype(np.int16) if len(poses.time_s) < 32_000 else key
-    sel = sel[np.argsort(key, kind="stable")]
+    if sched.instant or not extra:
+        key = dl[sel]
+        key = key.astype(np.int16) if len(poses.time_s) < 32_000 else key
+        sel = sel[np.argsort(key, kind="stable")]
+    else:     # the extra middle-dwell rows come last: sort on (dwell, vehicle) explicitly
+        sel = sel[np.lexsort((veh[sel], dl[sel]))]
     return dl[sel], veh[sel], _Rows(geo, sel), n_eval
 
 
@@ -450,12 +518,15 @@ def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_mode
                              dwell_ids, los_step_m)
              for v0 in range(0, len(vehicle_ids), block_vehicles)]
     n_eval = sum(p[2] for p in parts)
-    if len(parts) == 1:
+    if not parts:     # no vehicles: the dwells still produce false alarms
+        detections, looks = empty_table(DETECTION_COLUMNS), empty_table(LOOK_COLUMNS)
+    elif len(parts) == 1:
         detections, looks = parts[0][0], parts[0][1]
     else:
         detections, looks = _merge_blocks([p[0] for p in parts], [p[1] for p in parts])
     if effects:
-        ctx = ChunkContext(cfg, seed, terrain, origin, dwells, poses.b, poses.h, poses.u)
+        ctx = ChunkContext(cfg, seed, terrain, origin, dwells, poses.b, poses.h, poses.u,
+                           los_step_m)
         for effect in effects:
             detections, looks = effect(ctx, detections, looks)
     return dwells, detections, looks, n_eval
@@ -506,12 +577,13 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     cand = fov & ~invisible
     clear = np.zeros(n, bool)
     ci = np.flatnonzero(cand)
+    p_ci = antenna.take(poses.pos, dl[ci])
+    t_ci = tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m"))
+    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor)
     if not getattr(terrain, "flat", False):
-        clear[ci] = visibility.terrain_clear(terrain, antenna.take(poses.pos, dl[ci]),
-                                             tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m")),
-                                             los_step_m)
-    else:
-        clear[ci] = True
+        cc = np.flatnonzero(clear[ci])
+        clear[ci[cc]] = visibility.terrain_clear(terrain, antenna.take(p_ci, cc),
+                                                 antenna.take(t_ci, cc), los_step_m)
     outcome[cand & ~clear] = Outcome.TERRAIN
 
     # --- SNR and the Swerling-I draw for the visible pairs -------------------------------
@@ -523,8 +595,18 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     f_mis = 1.0 if instant else gain.mismatch(geo.at("sin_az", vis), np.sin(beam[vis]),
                                               cfg.beamwidth_sine)
     g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis)
-    own_rr = geo.at("own_rr", vis) if cfg.stap else None              # ṙ − ṙ_MLC
-    g_r = g_t * gain.stap_notch(own_rr, cfg.mdv_mps, cfg.blind_speed_mps) if cfg.stap else g_t
+    mdv = poses.mdv[dl[vis]]
+    if cfg.stap:
+        own_rr = geo.at("own_rr", vis)                                 # ṙ − ṙ_MLC at the target
+    else:   # no STAP: the Doppler filter rejects the main-lobe clutter around the beam centre's
+        dv = dl[vis]
+        l_bc = antenna.direction(scan_angle, el[vis], antenna.take(poses.b, dv),
+                                 antenna.take(poses.h, dv), antenna.take(poses.u, dv))
+        own_rr = rr[vis] + antenna.dot(antenna.take(poses.vel, dv), l_bc)
+    if cfg.stap:
+        g_r = g_t * gain.stap_notch(own_rr, mdv, cfg.blind_speed_mps)
+    else:
+        g_r = g_t * gain.clutter_band_gain(own_rr, mdv, cfg.blind_speed_mps)
     rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo.at("heading_rad", vis),
                                 geo.at("los_e", vis), geo.at("los_n", vis))
     s_db = snr.snr_db(cfg, rng_m[vis], g_t, g_r, rcs_v)
@@ -535,10 +617,7 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     snr_db_col[vis] = s_db
     pd_col[vis] = np.exp(lpd)
     miss = vis[~hit]
-    if cfg.stap:
-        blind = np.abs(gain.blind_offset(own_rr[~hit], cfg.blind_speed_mps)) < cfg.mdv_mps
-    else:
-        blind = np.zeros(miss.size, bool)
+    blind = np.abs(gain.blind_offset(own_rr[~hit], cfg.blind_speed_mps)) < mdv[~hit]
     outcome[miss] = np.where(blind, Outcome.DOPPLER_BLIND, Outcome.PD_MISS)
 
     # --- detections: reported SNR, errors, geolocation ----------------------------------
@@ -627,6 +706,8 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
     effects = tuple(effects)
     per_vehicle = 1 if sched.instant else 3    # pairs per vehicle-revisit
     per_rev = max(1, len(vehicle_ids) * per_vehicle)
+    if cfg.noise_false_alarms:   # false alarms count like pairs towards the chunk's memory
+        per_rev += int(sched.n_dwells * cfg.expected_false_alarms_per_dwell)
     revs_per_chunk = max(1, chunk_pairs // per_rev)
     block_vehicles = max(1, chunk_pairs // per_vehicle)
     if workers > 1:  # enough chunks to keep every worker busy, none too small to pay off
@@ -637,12 +718,6 @@ def simulate_chunks(cfg: SensorConfig, fleet, platform, terrain, seed: int, dura
               for r0 in range(0, sched.n_revisits, revs_per_chunk)]
 
     def run(rev_ids):
-        if vehicle_ids.size == 0:
-            n_d = sched.n_dwells
-            dids = (rev_ids[:, None] * n_d + np.arange(n_d)[None, :]).ravel()
-            poses = _poses(cfg, platform, sched.dwell_time_s(dids))
-            return (_dwell_table(cfg, sched, dids, poses, terrain, origin),
-                    empty_table(DETECTION_COLUMNS), empty_table(LOOK_COLUMNS), 0)
         return _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_models,
                                type_codes, vehicle_ids, rev_ids, effects, block_vehicles,
                                los_step_m)

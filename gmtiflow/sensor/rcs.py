@@ -6,7 +6,8 @@ both clockwise from north, in [0°, 360°): 0° the vehicle drives straight away
 of sight from left to right as seen from the radar (the radar sees its left side).
 
 Table files are CSV with the header ``aspect_deg,rcs_dbsm`` (``#`` comment lines and blank lines
-are skipped), at least two rows, angles strictly increasing in [0, 360).  They are interpolated
+are skipped), at least two rows, angles strictly increasing in [0, 360), values within
+±:data:`MAX_ABS_DBSM` dBsm, the file a regular file of at most :data:`MAX_TABLE_BYTES`.  They are interpolated
 linearly in dBsm and periodically over 360° (the last row joins the first).  Any problem raises
 :class:`~gmtiflow.errors.InputFileError` naming the file and line.
 """
@@ -22,8 +23,15 @@ import numpy as np
 
 from gmtiflow.errors import ConfigError, InputFileError
 from gmtiflow.frames import heading_rad
+from gmtiflow.paths import check_input_file, excerpt
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+
+MAX_TABLE_BYTES = 16 * 2**20
+"""An RCS table of 0.001° steps is 6 MB; a bigger file (or /dev/zero) is refused unread."""
+
+MAX_ABS_DBSM = 100.0
+"""RCS values beyond ±100 dBsm (1e-10 to 1e10 m²) are not a vehicle's: refused."""
 
 
 def resolve_table_path(path: str) -> Path:
@@ -45,6 +53,7 @@ def resolve_table_path(path: str) -> Path:
 def load_table(path: str) -> Tuple[np.ndarray, np.ndarray]:
     """(aspect_rad, rcs_dbsm) of an RCS table file, validated."""
     file = resolve_table_path(path)
+    check_input_file(file, "RCS table", MAX_TABLE_BYTES)
     try:
         text = file.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -63,7 +72,7 @@ def load_table(path: str) -> Tuple[np.ndarray, np.ndarray]:
             header_seen = True
             if [c.lower() for c in cells] != ["aspect_deg", "rcs_dbsm"]:
                 raise InputFileError(f"RCS table {file}, line {lineno}: expected the header "
-                                     f"'aspect_deg,rcs_dbsm', got {','.join(cells)!r}")
+                                     f"'aspect_deg,rcs_dbsm', got {excerpt(','.join(cells))}")
             continue
         if len(cells) != 2:
             raise InputFileError(f"RCS table {file}, line {lineno}: expected 2 values "
@@ -72,10 +81,13 @@ def load_table(path: str) -> Tuple[np.ndarray, np.ndarray]:
             angle, value = float(cells[0]), float(cells[1])
         except ValueError:
             raise InputFileError(f"RCS table {file}, line {lineno}: non-numeric value in "
-                                 f"{','.join(cells)!r}") from None
+                                 f"{excerpt(','.join(cells))}") from None
         if not (math.isfinite(angle) and math.isfinite(value)):
             raise InputFileError(f"RCS table {file}, line {lineno}: values must be finite, got "
-                                 f"{','.join(cells)!r}")
+                                 f"{excerpt(','.join(cells))}")
+        if abs(value) > MAX_ABS_DBSM:
+            raise InputFileError(f"RCS table {file}, line {lineno}: rcs_dbsm {value:.6g} is "
+                                 f"beyond ±{MAX_ABS_DBSM:g} dBsm; not a vehicle's RCS")
         if not 0.0 <= angle < 360.0:
             raise InputFileError(f"RCS table {file}, line {lineno}: aspect_deg must be in "
                                  f"[0, 360), got {angle!r}")

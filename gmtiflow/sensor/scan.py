@@ -27,10 +27,8 @@ DWELL_MODES = ("dwell_resolved", "instant_scan")
 
 
 def n_dwells(cfg: SensorConfig) -> int:
-    """Number of beam positions (dwells) in one scan."""
-    span = math.sin(math.radians(cfg.az_max_deg)) - math.sin(math.radians(cfg.az_min_deg))
-    step = cfg.dwell_spacing_beamwidths * cfg.beamwidth_sine
-    return max(1, math.ceil(span / step - 1e-9))
+    """Number of beam positions (dwells) in one scan (:attr:`SensorConfig.n_dwells`)."""
+    return cfg.n_dwells
 
 
 def beam_centres_rad(cfg: SensorConfig) -> np.ndarray:

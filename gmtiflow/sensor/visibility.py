@@ -13,6 +13,9 @@ import numpy as np
 
 from gmtiflow.sensor.config import SensorConfig
 
+#: Mean earth radius (m) of the radar-horizon model.
+EARTH_RADIUS_M = 6_371_000.0
+
 
 def fov_limits_rad(cfg: SensorConfig):
     """(az_min, az_max, el_min, el_max) in radians."""
@@ -41,3 +44,26 @@ def terrain_clear(terrain, platform_xyz, target_xyz, step_m: float):
         return np.ones(n, bool)
     return np.asarray(terrain.line_of_sight(np.column_stack(platform_xyz),
                                             np.column_stack(target_xyz), step_m), bool)
+
+
+def horizon_distance_m(height_m, k_factor: float):
+    """Distance to the radar horizon of a point ``height_m`` above a smooth earth of effective
+    radius k·R_E (4/3 for standard refraction): √(2 k R_E h + h²); 0 at or below the surface."""
+    h = np.maximum(np.asarray(height_m, float), 0.0)
+    return np.sqrt(h * (2.0 * k_factor * EARTH_RADIUS_M + h))
+
+
+def within_horizon(platform_xyz, target_xyz, k_factor: float):
+    """True where a point is above the radar horizon of the platform (smooth k-earth).
+
+    Heights are ENU ``z`` (above the scene origin's surface, the smooth earth's tangent point);
+    the point is seen when its horizontal distance from the platform is at most the sum of the
+    two horizon distances, d ≤ √(2kR_E h_p + h_p²) + √(2kR_E h_t + h_t²) (Skolnik, *Introduction
+    to Radar Systems*, 3rd ed., §8.4; the 4/3-earth radar horizon).  At 10 m altitude a ground
+    point is seen out to 13 km, at 6 km altitude out to 319 km.
+    """
+    dx = np.asarray(target_xyz[0], float) - np.asarray(platform_xyz[0], float)
+    dy = np.asarray(target_xyz[1], float) - np.asarray(platform_xyz[1], float)
+    reach = (horizon_distance_m(platform_xyz[2], k_factor)
+             + horizon_distance_m(target_xyz[2], k_factor))
+    return dx * dx + dy * dy <= reach * reach

@@ -29,7 +29,8 @@ SIGNED_OK = {
     # heights below the datum, ENU coordinates west/south of the origin, receding clutter).
     "clutter.fov_range_rate.mean_mps", "clutter.regions[].centre_m[]",
     "clutter.regions[].range_rate.mean_mps", "clutter.regions[].snr.low_db",
-    "clutter.regions[].vertices_m[][]", "clutter.snr.low_db", "platform.waypoints_m[][]",
+    "clutter.regions[].vertices_m[][]", "clutter.snr.low_db", "platform.time_offset_s",
+    "platform.waypoints_m[][]",
     "sensor.az_max_deg", "sensor.az_min_deg", "sensor.el_max_deg", "sensor.el_min_deg",
     "sensor.mount_deg", "sensor.rcs.car.rcs_dbsm", "sensor.rcs.default.rcs_dbsm",
     "sensor.rcs.truck.rcs_dbsm", "sensor.rcs0_dbsm", "sensor.snr0_db", "terrain.flat_height_m",

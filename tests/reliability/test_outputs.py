@@ -38,7 +38,8 @@ def launch(out: Path, seed: int, kill_at: str | float | None):
     seconds after the run starts, or the moment its log shows a line containing that text;
     None: let it finish.  Returns (return code, launch time).
     """
-    cmd = [sys.executable, "-m", "gmtiflow.cli", f"hydra.run.dir={out}", f"seed={seed}", *SCENE]
+    cmd = [sys.executable, "-m", "gmtiflow.cli", "-v", f"hydra.run.dir={out}", f"seed={seed}",
+           *SCENE]   # -v: the INFO lines the kill points wait for go to the console too
     launched = time.time()
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
                             cwd=out.parent, env=dict(os.environ, HYDRA_FULL_ERROR="1"))

@@ -29,9 +29,10 @@ def clutter_run(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def empty_run(tmp_path_factory) -> Path:
-    """No detections at all (a milliwatt radar), so no tracks either."""
+    """No detections at all (a microwatt radar, no noise false alarms), so no tracks either."""
     return make_run(tmp_path_factory.mktemp("empty"), ["scene.duration_s=20",
-                                                       "sensor.peak_power_w=1e-6"])
+                                                       "sensor.peak_power_w=1e-6",
+                                                       "sensor.noise_false_alarms=false"])
 
 
 def page_count(pdf: Path) -> int:

@@ -57,8 +57,9 @@ def test_map_draws_tracks_footprints_and_attribution(small_run):
         assert fp["ground_min_m"] == pytest.approx(math.sqrt(20e3 ** 2 - 6e3 ** 2), rel=0.02)
         assert 0 < fp["az_hi"] - fp["az_lo"] < math.radians(30)
     n_tracks = len(F._track_lines(run.table("tracks"), 200))
-    black = [ln for ln in fig.axes[1].lines if ln.get_color() == "k" and ln.get_label().startswith("_")]
-    assert len(black) == n_tracks
+    from matplotlib.collections import LineCollection
+    tracks = [c for c in fig.axes[1].collections if isinstance(c, LineCollection)]
+    assert len(tracks) == 1 and len(tracks[0].get_segments()) == n_tracks > 0
     fig = F.map_figure({}, {}, {}, {}, {}, {}, {}, [], run.origin, "© OpenStreetMap contributors")
     assert any("OpenStreetMap" in t.get_text() for t in fig.axes[1].texts)
 
@@ -103,13 +104,29 @@ def test_timeline_rows_and_outcome_counts(small_run):
     assert "first 2 of" in fig._suptitle.get_text()
 
 
-def test_track_errors_one_line_per_track(small_run):
+def test_track_errors_bands_are_the_per_bin_percentiles(small_run):
+    from gmtiflow.report.pages import track_errors as TE
     run = load_run(small_run)
     te = run.table("metrics/track_errors")
     assert n(te) > 0
+    t, v = np.asarray(te["time_s"], float), np.asarray(te["position_error_m"], float)
+    edges = TE.time_bins(t)
+    q = TE.binned_percentiles(t, v, edges)
+    b = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, len(edges) - 2)
+    for k in np.unique(b)[:10]:     # numpy's percentiles of the rows in that bin
+        vals = v[(b == k) & np.isfinite(v)]
+        if len(vals):
+            assert q[:, k] == pytest.approx(np.percentile(vals, [5, 25, 50, 75, 95]))
     fig = F.track_errors_figure(te)
-    assert len(fig.axes[0].lines) == len(np.unique(te["track_id"]))
-    assert sum(len(ln.get_xdata()) for ln in fig.axes[0].lines) == n(te)
+    worst = TE.worst_tracks(np.asarray(te["track_id"]), v)
+    labels = [ln.get_label() for ln in fig.axes[0].lines]
+    assert "median" in labels and all(f"track {int(i)}" in labels for i in worst)
+    rms = {i: np.sqrt(np.nanmean(v[te["track_id"] == i] ** 2)) for i in np.unique(te["track_id"])}
+    eligible = {i: r for i, r in rms.items() if np.sum(te["track_id"] == i) >= 3} or rms
+    assert rms[worst[0]] == pytest.approx(max(eligible.values()))   # fewer rows: any track
+    # tracker off: one note, no empty axes
+    fig = F.track_errors_figure({}, tracker_enabled=False)
+    assert fig.axes == [] and any("tracker off" in t.get_text() for t in fig.texts)
 
 
 def test_range_rate_figure_points(small_run):
@@ -149,3 +166,20 @@ def test_key_numbers(small_run, empty_run):
     assert abs(k["pd_achieved"] - k["pd_model_mean"]) < 0.25
     k = key_numbers(load_run(empty_run))
     assert k["detections"] == 0 and k["tracks"] == 0
+
+
+def test_physics_page_shows_false_alarms_against_their_expectation(small_run):
+    """The run's false-alarm count next to the detector's P_FA x cells x dwells."""
+    from gmtiflow.report.run_report import _expected_false_alarms
+    from gmtiflow.sensor.config import SensorConfig
+    run = load_run(small_run)
+    expected = _expected_false_alarms(run)
+    sensor = SensorConfig(pfa=float(run.cfg("sensor.pfa")))
+    assert expected == pytest.approx(sensor.expected_false_alarms_per_dwell
+                                     * n(run.table("dwells")))
+    det = run.table("detections")
+    fig = F.sensor_figure(run.table("looks"), det, float(run.cfg("sensor.pfa")),
+                          expected_false_alarms=expected)
+    text = " ".join(t.get_text() for t in fig.texts)
+    n_fa = int(np.sum(det["truth_id"] < 0))
+    assert f"False alarms: {n_fa} in the run" in text and f"{expected:.4g}" in text

@@ -1,5 +1,6 @@
 """The sweep report: a real tiny `gmtiflow -m` sweep (callback), the CLI, failed jobs."""
 import json
+from pathlib import Path
 import os
 import shutil
 import subprocess
@@ -39,8 +40,8 @@ def sweep(tmp_path_factory):
 def test_multirun_ends_with_a_comparison_pdf_and_timing(sweep, tmp_path):
     pdf = sweep / "sweep_report.pdf"
     assert pdf.is_file()
-    # title+table, results vs fidelity, speed vs accuracy (fidelity presets swept)
-    assert page_count(pdf) == 3
+    # title+table, results vs fidelity, paired-by-seed deltas, speed vs accuracy
+    assert page_count(pdf) == 4
     for job in sorted(p for p in sweep.iterdir() if p.is_dir()):
         timing = json.loads((job / "timing.json").read_text())
         assert timing["status"] == "COMPLETED" and timing["run_file_s"] > 0
@@ -48,7 +49,7 @@ def test_multirun_ends_with_a_comparison_pdf_and_timing(sweep, tmp_path):
     assert [j.ok for j in jobs] == [True] * 4
     assert swept_keys(jobs) == ["fidelity", "seed"]
     assert all(j.values["wall_s"] > 0 for j in jobs)
-    pngs = render_png(pdf, tmp_path / "s", 1, 3)
+    pngs = render_png(pdf, tmp_path / "s", 1, 4)
     assert all(pixel_std(p) > 0.03 for p in pngs)
 
 
@@ -90,3 +91,34 @@ def test_failed_job_without_timing_uses_its_log(tmp_path):
     assert jobs[0].overrides == {"sensor": "wide_fov"}
     with pytest.raises(SweepReportError):
         collect_jobs([job / ".hydra"])
+
+
+def test_mean_ci95_and_paired_deltas():
+    import math
+
+    import numpy as np
+    from scipy import stats
+
+    from gmtiflow.report.sweep_report import Job, mean_ci95, paired_deltas, parameter_figure
+    m, h, n = mean_ci95([1.0, 2.0, 4.0, float("nan")])
+    ref = stats.t.interval(0.95, 2, loc=np.mean([1, 2, 4]), scale=stats.sem([1, 2, 4]))
+    assert n == 3 and m == 7 / 3 and h == pytest.approx((ref[1] - ref[0]) / 2)
+    assert mean_ci95([5.0]) == (5.0, 0.0, 1) and math.isnan(mean_ci95([])[0])
+
+    def job(pfa, seed, v):
+        return Job(dir=Path("."), label=f"{pfa}-{seed}", status="COMPLETED",
+                   overrides={"sensor.pfa": pfa, "seed": str(seed)}, values={"detections": v})
+    # seeds differ a lot, the paired change is exactly +10 on every seed
+    jobs = [job(p, s, base + (10 if p == "1e-4" else 0))
+            for s, base in ((1, 100.0), (2, 300.0), (3, 700.0)) for p in ("1e-6", "1e-4")]
+    base, deltas = paired_deltas(jobs, "sensor.pfa", [], "detections")
+    assert base == "1e-6" and list(deltas[()]["1e-4"]) == [10.0, 10.0, 10.0]
+    fig = parameter_figure(jobs, "sensor.pfa", ["sensor.pfa", "seed"])
+    assert fig.axes[0].get_xscale() == "log"                 # P_FA on a log axis
+    cat = [Job(dir=Path("."), label=str(i), status="COMPLETED",
+               overrides={"fidelity": f, "seed": str(s)}, values={"detections": float(i)})
+           for i, (f, s) in enumerate([("fast", 1), ("full", 1), ("fast", 2), ("full", 2)])]
+    fig = parameter_figure(cat, "fidelity", ["fidelity", "seed"])
+    from matplotlib.patches import Rectangle
+    bars = [p for p in fig.axes[0].patches if isinstance(p, Rectangle)]
+    assert len(bars) == 2                                    # categories as bars

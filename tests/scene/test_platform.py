@@ -9,6 +9,7 @@ from gmtiflow.frames import Origin
 from gmtiflow.scene.platform import G_MPS2, Platform, PlatformConfig, bank_angle_rad
 
 ORIGIN = Origin(50.63, 7.13, 150.0)
+RNG = np.random.default_rng(12)
 
 
 def square(speed=150.0, lead=20.0, side=20000.0, alt=6000.0):
@@ -97,7 +98,7 @@ def test_geodetic_columns_round_trip_through_enu():
 def test_sharp_corner_banks_towards_90_degrees_without_nan():
     # A near-reversal corner: α -> 180°, r -> 0, φ -> 90°.
     cfg = PlatformConfig(waypoints_m=[[0, 0, 5000], [20000, 0, 5000], [0, 100, 5000]],
-                         speed_mps=200.0, turn_lead_s=0.2)
+                         speed_mps=200.0, turn_lead_s=0.2, max_bank_deg=90.0)
     p = Platform(cfg, ORIGIN)
     assert np.all(np.isfinite(p.orbit.bank_rad))
     assert np.max(np.abs(p.orbit.bank_rad)) > math.radians(89.9)
@@ -130,3 +131,96 @@ def test_default_orbit_is_a_30_km_circle_around_the_scene():
     assert np.mean(np.isclose(state["bank_rad"], expected, rtol=1e-3)) > 0.99
     assert state["x_m"][0] == pytest.approx(0.0, abs=1.0) and state["y_m"][0] < 0
     assert state["heading_rad"][0] == pytest.approx(1.5 * math.pi, abs=1e-3)   # west
+
+
+def test_bank_beyond_the_maximum_is_a_config_error_naming_the_waypoint():
+    # 150 m/s, t = 20 s: the 90° corner at waypoint 1 banks atan(150 tan 45° / (20 g)) = 37.4°,
+    # the 135° corners at waypoints 0 and 2 atan(150 tan 67.5° / (20 g)) = 61.5° > 60°,
+    # waypoint 3 is no corner at all.
+    cfg = PlatformConfig(waypoints_m=[[0, 0, 6000], [20000, 0, 6000], [20000, -20000, 6000],
+                                      [5000, -5000, 6000]], speed_mps=150.0, turn_lead_s=20.0)
+    bank = math.degrees(math.atan(150.0 * math.tan(math.radians(135.0) / 2) / (20.0 * G_MPS2)))
+    assert 60.0 < bank < 62.0
+    with pytest.raises(ConfigError) as err:
+        Platform(cfg, ORIGIN)
+    msg = str(err.value)
+    assert "platform.waypoints_m[0]" in msg and "platform.waypoints_m[2]" in msg
+    assert f"banks {bank:.1f}°" in msg
+    assert "waypoints_m[1]" not in msg and "waypoints_m[3]" not in msg
+    cfg.max_bank_deg = 62.0
+    p = Platform(cfg, ORIGIN)
+    assert np.degrees(np.max(np.abs(p.orbit.bank_rad))) == pytest.approx(bank, rel=1e-9)
+    cfg.max_bank_deg = 0.0
+    with pytest.raises(ConfigError, match="platform.max_bank_deg"):
+        Platform(cfg, ORIGIN)
+
+
+def climbing_square():
+    """A square whose corners sit at 6, 6, 8 and 7 km: climbs, a descent and a level leg."""
+    cfg = square()
+    cfg.waypoints_m[2][2] = 8000.0
+    cfg.waypoints_m[3][2] = 7000.0
+    return Platform(cfg, ORIGIN)
+
+
+def test_vertical_profile_is_the_cosine_blend_between_knots():
+    """Between knots (each waypoint's altitude at the middle of its turn) the altitude is
+    z0 + (z1 − z0)(1 − cos πu)/2 in path-length fraction u, so v_z = v (z1 − z0) π sin(πu) / 2L."""
+    p = climbing_square()
+    o = p.orbit
+    v = p.cfg.speed_mps
+    knots_s = o.alt_knots_s_m
+    t = RNG.uniform(0.0, 3.0 * o.total_m / v, 3000)
+    s = np.mod(v * t, o.total_m)
+    ks = np.concatenate([knots_s - o.total_m, knots_s, knots_s + o.total_m])
+    ka = np.tile(o.alt_knots_m, 3)
+    i = np.searchsorted(ks, s, side="right") - 1
+    length = ks[i + 1] - ks[i]
+    u = (s - ks[i]) / length
+    dz = ka[i + 1] - ka[i]
+    st = p.state_at(t)
+    assert np.allclose(st["z_m"], ka[i] + dz * (1 - np.cos(np.pi * u)) / 2, atol=1e-6)
+    assert np.allclose(st["vz_mps"], v * dz * np.pi * np.sin(np.pi * u) / (2 * length),
+                       atol=1e-9)
+    # each waypoint's altitude is held at the middle of its turn, with v_z = 0 there
+    at_knots = p.state_at(knots_s / v)
+    assert np.allclose(at_knots["z_m"], o.alt_knots_m) and np.allclose(at_knots["vz_mps"], 0)
+
+
+def test_vertical_speed_is_continuous_at_altitude_changes():
+    p = climbing_square()
+    o = p.orbit
+    v = p.cfg.speed_mps
+    # v_z changes by at most max|a_z| dt in dt, a_z = v² Δz π² / (2 L²) (no jump anywhere)
+    lengths = np.diff(np.concatenate([o.alt_knots_s_m, [o.alt_knots_s_m[0] + o.total_m]]))
+    dzs = np.abs(np.diff(np.concatenate([o.alt_knots_m, o.alt_knots_m[:1]])))
+    az_max = np.max(v * v * dzs * np.pi ** 2 / (2 * lengths ** 2))
+    # straddling every knot and every piece boundary by ±1 µs
+    edges = np.concatenate([o.alt_knots_s_m, o.start_s_m]) / v
+    before, after = p.state_at(edges - 1e-6), p.state_at(edges + 1e-6)
+    assert np.max(np.abs(after["vz_mps"] - before["vz_mps"])) <= az_max * 2e-6 * 1.001 + 1e-12
+    # and densely over one loop
+    t = np.linspace(0.0, o.total_m / v, 200001)
+    st = p.state_at(t)
+    assert np.max(np.abs(np.diff(st["vz_mps"]))) <= az_max * (t[1] - t[0]) * (1 + 1e-6)
+    assert np.max(np.abs(st["vz_mps"])) > 1.0
+
+
+def test_velocity_is_the_derivative_of_position_at_random_instants():
+    p = climbing_square()
+    period = p.orbit.total_m / p.cfg.speed_mps
+    t = RNG.uniform(0.0, 2.0 * period, 3000)
+    h = 1e-4
+    a, b, mid = p.state_at(t - h), p.state_at(t + h), p.state_at(t)
+    # central differences are exact to O(h · jump in acceleration): v²/r = 150²/3000 m/s²
+    for pos, vel in (("x_m", "vx_mps"), ("y_m", "vy_mps"), ("z_m", "vz_mps")):
+        diff = (b[pos] - a[pos]) / (2 * h)
+        assert np.max(np.abs(diff - mid[vel])) < 150.0 ** 2 / 3000.0 * h, pos
+
+
+def test_fixed_wing_interface_is_a_plain_function_of_the_config():
+    from gmtiflow.scene.platform import platform_states
+    t = RNG.uniform(0.0, 1000.0, 50)
+    a = platform_states(square(), ORIGIN, t)
+    b = Platform(square(), ORIGIN).state_at(t)
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)

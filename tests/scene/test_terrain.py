@@ -193,7 +193,7 @@ def test_road_in_the_valley_appears_as_the_aircraft_comes_overhead(hills):
 def test_flat_terrain_never_marches(monkeypatch):
     def boom(*args, **kwargs):
         raise AssertionError("ray marching on flat terrain")
-    monkeypatch.setattr(T, "_march", boom)
+    monkeypatch.setattr(T, "march", boom)
     ter = T.build_terrain(preset("flat"), ROCHER)
     assert ter.flat
     seen = ter.line_of_sight(np.array([0.0, -30e3, 6000.0]), np.zeros((1000, 3)), 1.0)
@@ -203,8 +203,8 @@ def test_flat_terrain_never_marches(monkeypatch):
 
 def test_march_is_called_on_a_dem(hills, monkeypatch):
     calls = []
-    real = T._march
-    monkeypatch.setattr(T, "_march", lambda *a: calls.append(1) or real(*a))
+    real = T.march
+    monkeypatch.setattr(T, "march", lambda *a: calls.append(1) or real(*a))
     hills.line_of_sight([0.0, -30e3, 6000.0], [0.0, 1200.0, 0.0], 10.0)
     assert calls == [1]
 

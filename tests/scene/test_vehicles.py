@@ -147,12 +147,30 @@ def test_correlated_position_noise_keeps_sigma_and_correlation(straight_map):
     lo, hi = stats.chi2.ppf([0.0005, 0.9995], n)
     for col in range(3):
         assert lo < np.sum((d[:, col] / sig[col]) ** 2) < hi, col
-    # Lag-1 s correlation of the across-road noise: exp(-1/3).
+    # Correlation of the across-road noise at lags of 1, 3 and 6 s: the normalised cubic
+    # B-spline's with knots corr = 3 s apart (gmtiflow.scene.wander), computed here from the
+    # basis polynomials directly, averaged over the knot phases of the sampled instants.
     t = np.arange(0.0, 900.0, 1.0)
     y = fl.state_at(t[:, None], np.arange(30)[None, :])["y_m"] / sig[1]
-    r = np.sum(y[:-1] * y[1:]) / np.sqrt(np.sum(y[:-1] ** 2) * np.sum(y[1:] ** 2))
-    rho = np.exp(-1.0 / corr)
-    assert abs(r - rho) < 4.5 * (1 - rho**2) / np.sqrt(y.size / (2 * corr)) + 0.01
+
+    def weights(u):
+        i = int(np.floor(u))
+        x = u - i
+        w = [(1 - x) ** 3 / 6, (3 * x ** 3 - 6 * x ** 2 + 4) / 6,
+             (-3 * x ** 3 + 3 * x ** 2 + 3 * x + 1) / 6, x ** 3 / 6]
+        return {i + k: wk for k, wk in enumerate(w)}
+
+    for lag, rho_min in ((1, 0.8), (3, 0.45), (6, 0.0)):
+        exp_r = []
+        for t0 in t[:3]:                      # the phases t / corr takes
+            a, b = weights(t0 / corr), weights((t0 + lag) / corr)
+            cov = sum(w * b.get(k, 0.0) for k, w in a.items())
+            exp_r.append(cov / np.sqrt(sum(w * w for w in a.values()) * sum(w * w for w in b.values())))
+        rho = float(np.mean(exp_r))
+        assert rho >= rho_min
+        r = np.sum(y[:-lag] * y[lag:]) / np.sqrt(np.sum(y[:-lag] ** 2) * np.sum(y[lag:] ** 2))
+        # ~y.size / (4 corr) independent pairs (knots 4 corr wide)
+        assert abs(r - rho) < 4.5 * (1 - rho ** 2) / np.sqrt(y.size / (4 * corr)) + 0.005, lag
 
 
 # -- speed noise, random stops, waiting times -----------------------------------------------------

@@ -207,10 +207,16 @@ def test_range_rate_and_snr_distributions():
     w = draw(cl.RangeRateConfig(kind="windfarm", half_width_mps=40.0), cl.SnrConfig(kind="uniform_db", low_db=13, high_db=30))
     assert np.all(np.abs(w["clutter_range_rate_mps"]) <= 40.0) and np.abs(w["clutter_range_rate_mps"]).max() > 35.0
     assert np.all((w["snr_db"] >= 13.0) & (w["snr_db"] <= 30.0))
-    # Default SNR: threshold exceedance of square-law noise, eta + Exp(1), eta = ln(1/Pfa).
+    # Default SNR: threshold exceedance of square-law noise z = eta + Exp(1), eta = ln(1/Pfa),
+    # reported z - 1 like a target's (sensor.pfa's threshold, 1e-6 by default here).
     eta = np.log(1e6)
-    assert np.all(g["snr"] > eta)
-    assert stats.kstest(g["snr"] - eta, "expon").pvalue > ALPHA
+    assert np.all(g["snr"] > eta - 1.0)
+    assert stats.kstest(g["snr"] - (eta - 1.0), "expon").pvalue > ALPHA
+    # a looser detector threshold moves the clutter's reported SNR with it
+    region = cl.ClutterRegionConfig(name="x", shape="circle", centre_m=[0.0, 0.0], radius_m=500.0,
+                                    density_per_km2=100.0)
+    h = cl.false_alarms(cl.ClutterConfig(regions=[region]), 13, np.arange(500), fov, pfa=1e-15)
+    assert stats.kstest(h["snr"] - (np.log(1e15) - 1.0), "expon").pvalue > ALPHA
 
 
 # ---------------------------------------------------------------- validation
@@ -243,7 +249,9 @@ def test_invalid_top_level_and_duplicate_names():
     assert "clutter.fov_density_per_km2" in _problem_keys(cl.ClutterConfig(fov_density_per_km2=-0.1))
     dup = [cl.ClutterRegionConfig(name="a", vertices_m=LAKE), cl.ClutterRegionConfig(name="a", vertices_m=LAKE)]
     assert "clutter.regions[1].name" in _problem_keys(cl.ClutterConfig(regions=dup))
-    assert "clutter.snr.pfa" in _problem_keys(cl.ClutterConfig(snr=cl.SnrConfig(pfa=1.5)))
+    # clutter.snr.pfa was removed (the threshold is sensor.pfa's): setting it is an error saying so
+    msg = _problem_keys(cl.ClutterConfig(snr=cl.SnrConfig(pfa=1e-6)))
+    assert "clutter.snr.pfa" in msg and "sensor.pfa" in msg
 
 
 @pytest.mark.parametrize("name", ["none", "lake", "windfarm", "urban"])
@@ -271,3 +279,30 @@ def test_shoelace_area_and_self_intersection():
     assert geo.polygon_self_intersects([[0, 0], [2, 0], [1, 0], [1, 1]])  # edge folds back on itself
     sector = cl.annular_sector_polygon([0, 0], 1000.0, 2000.0, 0.0, np.pi / 2, n_arc=200)
     assert geo.polygon_area_m2(sector) == pytest.approx(np.pi / 4 * (2000.0 ** 2 - 1000.0 ** 2), rel=1e-4)
+
+
+def test_fov_density_drawn_directly_in_annular_sectors():
+    """fov_sectors: Poisson count with mean density x sector area, points uniform over the
+    annulus (g^2 uniform, azimuth uniform), every point inside its own dwell's sector."""
+    n = 400
+    x0 = np.linspace(0.0, 4000.0, n)
+    sectors = np.column_stack([x0, np.full(n, -30_000.0), np.full(n, 20_000.0),
+                               np.full(n, 30_000.0), np.full(n, -0.05), np.full(n, 0.1)])
+    cfg = cl.ClutterConfig(fov_density_per_km2=0.05)
+    t = cl.false_alarms(cfg, 4, np.arange(n), fov_sectors=sectors,
+                        in_fov=lambda d, x, y: np.ones(len(x), bool))
+    area_km2 = 0.5 * 0.1 * (30_000.0 ** 2 - 20_000.0 ** 2) / 1e6     # 25 km^2
+    mean = 0.05 * area_km2 * n
+    assert abs(len(t["x_m"]) - mean) < 4.5 * np.sqrt(mean)
+    dx = t["x_m"] - x0[t["dwell_id"]]
+    dy = t["y_m"] + 30_000.0
+    g = np.hypot(dx, dy)
+    a = np.arctan2(dx, dy)
+    assert np.all((g >= 20_000.0 - 1e-6) & (g <= 30_000.0 + 1e-6))
+    assert np.all((a >= -0.05 - 1e-12) & (a <= 0.05 + 1e-12))
+    assert stats.kstest((g ** 2 - 20_000.0 ** 2) / (30_000.0 ** 2 - 20_000.0 ** 2), "uniform").pvalue > ALPHA
+    assert stats.kstest((a + 0.05) / 0.1, "uniform").pvalue > ALPHA
+    # the boxes bound the sectors
+    bx0, by0, bx1, by1 = cl.sector_boxes(sectors)
+    assert np.all((t["x_m"] >= bx0[t["dwell_id"]]) & (t["x_m"] <= bx1[t["dwell_id"]]))
+    assert np.all((t["y_m"] >= by0[t["dwell_id"]]) & (t["y_m"] <= by1[t["dwell_id"]]))

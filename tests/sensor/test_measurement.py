@@ -21,12 +21,27 @@ def chi2_ok(x, sigma, alpha=1e-5):
 def test_sigma_formulas_weak_target():
     cfg = SensorConfig()
     bw = 0.03
-    snr = 4.0   # below every floor's crossover with the defaults
+    snr = 8.0   # between the cell cap's crossover ((γ√12)², ≤ 6.1) and every floor's (≥ 19)
     s_r, s_az, s_rr = measurement.sigmas(cfg, snr, bw)
     assert s_az == pytest.approx(cfg.gamma_az * bw / math.sqrt(snr))
     assert s_r == pytest.approx(cfg.gamma_r * cfg.range_resolution_m / math.sqrt(snr))
     assert s_rr == pytest.approx(cfg.gamma_rr * (cfg.k_d / cfg.cpi_s) / math.sqrt(snr)
                                  * cfg.wavelength_m / 2)
+
+
+def test_sigma_capped_at_the_cell_for_any_snr():
+    """Below SNR (γ√12)² a σ is its cell over √12 (uniform in the cell): bounded and finite
+    down to the SNR floor 1e-12 (a false alarm at P_FA 0.9 reports that)."""
+    cfg = SensorConfig()
+    bw = 0.03
+    s_r, s_az, s_rr = measurement.sigmas(cfg, np.array([1e-12, 0.1, 1.0]), bw)
+    assert np.allclose(s_r, cfg.range_resolution_m / math.sqrt(12))
+    assert np.allclose(s_az, bw / math.sqrt(12))
+    assert np.allclose(s_rr, cfg.doppler_cell_hz * cfg.wavelength_m / 2 / math.sqrt(12))
+    # the crossover: just above (γ√12)² the 1/√SNR law holds again
+    snr_x = (cfg.gamma_r * math.sqrt(12)) ** 2
+    s_r2, _, _ = measurement.sigmas(cfg, np.array([snr_x * 1.01]), bw)
+    assert s_r2[0] == pytest.approx(cfg.gamma_r * cfg.range_resolution_m / math.sqrt(snr_x * 1.01))
 
 
 def test_floor_holds_for_strong_targets():

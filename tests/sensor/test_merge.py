@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from scipy.sparse import csgraph, coo_matrix
 
 from gmtiflow.sensor import merge as mg
 
@@ -78,10 +77,20 @@ def test_convoy_in_one_cell_becomes_one_report_with_all_ancestors():
     assert power.range_m[0] == pytest.approx(np.sum(snr * r) / snr.sum())
 
 
-def test_merging_is_transitive_in_one_pass():
-    # A-B and B-C are one cell apart; A-C two cells (P = 1/16) — one group all the same.
-    res = _merge([1000.0, 1050.0, 1100.0], [0.5] * 3, threshold=0.5)
-    assert res.group.tolist() == [0, 0, 0]
+def test_no_chaining_every_ancestor_within_one_cell_of_its_report():
+    # A-B, B-C, C-D one cell apart (P = 1/2 each): A, B, C merge (each within one cell of
+    # their centroid), D does not join (A would be 1.5 cells from the centroid of ABCD);
+    # the old transitive one-pass rule made one report of all four.
+    res = _merge([1000.0, 1050.0, 1100.0, 1150.0], [0.5] * 4, threshold=0.5)
+    assert res.group.tolist() == [0, 0, 0, 1]
+    # a long chain 0.9 cells apart never gives a report with an ancestor beyond one cell
+    r = 1000.0 + 0.9 * DR * np.arange(60)
+    for mode, kw in (("threshold", {}), ("draw", dict(seed=3))):
+        for iterate in (False, True):
+            res = _merge(r, np.full(60, 0.5), mode=mode, iterate=iterate, **kw)
+            sep = np.abs(r - res.range_m[res.group]) / DR
+            assert sep.max() <= 1.0 + 1e-9, (mode, iterate, sep.max())
+            assert res.n_ancestors.max() <= 3
 
 
 def test_iterate_until_none_left():
@@ -194,38 +203,62 @@ def test_draw_mode_needs_a_seed():
 # ---------------------------------------------------------------- kd-tree vs brute force
 
 def _brute_force(dwell, r, az, snr, tid, *, mode, threshold, seed, iterate, p_min=1e-9):
-    """All pairs within each dwell, the documented rule, connected groups; repeat when dense."""
+    """The documented rule, pair by pair: accepted pairs of the original reports; rounds in
+    which candidate group pairs (sparse: linked by an accepted original pair, best P_u; dense
+    after the first round: the current reports re-tested) are kept only if every ancestor
+    lies within one cell of the merged centroid, and each group's best candidate under the
+    order (-P_u, lo, hi) merges when it is also the partner's best."""
     n = len(r)
     label = np.arange(n)
     ident0 = mg.report_identity(tid)
+    pts = np.column_stack([r / DR, az / DAZ])
+
+    def decide(p, d, ia, ib):
+        if mode == "threshold":
+            return p >= threshold
+        return p >= p_min and mg.draw_uniform(seed, d, ia, ib) < p
+
+    acc = {}
+    for i in range(n):
+        for j in range(i + 1, n):
+            if dwell[i] == dwell[j]:
+                p = np.exp2(-np.sum((pts[i] - pts[j]) ** 2))
+                if decide(p, dwell[i], ident0[i], ident0[j]):
+                    acc[(i, j)] = p
+    first = True
     while True:
-        groups = np.unique(label)
-        if len(groups) < 2:
+        groups = sorted(set(label.tolist()))
+        cand = {}
+        if iterate and not first:
+            cen = {g: pts[label == g].mean(axis=0) for g in groups}
+            gid = {g: np.bitwise_xor.reduce(ident0[label == g]) for g in groups}
+            for a in groups:
+                for b in groups:
+                    if a < b and dwell[label == a][0] == dwell[label == b][0]:
+                        p = np.exp2(-np.sum((cen[a] - cen[b]) ** 2))
+                        if decide(p, dwell[label == a][0], gid[a], gid[b]):
+                            cand[(a, b)] = p
+        else:
+            for (i, j), p in acc.items():
+                a, b = sorted((label[i], label[j]))
+                if a != b:
+                    cand[(a, b)] = max(cand.get((a, b), 0.0), p)
+        first = False
+        valid = {}
+        for (a, b), p in cand.items():
+            m = pts[(label == a) | (label == b)]
+            if np.max(np.sum((m - m.mean(axis=0)) ** 2, axis=1)) <= 1.0 + 1e-9:
+                valid[(a, b)] = p
+        if not valid:
             break
-        cr = np.array([r[label == g].mean() for g in groups]) / DR
-        ca = np.array([az[label == g].mean() for g in groups]) / DAZ
-        gd = np.array([dwell[label == g][0] for g in groups])
-        gid = np.array([np.bitwise_xor.reduce(ident0[label == g]) for g in groups], dtype=np.uint64)
-        rows, cols = [], []
-        for i in range(len(groups)):
-            for j in range(i + 1, len(groups)):
-                if gd[i] != gd[j]:
-                    continue
-                p = np.exp2(-((cr[i] - cr[j]) ** 2 + (ca[i] - ca[j]) ** 2))
-                if mode == "threshold":
-                    ok = p >= threshold
-                else:
-                    ok = p >= p_min and mg.draw_uniform(seed, gd[i], gid[i], gid[j]) < p
-                if ok:
-                    rows.append(i)
-                    cols.append(j)
-        if not rows:
-            break
-        _, comp = csgraph.connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)),
-                                                          shape=(len(groups),) * 2), directed=False)
-        label = comp[np.searchsorted(groups, label)]
-        if not iterate:
-            break
+        order = sorted(valid, key=lambda k: (-valid[k], k[0], k[1]))
+        best = {}
+        for rank, (a, b) in enumerate(order):
+            best.setdefault(a, rank)
+            best.setdefault(b, rank)
+        for rank, (a, b) in enumerate(order):
+            if best[a] == rank and best[b] == rank:
+                label[label == b] = a
     return mg._canonical(label)
 
 
@@ -244,10 +277,20 @@ def test_kdtree_equals_brute_force(n, n_dwells, spread, mode, threshold, iterate
                             seed=seed, iterate=iterate, circular_azimuth=False)
     slow = _brute_force(dwell, r, az, snr, tid, mode=mode, threshold=threshold, seed=seed, iterate=iterate)
     assert np.array_equal(fast.group, slow)
+    # no chaining: every ancestor within one cell of its merged report
+    if n:
+        sep2 = ((r - fast.range_m[fast.group]) / DR) ** 2 + ((az - fast.azimuth_rad[fast.group]) / DAZ) ** 2
+        assert np.all(sep2 <= 1.0 + 1e-9)
     if iterate and mode == "threshold" and len(fast.range_m) > 1:
-        # Dense mode leaves no pair of output reports in a dwell at or above the threshold.
-        same = fast.dwell_id[:, None] == fast.dwell_id[None, :]
-        p = mg.merge_probability(fast.range_m[:, None] - fast.range_m[None, :],
-                                 fast.azimuth_rad[:, None] - fast.azimuth_rad[None, :], DR, DAZ)
-        np.fill_diagonal(p, 0.0)
-        assert not np.any((p >= threshold * (1 + 1e-9)) & same)
+        # Dense mode leaves no pair of output reports in a dwell at or above the threshold
+        # whose merge would keep every ancestor within one cell (the rounds end when none is left)
+        for a in range(len(fast.range_m)):
+            for b in range(a + 1, len(fast.range_m)):
+                if fast.dwell_id[a] != fast.dwell_id[b]:
+                    continue
+                p = mg.merge_probability(fast.range_m[a] - fast.range_m[b],
+                                         fast.azimuth_rad[a] - fast.azimuth_rad[b], DR, DAZ)
+                m = (fast.group == a) | (fast.group == b)
+                cr, ca = r[m].mean(), az[m].mean()
+                ok = np.all(((r[m] - cr) / DR) ** 2 + ((az[m] - ca) / DAZ) ** 2 <= 1.0 + 1e-9)
+                assert not (p >= threshold * (1 + 1e-9) and ok), (a, b, p)

@@ -17,7 +17,7 @@ from sensor_fakes import (ORIGIN, FlatTerrain, LevelPlatform, LineFleet, WallTer
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "tables.md"
 H = 6_000.0            # platform height; platform at y = -30 km flying west, looking north
 HOVER = LevelPlatform(speed_mps=0.0)
-NO_STAP = SensorConfig(stap=False)
+NO_STAP = SensorConfig(stap=False, mdv_mps=0.0)   # no clutter at all (the paper)
 
 
 def documented_columns(table):
@@ -364,6 +364,28 @@ def test_vehicles_active_only_part_of_the_time():
     t1 = lk["time_s"][lk["vehicle_id"] == 1]
     assert t0.size and np.all(t0 <= 4.0)
     assert t1.size and np.all(t1 >= 6.0)
+
+
+def test_vehicles_leaving_or_appearing_mid_scan_keep_one_look_row_per_revisit():
+    """A vehicle at the sector's far edge that leaves just after the middle dwell is inactive
+    at its candidate dwells (the last beams); one appearing just before the middle at the near
+    edge is inactive at the first beams: each still gets its one look row, at the middle dwell
+    (docs/tables.md: every active vehicle, one row per revisit at least)."""
+    cfg = SensorConfig()
+    n_d = scan.n_dwells(cfg)
+    t_mid = (n_d // 2 + 0.5) * cfg.cpi_s
+    fleet = LineFleet([(4_600.0, 0.0, 0.0), (-4_600.0, 0.0, 0.0), (0.0, 0.0, 0.0)],
+                      (0.0, 0.0, 0.0), start_s=[0.0, t_mid - 0.01, 0.0],
+                      end_s=[t_mid + 0.01, 100.0, 100.0])
+    lk = run(cfg, fleet, platform=HOVER, duration_s=n_d * cfg.cpi_s)["looks"]
+    for v in (0, 1):
+        rows = lk["vehicle_id"] == v
+        assert rows.sum() == 1, (v, lk["dwell_id"][rows])
+        assert lk["dwell_id"][rows][0] == n_d // 2
+        assert lk["outcome"][rows][0] == Outcome.OUTSIDE_FOV
+    assert np.sum(lk["vehicle_id"] == 2) >= 1
+    key = lk["dwell_id"] * 10 + lk["vehicle_id"]
+    assert np.all(np.diff(key) > 0)
 
 
 # --- the effects seam -----------------------------------------------------------------------

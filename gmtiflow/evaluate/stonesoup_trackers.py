@@ -1,0 +1,359 @@
+"""Stone Soup trackers behind the tracker protocol (``pip install 'gmtiflow[stonesoup]'``).
+
+``tracker=stonesoup_gnn`` / ``stonesoup_jpda`` / ``stonesoup_gmphd`` (``conf/tracker/``) build
+these classes with ``tracker.params``; each is fed the protocol's blind per-dwell batches
+(:mod:`gmtiflow.evaluate.protocol`) and assembled from Stone Soup components (stonesoup ≥ 1.0;
+tested with 1.9.1), so the filtering, gating and association are Stone Soup's, not ours:
+
+* **State and motion**: ``[x, vx, y, vy]`` in the scene's ENU ground plane; two
+  ``ConstantVelocity`` models (continuous white-noise acceleration, density
+  ``accel_sigma_mps2``² · 1 s, as the baseline's ``cwna``).
+* **Measurement model**: one ``LinearGaussian`` per detection (mapping x, y) whose covariance is
+  the detection's own: σ⊥ = R·σ_az across the line of sight and σ∥ = σ_r·R/ρ along it, rotated
+  by the LOS azimuth from *that detection's dwell's* platform (the baseline's formula,
+  :func:`gmtiflow.evaluate.tracker._measurements`), so detections of several sensors each carry
+  their own geometry.  Range rate is not used (the Stone Soup models here are linear in the
+  ground plane).
+* **Where the radar looked**: a track is only predicted, gated and missed by a dwell whose
+  footprint covers it (the baseline's coverage test with ``footprint_margin_m``); a GMTI dwell
+  sees a narrow sector, and treating every other track as missed would delete them all.
+* ``StoneSoupGNN``: ``DistanceHypothesiser`` (Mahalanobis, ``missed_distance`` = the χ²
+  gate ``gate_probability`` as a distance) + ``GNNWith2DAssignment``.
+* ``StoneSoupJPDA``: ``PDAHypothesiser`` (``prob_detect``, ``clutter_density_per_km2``,
+  ``gate_probability``) + ``JPDA``; each track's posterior is the moment-matched mixture of its
+  hypotheses (``gm_reduce_single``).
+* Both initiate with ``MultiMeasurementInitiator`` (GNN on the unassociated detections; a track
+  is confirmed and reported after ``min_points`` updates) and delete tracks without an update
+  for ``delete_after_s`` (``UpdateTimeDeleter``).
+* ``StoneSoupGMPHD``: Gaussian-mixture PHD (``GaussianMixtureHypothesiser``, ``PHDUpdater``,
+  ``GaussianMixtureReducer``) on the covered components; a birth component per dwell spread over
+  its footprint (weight ``birth_weight``); a tag's components above ``extraction_threshold``
+  are reported as that track (its heaviest component).
+
+Rows: like the baseline, one row per (confirmed track, covering dwell): the updated state, or
+the prediction when the dwell missed it.  Tracks ids count from 0 in order of confirmation.
+"""
+from __future__ import annotations
+
+import datetime
+from typing import Dict, List, Optional
+
+import numpy as np
+from scipy.stats import chi2
+
+from gmtiflow.evaluate.config import TrackerConfig
+from gmtiflow.evaluate.protocol import Batch, SceneInfo
+from gmtiflow.evaluate.tracker import TRACK_COLUMNS, _covered, _measurements
+
+try:
+    from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
+    from stonesoup.dataassociator.probability import JPDA
+    from stonesoup.deleter.time import UpdateTimeDeleter
+    from stonesoup.functions import gm_reduce_single
+    from stonesoup.hypothesiser.distance import DistanceHypothesiser
+    from stonesoup.hypothesiser.gaussianmixture import GaussianMixtureHypothesiser
+    from stonesoup.hypothesiser.probability import PDAHypothesiser
+    from stonesoup.initiator.simple import MultiMeasurementInitiator
+    from stonesoup.measures import Mahalanobis
+    from stonesoup.mixturereducer.gaussianmixture import GaussianMixtureReducer
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.models.transition.linear import (CombinedLinearGaussianTransitionModel,
+                                                    ConstantVelocity)
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.types.array import StateVectors
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.state import GaussianState, TaggedWeightedGaussianState
+    from stonesoup.types.update import GaussianStateUpdate
+    from stonesoup.updater.kalman import KalmanUpdater
+    from stonesoup.updater.pointprocess import PHDUpdater
+except ImportError as exc:                       # pragma: no cover (the extra is installed in CI)
+    raise ImportError("the Stone Soup trackers need the optional extra: "
+                      "pip install 'gmtiflow[stonesoup]'") from exc
+
+_BASE = datetime.datetime(2000, 1, 1)
+
+
+def _stamp(t_s: float) -> datetime.datetime:
+    return _BASE + datetime.timedelta(seconds=float(t_s))
+
+
+class _StoneSoupTracker:
+    """What the three share: models, per-detection covariances, footprint coverage, rows."""
+
+    def __init__(self, accel_sigma_mps2: float = 1.0, init_speed_sigma_mps: float = 15.0,
+                 footprint_margin_m: float = 200.0, gate_probability: float = 0.999,
+                 default_sigma_range_m: float = 20.0, default_sigma_azimuth_deg: float = 0.2):
+        self.accel_sigma_mps2 = float(accel_sigma_mps2)
+        self.init_speed_sigma_mps = float(init_speed_sigma_mps)
+        self.footprint_margin_m = float(footprint_margin_m)
+        self.gate_probability = float(gate_probability)
+        self._sigmas = TrackerConfig(use_range_rate=False,
+                                     default_sigma_range_m=default_sigma_range_m,
+                                     default_sigma_azimuth_deg=default_sigma_azimuth_deg)
+        q = self.accel_sigma_mps2 ** 2
+        self.transition = CombinedLinearGaussianTransitionModel(
+            [ConstantVelocity(q), ConstantVelocity(q)])
+        self.predictor = KalmanPredictor(self.transition)
+        # The updater's own model is only a fallback: every detection carries its own.
+        self.default_model = LinearGaussian(ndim_state=4, mapping=(0, 2),
+                                            noise_covar=np.diag([100.0 ** 2, 100.0 ** 2]))
+        self.updater = KalmanUpdater(self.default_model)
+
+    def reset(self, scene: SceneInfo) -> None:
+        self._ids: Dict[object, int] = {}
+
+    def finish(self):
+        return None
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _detections(self, dw, k: int, det) -> List[Detection]:
+        """Stone Soup detections of dwell ``k``, each with its own measurement covariance."""
+        usable = np.isfinite(np.asarray(det["x_m"], float)) & np.isfinite(
+            np.asarray(det["y_m"], float))
+        if "implausible" in det:
+            usable &= ~np.asarray(det["implausible"], bool)
+        idx = np.flatnonzero(usable)
+        if not len(idx):
+            return []
+        plat = np.array([dw["platform_x_m"][k], dw["platform_y_m"][k], dw["platform_z_m"][k]],
+                        float)
+        z, R, _, _ = _measurements(det, idx, plat, self._sigmas)
+        when = _stamp(dw["time_s"][k])
+        out = []
+        for i in range(len(idx)):
+            model = LinearGaussian(ndim_state=4, mapping=(0, 2), noise_covar=R[i, :2, :2])
+            out.append(Detection(z[i, :2].reshape(2, 1), timestamp=when, measurement_model=model,
+                                 metadata={"det_id": int(det["det_id"][idx[i]])
+                                           if "det_id" in det else i}))
+        return out
+
+    def _covered_mask(self, dw, k: int, states) -> np.ndarray:
+        """Which of ``states`` (GaussianStates) the footprint of dwell ``k`` covers."""
+        n = len(states)
+        if not n or not ("beam_az_rad" in dw and "angle_half_extent_rad" in dw):
+            return np.ones(n, bool)
+        t = float(dw["time_s"][k])
+        pos = np.empty((n, 2))
+        for i, s in enumerate(states):
+            sv = np.ravel(s.state_vector).astype(float)
+            dt = (t - (s.timestamp - _BASE).total_seconds())
+            pos[i] = sv[0] + sv[1] * dt, sv[2] + sv[3] * dt
+        plat = np.array([dw["platform_x_m"][k], dw["platform_y_m"][k], dw["platform_z_m"][k]],
+                        float)
+        return _covered(dw, k, pos, np.zeros(n), plat, self.footprint_margin_m)
+
+    def _prior(self) -> GaussianState:
+        v = self.init_speed_sigma_mps ** 2
+        return GaussianState(np.zeros((4, 1)), np.diag([1.0, v, 1.0, v]))
+
+    def _rows(self, ids, t: float, states) -> Optional[dict]:
+        if not states:
+            return None
+        sv = np.array([np.ravel(s.state_vector).astype(float) for s in states])
+        P = np.array([np.asarray(s.covar, float) for s in states])
+        n = len(states)
+        return {"track_id": np.asarray(ids, np.int64), "time_s": np.full(n, t),
+                "x_m": sv[:, 0], "y_m": sv[:, 2], "vx_mps": sv[:, 1], "vy_mps": sv[:, 3],
+                "cov_xx_m2": P[:, 0, 0], "cov_xy_m2": P[:, 0, 2], "cov_yy_m2": P[:, 2, 2],
+                "confirmed": np.ones(n, bool)}
+
+    def _id(self, key) -> int:
+        if key not in self._ids:
+            self._ids[key] = len(self._ids)
+        return self._ids[key]
+
+    def update(self, batch: Batch):
+        out = []
+        dw, det = batch.dwells, batch.detections
+        for k, rows in batch.dwell_slices():
+            sub = {name: col[rows] for name, col in det.items()}
+            rows_k = self._dwell(dw, k, sub)
+            if rows_k is not None:
+                out.append(rows_k)
+        if not out:
+            return None
+        cols = [c for c in TRACK_COLUMNS if c in out[0]]
+        return {c: np.concatenate([o[c] for o in out]) for c in cols}
+
+
+def _first_det_id(track) -> int:
+    """det_id of the detection a track was started from (a deterministic order of new tracks;
+    Stone Soup hands them over in a set)."""
+    for state in track.states:
+        hyp = getattr(state, "hypothesis", None)
+        meas = getattr(hyp, "measurement", None)
+        if meas is not None and "det_id" in getattr(meas, "metadata", {}):
+            return int(meas.metadata["det_id"])
+    return -1
+
+
+class _AssociatingTracker(_StoneSoupTracker):
+    """GNN / JPDA: confirmed tracks updated by an associator, M-point initiation."""
+
+    def __init__(self, min_points: int = 3, delete_after_s: float = 25.0, **kwargs):
+        self.min_points = int(min_points)
+        self.delete_after_s = float(delete_after_s)
+        super().__init__(**kwargs)
+        self.gate_distance = float(np.sqrt(chi2.ppf(self.gate_probability, 2)))
+        self.gnn = GNNWith2DAssignment(DistanceHypothesiser(
+            self.predictor, self.updater, measure=Mahalanobis(),
+            missed_distance=self.gate_distance))
+        self.reset(SceneInfo())
+
+    def reset(self, scene: SceneInfo) -> None:
+        super().reset(scene)
+        self.tracks = set()
+        self.deleter = UpdateTimeDeleter(
+            time_since_update=datetime.timedelta(seconds=self.delete_after_s))
+        self.initiator = MultiMeasurementInitiator(
+            prior_state=self._prior(), deleter=self.deleter, data_associator=self.gnn,
+            updater=self.updater, measurement_model=self.default_model,
+            min_points=self.min_points)
+
+    def _associate_and_update(self, tracks, detections, when) -> set:
+        raise NotImplementedError
+
+    def _dwell(self, dw, k: int, det):
+        t = float(dw["time_s"][k])
+        when = _stamp(t)
+        detections = self._detections(dw, k, det)
+        tracks = sorted(self.tracks, key=self._id)
+        covered = [tr for tr, c in zip(tracks, self._covered_mask(
+            dw, k, [tr.state for tr in tracks])) if c]
+        used = self._associate_and_update(set(covered), set(detections), when) \
+            if covered else set()
+        dead = self.deleter.delete_tracks(self.tracks, timestamp=when)
+        self.tracks -= dead
+        new = self.initiator.initiate(set(detections) - used, when)
+        for tr in sorted(new, key=_first_det_id):
+            self._id(tr)
+        self.tracks |= new
+        report = [tr for tr in covered if tr not in dead] + sorted(new, key=self._id)
+        return self._rows([self._id(tr) for tr in report], t, [tr.state for tr in report])
+
+
+class StoneSoupGNN(_AssociatingTracker):
+    """Global nearest neighbour (Stone Soup ``GNNWith2DAssignment``)."""
+
+    def _associate_and_update(self, tracks, detections, when) -> set:
+        used = set()
+        for track, hyp in self.gnn.associate(tracks, detections, when).items():
+            if hyp:
+                track.append(self.updater.update(hyp))
+                used.add(hyp.measurement)
+            else:
+                track.append(hyp.prediction)
+        return used
+
+
+class StoneSoupJPDA(_AssociatingTracker):
+    """Joint probabilistic data association (Stone Soup ``JPDA``)."""
+
+    def __init__(self, prob_detect: float = 0.6, clutter_density_per_km2: float = 0.01,
+                 **kwargs):
+        self.prob_detect = float(prob_detect)
+        self.clutter_density_per_km2 = float(clutter_density_per_km2)
+        super().__init__(**kwargs)
+        self.jpda = JPDA(PDAHypothesiser(
+            self.predictor, self.updater, clutter_spatial_density=self.clutter_density_per_km2
+            / 1e6, prob_detect=self.prob_detect, prob_gate=self.gate_probability))
+
+    def _associate_and_update(self, tracks, detections, when) -> set:
+        used = set()
+        for track, multi in self.jpda.associate(tracks, detections, when).items():
+            states, weights = [], []
+            for hyp in multi:
+                if not hyp:
+                    states.append(hyp.prediction)
+                else:
+                    states.append(self.updater.update(hyp))
+                    used.add(hyp.measurement)
+                weights.append(float(hyp.probability))
+            means = StateVectors([s.state_vector for s in states])
+            covars = np.stack([s.covar for s in states], axis=2)
+            mean, covar = gm_reduce_single(means, covars, np.asarray(weights))
+            track.append(GaussianStateUpdate(mean, covar, multi, when))
+        return used
+
+
+class StoneSoupGMPHD(_StoneSoupTracker):
+    """Gaussian-mixture PHD filter with tagged components (Stone Soup PHD components)."""
+
+    def __init__(self, prob_detect: float = 0.6, prob_survival: float = 0.999,
+                 clutter_density_per_km2: float = 0.01, birth_weight: float = 0.05,
+                 extraction_threshold: float = 0.5, prune_threshold: float = 1e-6,
+                 merge_threshold: float = 16.0, **kwargs):
+        self.prob_detect = float(prob_detect)
+        self.prob_survival = float(prob_survival)
+        self.clutter_density_per_km2 = float(clutter_density_per_km2)
+        self.birth_weight = float(birth_weight)
+        self.extraction_threshold = float(extraction_threshold)
+        super().__init__(**kwargs)
+        self.hypothesiser = GaussianMixtureHypothesiser(DistanceHypothesiser(
+            self.predictor, self.updater, measure=Mahalanobis(),
+            missed_distance=float(np.sqrt(chi2.ppf(self.gate_probability, 2)))),
+            order_by_detection=True)
+        self.phd = PHDUpdater(self.updater, clutter_spatial_density=self.clutter_density_per_km2
+                              / 1e6, prob_detection=self.prob_detect,
+                              prob_survival=self.prob_survival)
+        self.reducer = GaussianMixtureReducer(prune_threshold=prune_threshold,
+                                              pruning=True, merge_threshold=merge_threshold,
+                                              merging=True)
+        self.reset(SceneInfo())
+
+    def reset(self, scene: SceneInfo) -> None:
+        super().reset(scene)
+        self.components: list = []
+        self._known: set = set()
+
+    def _birth(self, dw, k: int, when) -> TaggedWeightedGaussianState:
+        """A birth component spread over dwell ``k``'s footprint (uniform-equivalent σ)."""
+        v = self.init_speed_sigma_mps ** 2
+        if all(c in dw for c in ("area_x_m", "area_range_m", "range_half_extent_m",
+                                 "beam_az_rad", "angle_half_extent_rad")):
+            cx, cy = float(dw["area_x_m"][k]), float(dw["area_y_m"][k])
+            along = float(dw["range_half_extent_m"][k]) / np.sqrt(3.0)
+            cross = float(dw["area_range_m"][k]) * float(dw["angle_half_extent_rad"][k]) \
+                / np.sqrt(3.0)
+            az = float(dw["beam_az_rad"][k])
+        else:
+            cx = cy = 0.0
+            along = cross = 20000.0
+            az = 0.0
+        u = np.array([np.sin(az), np.cos(az)])          # along the beam (east, north)
+        w = np.array([np.cos(az), -np.sin(az)])
+        C = along ** 2 * np.outer(u, u) + cross ** 2 * np.outer(w, w)
+        P = np.diag([0.0, v, 0.0, v])
+        P[np.ix_([0, 2], [0, 2])] = C
+        return TaggedWeightedGaussianState(np.array([[cx], [0.0], [cy], [0.0]]), P,
+                                           weight=self.birth_weight, tag="birth",
+                                           timestamp=when)
+
+    def _dwell(self, dw, k: int, det):
+        t = float(dw["time_s"][k])
+        when = _stamp(t)
+        detections = self._detections(dw, k, det)          # a list, in det_id order
+        mask = self._covered_mask(dw, k, self.components)
+        inside = [c for c, m in zip(self.components, mask) if m]
+        outside = [c for c, m in zip(self.components, mask) if not m]
+        if not inside and not detections:
+            return None
+        hyps = self.hypothesiser.hypothesise(inside + [self._birth(dw, k, when)], detections,
+                                             when)
+        updated = self.phd.update(hyps).components
+        updated = list(self.reducer.reduce(updated))
+        fresh: Dict[str, str] = {}      # Stone Soup's new tags are uuid4: name them in order
+        for c in updated:
+            if c.tag != c.BIRTH and c.tag not in self._known:
+                if c.tag not in fresh:
+                    fresh[c.tag] = f"t{len(self._known) + len(fresh)}"
+                c.tag = fresh[c.tag]
+        self._known |= set(fresh.values())
+        self.components = outside + updated
+        best: Dict[object, TaggedWeightedGaussianState] = {}
+        for c in updated:
+            if c.weight > self.extraction_threshold and (
+                    c.tag not in best or c.weight > best[c.tag].weight):
+                best[c.tag] = c
+        tags = sorted(best, key=lambda g: int(g[1:]))
+        return self._rows([self._id(g) for g in tags], t, [best[g] for g in tags])

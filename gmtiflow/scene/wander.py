@@ -1,0 +1,186 @@
+r"""The position noise ("wander") of a vehicle: a smooth process in continuous time.
+
+Each vehicle's offset from its route point, in the road frame (along, across, up), is a
+*normalised cubic B-spline* of independent Gaussian knot values c_k ~ N(0, σ²) spaced h apart:
+
+.. math::
+    n(t) = \frac{\sum_k B_k(x)\, c_k}{\sqrt{\sum_k B_k(x)^2}}, \qquad x = (t - t_0)/h ,
+
+with B_k the uniform cubic B-spline basis (four non-zero terms).  The numerator alone would
+have a variance that dips between knots (as the old linear interpolation of grid draws did:
+0.71–0.82 σ between steps); dividing by √(Σ B_k²) makes n(t) exactly N(0, σ²) at *every*
+instant, and the result is twice continuously differentiable, so the truth velocity and
+acceleration are the exact derivatives (quotient rule, below).  h = ``position_noise_corr_s``
+(knots one correlation time apart; correlation 0.84 at lag h/2, 0.49 at h, 0.05 at 2h, 0 from
+3h), or the motion step Δt when it is 0 (the paper's independent noise per step, now smooth
+between steps).
+The wander's own speed is of order σ/h (0.2 m/s along the road for the default 1 m and 5 s).
+
+Derivatives, with N = Σ B c, Q = Σ B², primes d/dx: n' = N' Q^{-1/2} − ½ N Q' Q^{-3/2},
+n'' = N'' Q^{-1/2} − N' Q' Q^{-3/2} + ¾ N Q'² Q^{-5/2} − ½ N Q'' Q^{-3/2}; d/dt = (1/h) d/dx.
+
+The road frame turns smoothly through a corner (:func:`corner_heading`): within
+:data:`CORNER_BLEND_M` of a vertex (at most half of either adjacent segment) the frame's heading
+goes from one segment's to the next with a smoothstep in arc length, so the offset, and with it
+the position, has no jump at corners and its rate (the truth velocity) none either.
+
+Knot values come from ``rng.stream(seed, "truth", "vehicle", name, "wander")``, drawn
+knot-major for the vehicle's own time span only (from its start time to the scene's end), so
+cost and memory follow the trip, and a longer scene extends, never changes, them.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+CORNER_BLEND_M = 10.0
+_CHUNK = 500_000       # rows per block when evaluating (bounded temporaries)
+
+
+def knot_spacing_s(corr_s: float, dt_s: float) -> float:
+    """h: the correlation time, or the motion step when it is 0."""
+    return float(corr_s) if corr_s > 0 else float(dt_s)
+
+
+def n_knots(t0_s: float, end_s: float, h_s: float) -> int:
+    """Knots covering [t0, end] (x from 0 to (end − t0)/h, plus the spline's 3 neighbours)."""
+    return int(math.ceil(max(end_s - t0_s, 0.0) / h_s - 1e-9)) + 4
+
+
+def draw_knots(gen: np.random.Generator, sigma_m, n: int) -> np.ndarray:
+    """(n, 3) knot values, N(0, σ²) per axis (σ = along, across, up)."""
+    return gen.standard_normal((n, 3)) * np.asarray(sigma_m, float)
+
+
+def _basis(x):
+    """Uniform cubic B-spline weights (4, n) at fractions x and their first two derivatives."""
+    y = 1.0 - x
+    x2, x3 = x * x, x * x * x
+    b = np.stack([y * y * y / 6.0, (3.0 * x3 - 6.0 * x2 + 4.0) / 6.0,
+                  (-3.0 * x3 + 3.0 * x2 + 3.0 * x + 1.0) / 6.0, x3 / 6.0])
+    d1 = np.stack([-0.5 * y * y, 1.5 * x2 - 2.0 * x, -1.5 * x2 + x + 0.5, 0.5 * x2])
+    d2 = np.stack([y, 3.0 * x - 2.0, 1.0 - 3.0 * x, x])
+    return b, d1, d2
+
+
+def evaluate(time_s, vehicle, knots, offset, t0_s, h_s):
+    """Offsets n, rates ṅ and accelerations n̈, each (n, 3), of vehicles ``vehicle`` (n,) at
+    ``time_s`` (n,): ``knots`` (K, 3) all vehicles' knot values, ``offset`` (N + 1,) each
+    vehicle's first knot row, ``t0_s`` and ``h_s`` (N,) its time origin and knot spacing."""
+    t = np.asarray(time_s, float)
+    n = np.zeros((t.size, 3))
+    nd = np.zeros((t.size, 3))
+    ndd = np.zeros((t.size, 3))
+    for i0 in range(0, t.size, _CHUNK):
+        sl = slice(i0, i0 + _CHUNK)
+        v = vehicle[sl]
+        h = h_s[v]
+        count = offset[v + 1] - offset[v]
+        u = np.clip((t[sl] - t0_s[v]) / h, 0.0, (count - 4).astype(float) + 1.0 - 1e-12)
+        i = np.floor(u).astype(np.int64)
+        x = u - i
+        b, b1, b2 = _basis(x)
+        q = np.sum(b * b, axis=0)
+        q1 = 2.0 * np.sum(b * b1, axis=0)
+        q2 = 2.0 * np.sum(b1 * b1 + b * b2, axis=0)
+        rq = 1.0 / np.sqrt(q)
+        base = offset[v] + i
+        num = np.zeros((len(v), 3))
+        num1 = np.zeros((len(v), 3))
+        num2 = np.zeros((len(v), 3))
+        for k in range(4):
+            c = knots[base + k]
+            num += b[k][:, None] * c
+            num1 += b1[k][:, None] * c
+            num2 += b2[k][:, None] * c
+        r1, r3, r5 = rq[:, None], (rq ** 3)[:, None], (rq ** 5)[:, None]
+        q1c, q2c = q1[:, None], q2[:, None]
+        n[sl] = num * r1
+        nd[sl] = (num1 * r1 - 0.5 * num * q1c * r3) / h[:, None]
+        ndd[sl] = (num2 * r1 - num1 * q1c * r3 + 0.75 * num * q1c * q1c * r5
+                   - 0.5 * num * q2c * r3) / (h * h)[:, None]
+    return n, nd, ndd
+
+
+def segment_headings(xyz_m: np.ndarray) -> np.ndarray:
+    """Heading (rad, clockwise from north) of each segment of a polyline; a segment without
+    horizontal extent takes the previous one's (the first such: the next one's, else 0)."""
+    d = np.diff(np.asarray(xyz_m, float), axis=0)
+    horiz = np.hypot(d[:, 0], d[:, 1])
+    psi = np.arctan2(d[:, 0], d[:, 1])
+    ok = horiz > 0
+    if not np.any(ok):
+        return np.zeros(len(d))
+    idx = np.where(ok, np.arange(len(d)), -1)
+    idx = np.maximum.accumulate(idx)
+    idx[idx < 0] = np.flatnonzero(ok)[0]
+    return psi[idx]
+
+
+def corner_blends(s_m: np.ndarray, psi: np.ndarray):
+    """Per vertex of a polyline: the blend half-width b (m) and the turn Δψ (rad, wrapped to
+    (−π, π]) from the incoming to the outgoing segment; 0 at the two end vertices."""
+    seg = np.diff(np.asarray(s_m, float))
+    nv = len(s_m)
+    b = np.zeros(nv)
+    turn = np.zeros(nv)
+    if nv > 2:
+        b[1:-1] = np.minimum(CORNER_BLEND_M, 0.5 * np.minimum(seg[:-1], seg[1:]))
+        turn[1:-1] = np.mod(psi[1:] - psi[:-1] + math.pi, 2.0 * math.pi) - math.pi
+    return b, turn
+
+
+def _smoothstep(x):
+    return x * x * (3.0 - 2.0 * x), 6.0 * x * (1.0 - x), 6.0 - 12.0 * x
+
+
+def corner_heading(s, s_j, s_j1, psi_j, b_j, turn_j, b_j1, turn_j1):
+    """Heading ψ(s) of the road frame on segment j = [s_j, s_j1] (heading ψ_j), with its
+    derivatives dψ/ds and d²ψ/ds²: ψ_j in the middle, a smoothstep across the blend of vertex
+    j (from the previous heading, ψ_j − turn_j) and of vertex j + 1 (towards ψ_j + turn_j1)."""
+    psi = np.array(psi_j, float, copy=True)
+    d1 = np.zeros_like(psi)
+    d2 = np.zeros_like(psi)
+    near_start = (s - s_j) < b_j
+    if np.any(near_start):
+        i = np.flatnonzero(near_start)
+        x = (s[i] - s_j[i] + b_j[i]) / (2.0 * b_j[i])          # in [0.5, 1]
+        f, f1, f2 = _smoothstep(x)
+        psi[i] = psi_j[i] - turn_j[i] + turn_j[i] * f
+        d1[i] = turn_j[i] * f1 / (2.0 * b_j[i])
+        d2[i] = turn_j[i] * f2 / (2.0 * b_j[i]) ** 2
+    near_end = ~near_start & ((s_j1 - s) < b_j1)
+    if np.any(near_end):
+        i = np.flatnonzero(near_end)
+        x = (b_j1[i] - (s_j1[i] - s[i])) / (2.0 * b_j1[i])    # in [0, 0.5]
+        f, f1, f2 = _smoothstep(x)
+        psi[i] = psi_j[i] + turn_j1[i] * f
+        d1[i] = turn_j1[i] * f1 / (2.0 * b_j1[i])
+        d2[i] = turn_j1[i] * f2 / (2.0 * b_j1[i]) ** 2
+    return psi, d1, d2
+
+
+def world_offset(n, nd, ndd, psi, dpsi_ds, d2psi_ds2, speed, accel):
+    """Offset, velocity and acceleration (each (k, 3), ENU) of the wander in a frame turning
+    with heading ψ(s(t)): along A = (sin ψ, cos ψ, 0), across C = (−cos ψ, sin ψ, 0) (left), up.
+
+    With ω = ψ'·v and ω' = ψ''·v² + ψ'·a (A' = −ωC, C' = ωA):
+    velocity (ṅ_a + ω n_c) A + (ṅ_c − ω n_a) C + ṅ_u U;
+    acceleration (n̈_a + ω' n_c + 2ω ṅ_c − ω² n_a) A + (n̈_c − ω' n_a − 2ω ṅ_a − ω² n_c) C + n̈_u U.
+    """
+    sp, cp = np.sin(psi), np.cos(psi)
+    w = dpsi_ds * speed
+    wd = d2psi_ds2 * speed * speed + dpsi_ds * accel
+    na, nc, nu = n.T
+    va, vc, vu = nd.T
+    aa, ac, au = ndd.T
+
+    def world(c_a, c_c, c_u):
+        return np.column_stack([c_a * sp - c_c * cp, c_a * cp + c_c * sp, c_u])
+
+    off = world(na, nc, nu)
+    vel = world(va + w * nc, vc - w * na, vu)
+    acc = world(aa + wd * nc + 2.0 * w * vc - w * w * na,
+                ac - wd * na - 2.0 * w * va - w * w * nc, au)
+    return off, vel, acc

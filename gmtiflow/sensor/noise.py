@@ -1,0 +1,150 @@
+r"""Thermal-noise false alarms of the detector (paper §5.4; issue 12 §1).
+
+A GMTI detector compares every range-Doppler cell of a dwell with the threshold
+T = −ln P_FA (:mod:`gmtiflow.sensor.detect`); noise alone crosses it in a fraction P_FA of them.
+Per dwell the number of noise false alarms is therefore Poisson with mean
+
+.. math::  \bar n = P_{FA}\, N_r\, N_D\, N_a
+
+(:attr:`SensorConfig.expected_false_alarms_per_dwell`, :attr:`SensorConfig.noise_cells`):
+
+* N_r = (min(R_max, c·PRI/2) − R_min) / Δr, the slant-range window over the range cell
+  Δr = k c/(2B) (only the unambiguous part of the window is a set of distinct range gates);
+* N_D = PRF / Δf_D = PRF·CPI/k_D, the Doppler filters of the CPI (without a PRI:
+  G_I/k_D, one filter per integrated pulse);
+* N_a = 1, the dwell's beam: monopulse refines a detection's angle within its beam, it does
+  not test separate angle cells.
+
+With the default sensor: N_r = 16 000 m / 3.0 m = 5 333, N_D = 128, so n̄ = 0.683 per dwell at
+P_FA = 1e-6 (9.6 per 14-dwell scan), ×100 per factor 100 of P_FA.
+
+Each false alarm is placed uniformly in the dwell's resolution cells: slant range uniform in the
+window, the antenna-frame scan angle uniform in *sine* space over the dwell's beam cell
+(:meth:`ChunkContext.dwell_cell_rad`, the cells tile the sector, as the beams do), and its own
+range rate (relative to the ground clutter, the frame the Doppler filters are centred on by the
+STAP/clutter-locking processor) uniform over the searched band [−λ·band/4, +λ·band/4), i.e.
+±λ·PRF/4, the unambiguous interval; the reported range rate is that plus the clutter's
+ṙ_MLC = −v_p·ℓ at the point.  The ground point is where that (range, angle) meets the terrain
+(:mod:`gmtiflow.sensor.geolocate`), exactly as a detection is geolocated, so its reported
+position is the cell's position (no further error: a uniform point plus an error is uniform).
+
+Masks, like a target's: a cell whose range does not reach the ground, outside the elevation
+limits, beyond the radar horizon or in terrain shadow yields nothing (thinning a Poisson process
+keeps it Poisson; the expectation then is n̄ times the visible fraction of the cells, exactly n̄
+for the default scene over flat ground).
+
+The reported SNR follows the targets' convention (z − 1 with z the detector output, here
+z = T + Exp(1), :func:`gmtiflow.sensor.detect.false_alarm_snr`), σ's follow from it like a
+target's (:func:`gmtiflow.sensor.measurement.sigmas`), ``truth_id`` = −1.
+
+Randomness: counter-based draws keyed ``counter_key(seed, "sensor", "noise_false_alarms")`` on
+(dwell_id, index, channel).  Targets use other keys, so their detections are bit-identical with
+or without noise false alarms, and at any other false-alarm setting (common random numbers).
+Vectorised over every false alarm of a chunk: no per-dwell Python work.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from gmtiflow import frames, rng
+from gmtiflow.sensor import antenna, detect, geolocate, measurement, scan, visibility
+from gmtiflow.sensor.config import C_MPS, SensorConfig
+from gmtiflow.tables import Table
+
+STREAM = "noise_false_alarms"
+_CH_COUNT, _CH_RANGE, _CH_ANGLE, _CH_RR, _CH_SNR = range(5)
+
+
+def _world_azimuth(dx, dy):
+    return np.mod(np.arctan2(dx, dy), 2.0 * np.pi)
+
+
+def poisson_counts(key, dwell_id: np.ndarray, mean) -> np.ndarray:
+    """One Poisson count per dwell by inversion of a counter-based uniform (exactly Poisson)."""
+    u = rng.pair_uniform(key, dwell_id, 0, _CH_COUNT)
+    mean = np.broadcast_to(np.asarray(mean, float), u.shape)
+    counts = np.zeros(len(dwell_id), dtype=np.int64)
+    pos = mean > 0
+    if np.any(pos):
+        counts[pos] = stats.poisson.ppf(u[pos], mean[pos]).astype(np.int64)
+    return counts
+
+
+def expand(counts: np.ndarray):
+    """Per point: the position of its dwell in the batch and its index within the dwell."""
+    batch = np.repeat(np.arange(len(counts)), counts)
+    starts = np.cumsum(counts) - counts
+    index = np.arange(int(counts.sum())) - np.repeat(starts, counts)
+    return batch, index
+
+
+def false_alarm_rows(ctx, cfg: SensorConfig, dwell_id, x, y, z, own_rr, snr_lin,
+                     first_det_id: int) -> Table:
+    """/detections rows of false alarms at ground points (x, y, z) of their dwells.
+
+    ``own_rr`` is the radial speed relative to the ground (the reported range rate adds the
+    clutter's ṙ_MLC); ``snr_lin`` the reported (linear) SNR; σ's follow from it.
+    """
+    d = ctx.dwells
+    m = len(dwell_id)
+    k = np.asarray(dwell_id, np.int64) - int(d["dwell_id"][0])
+    rng_m, _, _ = ctx.antenna_angles(dwell_id, x, y, z)
+    az = _world_azimuth(x - d["platform_x_m"][k], y - d["platform_y_m"][k])
+    rr = ctx.range_rate_of_ground(dwell_id, x, y, z) + own_rr
+    bw = scan.broadened_beamwidth_rad(cfg, d["beam_scan_rad"][k])
+    s_r, s_az, s_rr = measurement.sigmas(cfg, snr_lin, bw)
+    lat, lon, h = frames.enu_to_geodetic(ctx.origin, x, y, z)
+    false = np.zeros(m, bool)
+    return {
+        "det_id": first_det_id + np.arange(m, dtype=np.int64), "dwell_id": dwell_id,
+        "time_s": d["time_s"][k], "range_m": rng_m, "azimuth_rad": az,
+        "range_rate_mps": rr, "true_range_m": rng_m, "true_azimuth_rad": az,
+        "true_range_rate_mps": rr, "snr_db": 10.0 * np.log10(snr_lin), "sigma_range_m": s_r,
+        "sigma_azimuth_rad": s_az, "sigma_range_rate_mps": s_rr, "x_m": x, "y_m": y,
+        "z_m": z, "lat_deg": np.atleast_1d(lat), "lon_deg": np.atleast_1d(lon),
+        "height_m": np.atleast_1d(h), "truth_id": np.full(m, -1, np.int64),
+        "merged": false, "range_folded": false.copy(), "doppler_wrapped": false.copy(),
+        "implausible": false.copy(), "rcs_dbsm": np.full(m, np.nan),
+        "wrap_velocity_mps": np.full(m, cfg.wrap_velocity_mps),
+    }
+
+
+def append_rows(detections: Table, rows: Table) -> Table:
+    """``detections`` with ``rows`` appended (dtypes of ``detections``)."""
+    return {name: np.concatenate([np.asarray(detections[name]),
+                                  np.asarray(rows[name]).astype(np.asarray(detections[name]).dtype,
+                                                                copy=False)])
+            for name in detections}
+
+
+def draw(ctx, cfg: SensorConfig, seed: int) -> Table:
+    """The noise false alarms of the chunk's dwells, as /detections rows (chunk-local ids from
+    0; the caller offsets them)."""
+    d = ctx.dwells
+    dwell_id = np.asarray(d["dwell_id"], np.int64)
+    key = rng.counter_key(seed, "sensor", STREAM)
+    counts = poisson_counts(key, dwell_id, cfg.expected_false_alarms_per_dwell)
+    batch, index = expand(counts)
+    did = dwell_id[batch]
+    r0 = cfg.range_min_m
+    r1 = cfg.range_max_m if cfg.pri_s is None else min(cfg.range_max_m, C_MPS * cfg.pri_s / 2.0)
+    range_m = r0 + (r1 - r0) * rng.pair_uniform(key, did, index, _CH_RANGE)
+    lo, hi = ctx.dwell_cell_rad(dwell_id)
+    u_lo, u_hi = np.sin(lo), np.sin(hi)
+    u = u_lo[batch] + (u_hi - u_lo)[batch] * rng.pair_uniform(key, did, index, _CH_ANGLE)
+    az = np.arcsin(u)
+    half = cfg.range_rate_band_mps
+    own_rr = half * (2.0 * rng.pair_uniform(key, did, index, _CH_RR) - 1.0)
+    snr_lin = detect.false_alarm_snr(rng.pair_uniform(key, did, index, _CH_SNR), cfg.pfa)
+    plat = tuple(np.asarray(d[f"platform_{c}_m"], float)[batch] for c in "xyz")
+    ground, el, reached = geolocate.geolocate(plat, range_m, az,
+                                              antenna.take(ctx.boresight, batch),
+                                              antenna.take(ctx.scan_axis, batch),
+                                              antenna.take(ctx.antenna_up, batch), ctx.terrain)
+    ok = np.asarray(reached, bool) & visibility.in_field_of_view(cfg, az, el, range_m)
+    i = np.flatnonzero(ok)
+    pts = tuple(c[i] for c in ground)
+    i = i[ctx.visible(did[i], *pts)]
+    return false_alarm_rows(ctx, cfg, did[i], ground[0][i], ground[1][i], ground[2][i],
+                            own_rr[i], snr_lin[i], 0)

@@ -1,0 +1,82 @@
+"""mdv_mps: auto (the main-lobe clutter spread) and no_stap's main-lobe clutter (issue 12 §5)."""
+import math
+
+import numpy as np
+import pytest
+
+from gmtiflow.sensor import gain, scan
+from gmtiflow.sensor.config import SensorConfig
+from gmtiflow.sensor.outcome import Outcome
+from sensor_fakes import LevelPlatform, LineFleet, run, still
+
+
+@pytest.mark.parametrize("speed, aperture", [(200.0, 1.2), (100.0, 1.2), (200.0, 0.6),
+                                             (0.0, 1.2), (300.0, 1.2)])
+def test_auto_mdv_is_half_the_main_beam_clutter_spread(speed, aperture):
+    """Side-looking, level: ½ v_p cos(el) k λ / d_a at every scan angle (el of the range
+    window's middle): 2.44 m/s for the default at 200 m/s, ∝ speed, ∝ 1/aperture."""
+    cfg = SensorConfig(mdv_mps="auto", aperture_m=aperture)
+    assert cfg.problems() == []
+    plat = LevelPlatform(speed_mps=speed)
+    out = run(cfg, still([[0.0, 0.0]]), platform=plat)
+    d = out["dwells"]
+    r_mid = 0.5 * (cfg.range_min_m + cfg.range_max_m)
+    cos_el = math.sqrt(1 - (6000.0 / r_mid) ** 2)
+    expected = 0.5 * speed * cos_el * cfg.beamwidth_sine
+    assert np.allclose(d["mdv_mps"], expected, rtol=1e-6, atol=1e-12)
+    if speed == 200.0 and aperture == 1.2:
+        assert 2.4 < d["mdv_mps"][0] < 2.5
+
+
+def test_auto_mdv_with_a_squinted_antenna_depends_on_the_scan_angle():
+    """Mounted 45° forward: the spread is v_p sin(θ_v) … with θ_v the beam's angle to the
+    velocity, so it varies across the scan (the formula is evaluated per dwell)."""
+    cfg = SensorConfig(mdv_mps="auto", mount_deg=45.0, az_min_deg=-30, az_max_deg=30,
+                       el_min_deg=-60, range_min_m=9000, range_max_m=15000)
+    out = run(cfg, still([[0.0, 0.0]]), platform=LevelPlatform(speed_mps=200.0))
+    m = out["dwells"]["mdv_mps"]
+    assert np.ptp(m) > 0.1 * m.max()
+    # the beam nearest the velocity (most negative scan angle, 15° off the nose) spreads least
+    assert np.argmin(m) == 0
+
+
+def test_auto_mdv_sweeps_with_platform_speed_end_to_end():
+    """A slow radial mover (own radial speed 2 m/s) is in the notch of a 300 m/s platform's
+    auto MDV (3.7 m/s) and out of that of a 50 m/s platform (0.6 m/s)."""
+    fleet = LineFleet([[0.0, 0.0, 0.0]] * 40, [0.0, 2.0, 0.0])
+    blind = {}
+    for speed in (50.0, 300.0):
+        cfg = SensorConfig(mdv_mps="auto")
+        lk = run(cfg, fleet, platform=LevelPlatform(speed_mps=speed), duration_s=30.0)["looks"]
+        drawn = np.isin(lk["outcome"], [Outcome.DETECTED, Outcome.DOPPLER_BLIND, Outcome.PD_MISS])
+        blind[speed] = np.mean(lk["outcome"][drawn] == Outcome.DOPPLER_BLIND)
+    assert blind[50.0] == 0.0 and blind[300.0] > 0.5
+
+
+def test_no_stap_keeps_main_lobe_clutter():
+    """Without STAP, targets inside the main-lobe clutter band (centred on the beam centre's
+    clutter, half-width the spread to the first nulls v_p cos(el) k λ/d_a = 4.9 m/s) are lost;
+    radial movers outside it are seen; mdv_mps 0 is the paper's clutter-free case."""
+    cfg = SensorConfig(stap=False, mdv_mps="auto")
+    out = run(cfg, still([[0.0, 0.0]] * 20), duration_s=20.0)
+    d = out["dwells"]
+    expected = 200.0 * math.sqrt(1 - (6000.0 / 28000.0) ** 2) * cfg.beamwidth_sine
+    assert np.allclose(d["mdv_mps"], expected, rtol=1e-6)
+    lk = out["looks"]
+    seen = lk["outcome"] != Outcome.OUTSIDE_FOV
+    assert seen.sum() > 20 and np.all(lk["outcome"][seen] == Outcome.DOPPLER_BLIND)
+    movers = LineFleet([[0.0, 0.0, 0.0]] * 20, [0.0, 10.0, 0.0])
+    lk = run(cfg, movers, duration_s=20.0)["looks"]
+    seen = lk["outcome"] != Outcome.OUTSIDE_FOV
+    assert not np.any(lk["outcome"] == Outcome.DOPPLER_BLIND)
+    assert np.mean(lk["outcome"][seen] == Outcome.DETECTED) > 0.3
+    clean = run(SensorConfig(stap=False, mdv_mps=0.0), still([[0.0, 0.0]] * 20),
+                duration_s=20.0)["looks"]
+    assert np.any(clean["outcome"] == Outcome.DETECTED)
+    assert not np.any(clean["outcome"] == Outcome.DOPPLER_BLIND)
+
+
+def test_mdv_config_values():
+    assert [p.key for p in SensorConfig(mdv_mps="fast").problems()] == ["mdv_mps"]
+    assert SensorConfig(mdv_mps="auto").problems() == []
+    assert gain.stap_notch(np.array([0.0, 1.0]), np.array([0.0, 1.0]))[0] == 1.0

@@ -1,0 +1,93 @@
+"""What the ``gmtiflow`` command says: a short --help, a quiet run with a summary at the end,
+INFO lines only with -v, and no empty run directory after a config error."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from gmtiflow import console
+
+
+def _cli(cwd: Path, *args):
+    env = dict(os.environ, HYDRA_FULL_ERROR="0")
+    return subprocess.run([sys.executable, "-m", "gmtiflow.cli", *args], cwd=cwd,
+                          capture_output=True, text=True, env=env, timeout=300)
+
+
+def test_help_lists_every_group_on_one_line_without_the_config_dump(tmp_path):
+    proc = _cli(tmp_path, "--help")
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    groups = console.config_groups()
+    assert {"sensor", "roadmap", "vehicles", "tracker", "report"} <= set(groups)
+    for group, options in groups.items():
+        assert f"{group}: {', '.join(options)}" in lines
+    assert "wide_fov" in groups["sensor"]
+    assert len(lines) < 60            # Hydra's default help printed the ~500-line config
+    assert "peak_power_w:" not in proc.stdout      # no YAML dump
+    assert not list(tmp_path.iterdir())            # --help runs nothing, writes nothing
+
+
+def test_run_prints_a_summary_and_keeps_info_in_the_log(tmp_path):
+    proc = _cli(tmp_path, "hydra.run.dir=run", "scene.duration_s=20", "report.enabled=false",
+                "export=csv")
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout
+    nums = console.summary_numbers(tmp_path / "run" / "run.h5")
+    assert f"detections  {nums['detections']:.0f}: {nums['targets']:.0f} on targets, " \
+           f"{nums['false_alarms']:.0f} false alarms, {nums['merged']:.0f} merged" in out
+    assert f"P_D achieved {nums['pd_achieved']:.3f}" in out
+    assert "tracks" in out and "OSPA" in out and "run.h5" in out and "detections.csv" in out
+    assert "stage " not in proc.stderr and "cache:" not in proc.stderr       # quiet console
+    log = (tmp_path / "run" / "gmtiflow.log").read_text()
+    assert "stage sensor" in log                                             # all in the log
+    verbose = _cli(tmp_path, "-v", "hydra.run.dir=run2", "scene.duration_s=20",
+                   "report.enabled=false", "export=none")
+    assert verbose.returncode == 0 and "stage sensor" in verbose.stderr
+
+
+def test_summary_counts_match_the_run_file(tmp_path):
+    import numpy as np
+
+    from gmtiflow import pipeline, store
+    from gmtiflow.compose import compose
+    path = pipeline.run(compose(["progress=false", "scene.duration_s=20", "export=none",
+                                 "report.enabled=false", "clutter=lake"]), tmp_path)
+    nums = console.summary_numbers(path)
+    det = store.read_table(path, "detections")
+    assert nums["false_alarms"] == np.sum(det["truth_id"] < 0) > 0
+    assert nums["targets"] + nums["false_alarms"] == len(det["truth_id"])
+    assert nums["merged"] == np.sum(det["merged"])
+
+
+def test_missing_map_names_the_key_and_the_data_dir_and_leaves_no_run_dir(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "GMTIFLOW_DATA_DIR"}
+    proc = subprocess.run([sys.executable, "-m", "gmtiflow.cli", "experiment=monaco",
+                           "hydra.run.dir=outputs/2026-01-02/00-00-00"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1
+    assert "roadmap.path" in proc.stderr and "GMTIFLOW_DATA_DIR" in proc.stderr, proc.stderr
+    assert not (tmp_path / "outputs" / "2026-01-02").exists()
+
+
+def test_config_error_leaves_no_run_directory(tmp_path):
+    proc = _cli(tmp_path, "hydra.run.dir=outputs/2026-01-01/00-00-00", "sensor.peak_power_w=-1")
+    assert proc.returncode == 1
+    assert "sensor.peak_power_w" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "outputs" / "2026-01-01").exists()     # run dir and empty date dir
+
+
+def test_discard_keeps_a_directory_with_a_log_worth_keeping(tmp_path):
+    run = tmp_path / "run"
+    (run / ".hydra").mkdir(parents=True)
+    (run / "outputs.json").write_text('{"complete": false, "planned": ["run.h5"]}')
+    (run / "gmtiflow.log").write_text("[..][gmtiflow.pipeline][INFO] - stage roads   0.1 s\n"
+                                      "[..][gmtiflow][ERROR] - boom\n")
+    assert not console.discard_failed_run_dir(run) and run.is_dir()
+    (run / "gmtiflow.log").write_text("[..][gmtiflow.pipeline][INFO] - run pid=1 seed=1\n"
+                                      "[..][gmtiflow][ERROR] - boom\n")
+    (run / "notes.txt").write_text("mine")
+    assert not console.discard_failed_run_dir(run) and run.is_dir()      # a file of the user's
+    (run / "notes.txt").unlink()
+    assert console.discard_failed_run_dir(run) and not run.exists()
+    assert tmp_path.is_dir()          # not a Hydra date dir: the parent stays
