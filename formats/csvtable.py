@@ -47,7 +47,7 @@ COLUMNS: dict[str, dict[str, str]] = {
         "truth_id": I, "true_range_m": F, "true_azimuth_rad": F, "true_range_rate_mps": F,
         "merged": B, "range_folded": B, "doppler_wrapped": B, "implausible": B, "rcs_dbsm": F,
         "wrap_velocity_mps": F, "sigma_cross_range_m": F, "sigma_height_m": F,
-        "classification": U8, "sensor_id": I,
+        "classification": U8,
     },
     # Where the sensor was and what it looked at, one row per dwell (dwells without
     # detections too): a CSV-only tracker's negative information.

@@ -212,13 +212,20 @@ def receive(url: str, *, max_packets: Optional[int] = None, idle_timeout_s: floa
 
 
 def check_order(dwells: dict) -> None:
-    """ValueError unless, per platform, dwell times never go back (a receiver's sanity check)."""
+    """ValueError unless, per platform, dwell times never go back and the dwell sequence
+    numbers (revisit index D2, dwell index D3) never go back either (a receiver's sanity check;
+    the Dwell packets of a split dwell repeat its numbers)."""
     t = np.asarray(dwells.get("dwell_time_ms", []), np.int64)
     pid = np.asarray(dwells.get("sensor_id", np.zeros(len(t))), np.int64)
+    seq = (np.asarray(dwells["revisit_id"], np.int64) * 65536
+           + np.asarray(dwells["dwell_index"], np.int64)) if "revisit_id" in dwells else None
     for s in np.unique(pid):
-        ts = t[pid == s]
-        if np.any(np.diff(ts) < 0):
+        mine = pid == s
+        if np.any(np.diff(t[mine]) < 0):
             raise ValueError(f"platform {int(s)}: dwell times go back")
+        if seq is not None and np.any(np.diff(seq[mine]) < 0):
+            k = int(np.flatnonzero(np.diff(seq[mine]) < 0)[0]) + 1
+            raise ValueError(f"platform {int(s)}: dwell {k} goes back in (revisit, dwell index)")
 
 
 @dataclass

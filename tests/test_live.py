@@ -56,6 +56,7 @@ def test_a_stream_is_received_byte_for_byte_and_decodes(scheme):
     r = s4607.read_4607(b"".join(got))
     assert r["dwells"]["target_count"].sum() == 4000
     live.check_order(r["dwells"])
+    assert np.all(np.diff(r["dwells"]["dwell_index"]) >= 0)      # one revisit: dwell numbers
     stanag = pytest.importorskip("stanag4607", reason="PyPI stanag4607==0.1.0 (test extra)")
     dec = stanag.PacketStreamDecoder()
     decoded = list(dec.feed(b"".join(got)))
@@ -78,6 +79,18 @@ def test_packets_are_paced_by_dwell_time():
     th.join(10.0)
     assert len(got) == n
     assert elapsed >= 4.0 / 10.0 * 0.95                   # 4 s of scene at 10x real time
+
+
+def test_a_receiver_refuses_a_stream_whose_sequence_goes_back():
+    dw, det = synthetic.tables(4, 10, seed=5)
+    dwells = s4607.read_4607(s4607.encode_4607(dw, det, META))["dwells"]
+    live.check_order(dwells)
+    back = dict(dwells, dwell_index=dwells["dwell_index"][::-1].copy())
+    with pytest.raises(ValueError, match="goes back in"):
+        live.check_order(back)
+    late = dict(dwells, dwell_time_ms=dwells["dwell_time_ms"][::-1].copy())
+    with pytest.raises(ValueError, match="dwell times go back"):
+        live.check_order(late)
 
 
 def test_bad_urls_are_clear_errors():
@@ -113,9 +126,13 @@ def test_a_run_streams_while_it_simulates_and_convert_receives_it(tmp_path):
     ref = s4607.read_4607(run.parent / "detections.4607")
     assert len(got["dwell_id"]) == len(ref["dwells"]["dwell_id"]) > 0
     assert got["dwell_time_ms"].tolist() == ref["dwells"]["dwell_time_ms"].tolist()
+    for c in ("revisit_id", "dwell_index", "n_packets"):
+        assert got[c].tolist() == ref["dwells"][c].tolist(), c
+    live.check_order(got)                                # dwell times and sequence numbers
     det = store.read_table(tmp_path / "live.h5", "detections")
     np.testing.assert_array_equal(det["lat_deg"], ref["detections"]["lat_deg"])
     np.testing.assert_array_equal(det["los_velocity_mps"], ref["detections"]["los_velocity_mps"])
+    assert det["mti_report_index"].tolist() == ref["detections"]["mti_report_index"].tolist()
 
 
 def test_a_stream_of_several_sensors_is_refused_before_any_work(tmp_path):

@@ -6,16 +6,9 @@ import numpy as np
 import pytest
 
 from gmtiflow.formats import geojson, synthetic
+from tests.external_tools import gdal_read
 
-pyogrio_raw = pytest.importorskip("pyogrio.raw", reason="pyogrio (GDAL) is in the test extra")
 EPOCH = synthetic.EPOCH_UTC
-
-
-def gdal_read(path) -> tuple:
-    """(field name -> values, OGR type of each field, geometry type) as GDAL reads the file."""
-    meta, _, _, data = pyogrio_raw.read(str(path))
-    fields = dict(zip(meta["fields"].tolist(), data))
-    return fields, dict(zip(meta["fields"].tolist(), meta["ogr_types"])), meta["geometry_type"]
 
 
 def _roads():
