@@ -63,7 +63,7 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
                                                        max_tracks=cfg.max_track_lines,
                                                        tracker_enabled=tracker_on)),
         ("ospa", lambda: F.ospa_figure(t("metrics/ospa"), t("metrics/identity_switches"),
-                                       t("metrics/events"),
+                                       _fused(t("metrics/events")),
                                        cutoff_m=float(run.cfg("metrics.cutoff_m", float("nan"))),
                                        tracker_enabled=tracker_on)),
     ]
@@ -74,6 +74,14 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
             for s in (run.cfg("sensors", {}) or {}).values()))
         pages.insert(1, ("sensors", lambda: sensors_figure(sensors, window_s)))
     return pages
+
+
+def _fused(events):
+    """The fused events (``sensor_id`` -1); per-sensor rows would repeat them on the page."""
+    if "sensor_id" not in events:
+        return events
+    keep = np.asarray(events["sensor_id"]) < 0
+    return {k: np.asarray(v)[keep] for k, v in events.items()}
 
 
 def _expected_false_alarms(run: RunData) -> Optional[float]:
