@@ -56,7 +56,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from tqdm import tqdm
 
 TRACK, BRAKE_RANDOM, STOPPED, BRAKE_POINT = 0, 1, 2, 4
 MODE_CRUISE, MODE_DECEL, MODE_STOPPED, MODE_ACCEL = 0, 1, 2, 3
@@ -212,6 +211,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
     S[0] = s
     V[0] = v
     look_a = 0.5 * amax * dt * dt
+    from tqdm import tqdm
     for k in tqdm(range(K), desc="truth", unit="step", leave=False,
                   disable=None if progress else True, mininterval=0.5):
         if done.all():
