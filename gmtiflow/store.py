@@ -67,7 +67,7 @@ def required_columns() -> Dict[str, tuple]:
     """Columns every simulation run file of this layout has, per table: read off the writers'
     own column lists (imported lazily: the store sits below the stages)."""
     from gmtiflow.evaluate.events import EVENT_COLUMNS
-    from gmtiflow.evaluate.tracker import TRACK_COLUMNS
+    from gmtiflow.evaluate.tracks import TRACK_COLUMNS
     from gmtiflow.formats.geojson import EDGE_COLUMNS, NODE_COLUMNS
     from gmtiflow.scene.vehicles import TRUTH_COLUMNS
     from gmtiflow.sensor.model import DETECTION_COLUMNS, DWELL_COLUMNS, LOOK_COLUMNS

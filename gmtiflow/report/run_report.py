@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 from matplotlib.backends.backend_pdf import PdfPages
@@ -93,10 +93,12 @@ def _expected_false_alarms(run: RunData) -> Optional[float]:
         return None
 
 
-def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
+def build_run_report(cfg: ReportConfig, run_path, out_pdf,
+                     extra_pages: Sequence[Tuple[str, Callable[[], Figure]]] = ()) -> Path:
     """Build the PDF report of the finished run file ``run_path`` at ``out_pdf``; returns it.
 
-    Reads nothing but ``run_path``.  Raises :class:`gmtiflow.errors.StoreError` for a missing or
+    Reads nothing but ``run_path``; ``extra_pages`` ((name, builder) pairs) follow the title
+    page (``gmtiflow-report --tracks --baseline`` adds its side-by-side page so).  Raises :class:`gmtiflow.errors.StoreError` for a missing or
     incomplete run file.  With ``cfg.animation`` also writes ``<out_pdf stem>.gif`` beside it.
     """
     out_pdf = Path(out_pdf)
@@ -108,6 +110,7 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf) -> Path:
             tmp, metadata={"Title": f"gmtiflow run report: {run.path}",
                            "Creator": f"gmtiflow {__version__}"}) as pdf:
         pages = run_figures(run, cfg)
+        pages[1:1] = list(extra_pages)
         for page, builder in tqdm(pages, desc="report", unit="page", leave=False, delay=2.0,
                                   disable=None):   # a bar on a terminal when it takes > 2 s
             t0, c0 = time.perf_counter(), time.process_time()
