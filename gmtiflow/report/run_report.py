@@ -21,11 +21,11 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 from matplotlib.backends.backend_pdf import PdfPages
-from tqdm import tqdm
 from matplotlib.figure import Figure
 
 from gmtiflow.formats import atomic_path
 from gmtiflow import __version__
+from gmtiflow.console import progress
 
 from . import figures as F
 from .config import ReportConfig
@@ -111,8 +111,7 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf,
                            "Creator": f"gmtiflow {__version__}"}) as pdf:
         pages = run_figures(run, cfg)
         pages[1:1] = list(extra_pages)
-        for page, builder in tqdm(pages, desc="report", unit="page", leave=False, delay=2.0,
-                                  disable=None):   # a bar on a terminal when it takes > 2 s
+        for page, builder in progress(pages, "report", "page"):   # on a terminal, after 2 s
             t0, c0 = time.perf_counter(), time.process_time()
             pdf.savefig(builder(), dpi=cfg.dpi)   # the figure is dropped here (no pyplot)
             seconds[page] = time.perf_counter() - t0
