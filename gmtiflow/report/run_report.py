@@ -30,6 +30,7 @@ from gmtiflow.console import progress
 from . import figures as F
 from .config import ReportConfig
 from .data import RunData, key_numbers, load_run, n, summary
+from .pages.title import reference_values
 from .sensors_page import sensors_figure
 
 log = logging.getLogger(__name__)
@@ -43,8 +44,11 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
     t = run.table
     tracker_on = bool(run.cfg("tracker.enabled", True))
     pages = [
-        ("title", lambda: F.title_figure(run.attrs, run.config, key_numbers(run),
-                                         summary(t("metrics")), str(run.path))),
+        ("title", lambda: F.title_figure(
+            run.attrs, run.config, key_numbers(run), summary(t("metrics")), str(run.path),
+            overrides=recorded_overrides(run.path),
+            references=reference_values(run.config, key_numbers(run), t("detections"),
+                                        _expected_false_alarms(run)))),
         ("map", lambda: F.map_figure(t("roads/nodes"), t("roads/edges"), t("truth"), t("platform"),
                                      t("dwells"), t("detections"), t("tracks"),
                                      run.cfg("clutter.regions", []) or [], run.origin,
@@ -74,6 +78,18 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
             for s in (run.cfg("sensors", {}) or {}).values()))
         pages.insert(1, ("sensors", lambda: sensors_figure(sensors, window_s)))
     return pages
+
+
+def recorded_overrides(run_path: Path) -> Optional[List[str]]:
+    """The command-line overrides of the run (Hydra's ``.hydra/overrides.yaml`` beside the run
+    file), or None when the run did not record them (made from Python, or moved)."""
+    import yaml
+    path = Path(run_path).parent / ".hydra" / "overrides.yaml"
+    try:
+        items = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return None
+    return [str(x) for x in items] if isinstance(items, list) else None
 
 
 def _expected_false_alarms(run: RunData) -> Optional[float]:
