@@ -31,6 +31,7 @@ from . import figures as F
 from .config import ReportConfig
 from .data import RunData, key_numbers, load_run, n, summary
 from .pages.title import reference_values
+from .relief import run_terrain, terrain_source
 from .sensors_page import sensors_figure
 
 log = logging.getLogger(__name__)
@@ -54,7 +55,8 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
                                      run.cfg("clutter.regions", []) or [], run.origin,
                                      str(run.attrs.get("attribution", "") or ""),
                                      max_points=cfg.max_points, max_footprints=cfg.max_footprints,
-                                     max_track_lines=cfg.max_track_lines)),
+                                     max_track_lines=cfg.max_track_lines,
+                                     **_terrain_args(run))),
         ("sensor", lambda: F.sensor_figure(t("looks"), t("detections"),
                                            float(run.cfg("sensor.pfa", 1e-6)),
                                            snr_bin_db=cfg.snr_bin_db,
@@ -78,6 +80,12 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
             for s in (run.cfg("sensors", {}) or {}).values()))
         pages.insert(1, ("sensors", lambda: sensors_figure(sensors, window_s)))
     return pages
+
+
+def _terrain_args(run: RunData) -> dict:
+    """The map page's terrain arguments: the run's DEM rebuilt from its config (gmtiflow.report.relief)."""
+    terrain, note = run_terrain(run.config, run.origin)
+    return dict(terrain=terrain, terrain_name=terrain_source(run.config), terrain_note=note)
 
 
 def recorded_overrides(run_path: Path) -> Optional[List[str]]:
