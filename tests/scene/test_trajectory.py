@@ -102,6 +102,36 @@ def test_time_offset_shifts_the_log_and_outside_times_are_an_error():
             p.state_at(bad)
 
 
+@pytest.mark.parametrize("offset_s, duration_s, ok", [
+    (0.0, 200.0, True), (0.0, 200.5, False), (50.0, 150.0, True), (50.0, 151.0, False),
+    (-1.0, 10.0, False)])
+def test_a_log_shorter_than_the_scene_is_a_config_error_naming_file_and_times(
+        offset_s, duration_s, ok):
+    """Checked from the config before any work (it used to surface at the platform stage):
+    the message names the file, the scene times the log covers and the ones the scene needs."""
+    from gmtiflow.scene.trajectory import coverage_problem
+    cfg = PlatformConfig(kind=PlatformKind.trajectory, path=str(LOG), time_offset_s=offset_s)
+    problem = coverage_problem(cfg, duration_s, "sensors.east.platform")
+    if ok:
+        assert problem is None
+        return
+    first, last = 0.0 - offset_s, 200.0 - offset_s
+    assert f"sensors.east.platform.path: {LOG} covers scene times {first:g} .. {last:g} s" \
+        in problem and f"needs 0 .. {duration_s:g} s (scene.duration_s)" in problem \
+        and f"sensors.east.platform.time_offset_s = {offset_s:g}" in problem
+
+
+def test_the_run_refuses_a_short_log_before_touching_the_run_directory(tmp_path):
+    from gmtiflow import pipeline
+    from gmtiflow.compose import compose
+    cfg = compose(["platform=trajectory", f"platform.path={LOG}", "scene.duration_s=250",
+                   "report=none", "export=none", "cache.enabled=false", "progress=false"])
+    with pytest.raises(ConfigError, match=r"platform.path: .* covers scene times 0 \.\. 200 s "
+                                          r".* scene needs 0 \.\. 250 s"):
+        pipeline.run(cfg, tmp_path / "run")
+    assert not (tmp_path / "run").exists()
+
+
 BAD_FILES = {
     "unsorted": ("time_s,lat_deg,lon_deg,height_m\n0,50,7,100\n2,50,7,100\n1,50,7,100\n",
                  r"line 4, column time_s: times must be strictly increasing, got 1 after 2"),
