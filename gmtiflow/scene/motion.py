@@ -76,7 +76,6 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
-from tqdm import tqdm
 
 TRACK, BRAKE_RANDOM, STOPPED, BRAKE_POINT = 0, 1, 2, 4
 _BRIDGE_GUARD = np.sqrt(2.0) - 1.0     # max of q^{-1/2} - 1 (kappa <= 2)
@@ -338,6 +337,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
     S[0] = s
     V[0] = v
     look_a = 0.5 * amax * dt * dt
+    from tqdm import tqdm
     for k in tqdm(range(K), desc="truth", unit="step", leave=False,
                   disable=None if progress else True, mininterval=0.5):
         if done.all():
