@@ -310,7 +310,6 @@ def from_4607_tables(tables: dict, origin: Optional[frames.Origin] = None) -> di
     ``platform_v*_mps`` / ``platform_heading_rad`` on dwells, and detection ``azimuth_rad``
     from the platform in the scene frame (the reader's is relative to true north at the sensor).
     """
-    import pymap3d
     out = {k: v for k, v in tables.items() if k != "attrs"}
     dw = dict(out["dwells"])
     det = dict(out["detections"])
