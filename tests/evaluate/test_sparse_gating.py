@@ -133,3 +133,24 @@ def test_vectorised_association_is_the_per_truth_loop(monkeypatch, dense_pairs):
     got = identity.associate(truth_at, tracks_at, steps, 200.0)
     assert np.array_equal(got, want)
     assert (want >= 0).mean() > 0.5 and len(np.unique(want[want >= 0])) > n
+
+
+@pytest.mark.parametrize("m,n", [(90, 120), (120, 120), (150, 100)])
+def test_sparse_ospa_is_the_dense_ospa(monkeypatch, m, n):
+    from gmtiflow.evaluate import ospa
+    rng = np.random.default_rng(m + n)
+    X = rng.uniform(0, 3000, (m, 2))
+    Y = np.r_[X[: min(m, n) * 2 // 3] + rng.normal(0, 80, (min(m, n) * 2 // 3, 2)),
+              rng.uniform(0, 3000, (n - min(m, n) * 2 // 3, 2))]
+    dense = ospa.ospa_gospa(X, Y, 200.0, 2.0)
+    monkeypatch.setattr(ospa, "DENSE_PAIRS", 0)
+    sparse = ospa.ospa_gospa(X, Y, 200.0, 2.0)
+    assert dense["n_assigned"] > 30
+    for key in ("rows", "cols"):
+        assert np.array_equal(sparse[key], dense[key])
+    for key in ("localisation", "missed", "false", "gospa", "n_assigned"):
+        assert sparse[key] == dense[key], key
+    if m <= n:                                   # bit-identical
+        assert sparse["ospa"] == dense["ospa"]
+    else:                                        # the same terms summed in another order
+        assert sparse["ospa"] == pytest.approx(dense["ospa"], rel=1e-13)
