@@ -6,10 +6,11 @@
 3. The baseline tracker on 100 vehicles x 100 revisits (one dwell per revisit, light clutter).
 4. ``--scaling``: issue 18's targets.  The tracker on straight-road scenes of 10, 1k, 3k and
    10k vehicles (60 revisits of 14 beams, 840 dwells; vehicles 300 m apart, so the plots per
-   dwell grow with the vehicles) and ``evaluate()`` on 300, 1k and 3k truths x as many tracks
-   x 60 steps: CPU seconds (best of 2), the per-dwell cost at 10 vehicles (the fixed cost)
-   and the log-log slopes (target <= 1.1 from 1k to 10k, fixed cost <= 0.2 ms per dwell).
-   CPU time, not wall time: the development machine is shared.
+   dwell grow with the vehicles) and ``evaluate()`` on 300, 1k, 3k and 10k truths x as many
+   tracks x 60 steps at a fixed density (1 per km², the box grows with them): CPU seconds
+   (best of 2), the per-dwell cost at 10 vehicles (the fixed cost) and the log-log slopes
+   (target <= 1.1 from 1k to 10k, fixed cost <= 0.2 ms per dwell).  CPU time, not wall
+   time: the development machine is shared.
 
 Run:  PYTHONPATH=. python benchmarks/metrics_throughput.py [--scaling]
 """
@@ -59,20 +60,21 @@ def scaling() -> None:
     print(f"tracker log-log slope 1k -> 10k vehicles: {slope(sizes[1:], secs[1:]):.2f} "
           f"(target <= 1.1); per-dwell cost at 10 vehicles {1e3 * secs[0] / n_dw:.3f} ms "
           f"(target <= 0.2 ms)")
-    sizes, secs = (300, 1000, 3000), []
+    sizes, secs = (300, 1000, 3000, 10000), []
     for n in sizes:
-        _, truth, tracks = random_tables(n, n, 60)
+        # a fixed density: 1 vehicle per km², as in the 100-truth case above
+        _, truth, tracks = random_tables(n, n, 60, extent_m=10000.0 * math.sqrt(n / 100))
         sec, _ = best_of(lambda: evaluate(MetricsConfig(), truth, tracks), repeats=2, clock=cpu)
         secs.append(sec)
         print(f"evaluate() {n:5d} truths x {n} tracks x 60 steps: {sec:7.3f} s CPU")
-    print(f"evaluate() log-log slope 1k -> 3k truths: {slope(sizes[1:], secs[1:]):.2f} "
+    print(f"evaluate() log-log slope 1k -> 10k truths: {slope(sizes[1:], secs[1:]):.2f} "
           f"(target <= 1.1)")
 
 
-def random_tables(n_truth=100, n_tracks=100, n_steps=1000, seed=0):
+def random_tables(n_truth=100, n_tracks=100, n_steps=1000, seed=0, extent_m=10000.0):
     rng = np.random.default_rng(seed)
     grid = np.arange(float(n_steps))
-    pos0 = rng.uniform(0, 10000, (n_truth, 2))
+    pos0 = rng.uniform(0, extent_m, (n_truth, 2))
     vel = rng.normal(0, 10, (n_truth, 2))
     tt = np.repeat(grid, n_truth)
     vid = np.tile(np.arange(n_truth), n_steps)
