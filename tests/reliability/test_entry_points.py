@@ -92,3 +92,21 @@ def test_tracker_targets_that_are_not_trackers_are_config_errors(target):
     with pytest.raises(ConfigError, match=r"tracker\.(target|params)"):
         protocol.load_tracker(target)
 
+
+
+# ------------------------------------------------------------ gmtiflow-convert udp:// tcp://
+@pytest.mark.parametrize("args, needle", [
+    (["udp://:70000"], "udp://:70000: Port out of range"),
+    (["udp://:47123", "--idle-timeout", "-1"], "--idle-timeout must be a finite number"),
+    (["udp://:47123", "--idle-timeout", "nan"], "--idle-timeout must be a finite number"),
+    (["udp://:47123", "--max-packets", "0"], "--max-packets must be at least 1, got 0"),
+])
+def test_live_receiver_options_are_checked_and_named(args, needle, tmp_path, capsys):
+    """A port out of range used to be reported without the address; a negative or NaN idle
+    timeout as socket's "Timeout value out of range" / "Invalid value NaN"; --max-packets 0
+    listened for the whole idle timeout and then blamed the sender."""
+    from gmtiflow import convert
+    code = convert.main([*args[:1], "--to", "h5", "-o", str(tmp_path / "x.h5"), *args[1:]])
+    err = capsys.readouterr().err
+    assert code == 1 and needle in err and "Traceback" not in err, err
+    assert not (tmp_path / "x.h5").exists()
