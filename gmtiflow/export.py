@@ -44,16 +44,14 @@ from pathlib import Path
 from typing import Dict, List, Optional
 
 import numpy as np
-import pymap3d
 from omegaconf import OmegaConf
 
-from gmtiflow import formats
 from gmtiflow import frames
+from gmtiflow.console import progress
 from gmtiflow.errors import InputFileError
 from gmtiflow.live import StreamConfig
 from gmtiflow.schema import Problem, non_negative
 from gmtiflow.sensor import geometry
-from gmtiflow.store import open_run, read_attrs, read_table, read_text
 from gmtiflow.tables import Table
 
 log = logging.getLogger(__name__)
@@ -161,6 +159,7 @@ class RunTables:
 
 def load_run(run_path) -> RunTables:
     """Read the tables the exports use from a complete run file (StoreError if it is not one)."""
+    from gmtiflow.store import open_run, read_attrs, read_table, read_text   # h5py: lazy
     run_path = Path(run_path)
     with open_run(run_path, require_columns=True) as f:
         attrs = read_attrs(f)
@@ -185,6 +184,8 @@ def load_run(run_path) -> RunTables:
 def is_converted_4607(run_path) -> bool:
     """Whether ``run_path`` was converted from a 4607 file (``gmtiflow-convert X.4607 --to h5``)
     and holds every table :func:`formats.stanag4607.encode_read_tables` needs."""
+    from gmtiflow import formats
+    from gmtiflow.store import open_run, read_attrs
     with open_run(run_path) as f:
         attrs = read_attrs(f)
         return (str(attrs.get("source_format", "")) == "4607"
@@ -198,6 +199,8 @@ def rewrite_converted_4607(run_path, dest) -> None:
     was converted with ``--origin`` has its dwells in the scene frame, and they are rotated back
     to the sensor's local frame first.  A valid input file comes back byte for byte.
     """
+    from gmtiflow import formats
+    from gmtiflow.store import open_run, read_attrs, read_table
     with open_run(run_path) as f:
         attrs = read_attrs(f)
         tables = {name: read_table(f, name) for name in formats.stanag4607.READ_TABLES}
@@ -240,6 +243,7 @@ def _cfg(config: dict, *keys, default=None):
 
 def scene_to_local_velocity(origin: frames.Origin, lat_deg, lon_deg, ve, vn, vu):
     """Rotate scene-ENU vectors to the local ENU at (lat_deg, lon_deg) (through ECEF)."""
+    import pymap3d
     u, v, w = pymap3d.enu2uvw(np.asarray(ve, float), np.asarray(vn, float),
                               np.asarray(vu, float), origin.lat_deg, origin.lon_deg)
     e, n, up = pymap3d.uvw2enu(u, v, w, np.asarray(lat_deg, float), np.asarray(lon_deg, float))
@@ -259,6 +263,7 @@ def ground_range_rate_scene(dwells: Table, detections: Table) -> np.ndarray:
 def ground_range_rate_geodetic(dwells: Table, detections: Table) -> np.ndarray:
     """ṙ_MLC from geodetic positions and a sensor velocity in the sensor's local ENU (as 4607
     carries them: D7–D9, D15–D17, D32.2/3/6).  A report without height is put at 0 m HAE."""
+    import pymap3d
     k = _dwell_rows(dwells, detections["dwell_id"])
     slat = np.asarray(dwells["platform_lat_deg"], float)[k]
     slon = np.asarray(dwells["platform_lon_deg"], float)[k]
@@ -309,6 +314,7 @@ def from_4607_tables(tables: dict, origin: Optional[frames.Origin] = None) -> di
     ``platform_v*_mps`` / ``platform_heading_rad`` on dwells, and detection ``azimuth_rad``
     from the platform in the scene frame (the reader's is relative to true north at the sensor).
     """
+    import pymap3d
     out = {k: v for k, v in tables.items() if k != "attrs"}
     dw = dict(out["dwells"])
     det = dict(out["detections"])
@@ -425,6 +431,7 @@ def clutter_regions(config: dict, origin: frames.Origin) -> list:
 # ---------------------------------------------------------------------------------------------
 
 def _csv_table(run: RunTables, name: str) -> Optional[Table]:
+    from gmtiflow import formats
     table = run.tables.get(name)
     if table is None:
         return None
@@ -453,6 +460,7 @@ def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
 
     ``fmt`` is ``stanag4607``, ``xml``, ``geojson`` or ``csv:<table>``.
     """
+    from gmtiflow import formats   # lxml, the writers: imported when exporting
     t = run.tables
     if fmt == "stanag4607":
         dw, det = to_4607_tables(run)
@@ -574,7 +582,7 @@ def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     written: List[Path] = []
     try:
-        for fmt, name in plan:
+        for fmt, name in progress(plan, "export", "file"):   # on a terminal, after 2 s
             if fmt == "csv:tracks" and "tracks" not in run.tables:
                 log.info("no /tracks in %s: tracks.csv not written", run.path)
                 continue

@@ -48,17 +48,72 @@ per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 
   (mean :math:`\bar w` = mean_wait_s), drawn by inversion, capped at
   :math:`\lfloor w_{max}/\Delta t \rfloor` steps; then ``TRACK`` again.
 
+Speed noise between grid points.  In a *free cruise* step (tracking, unclipped, not at the
+speed floor or the braking cap, and the step's start speed the free target c + σξ_k of the
+same cruise c) the speed is not the straight line between c + σξ_k and c + σξ_{k+1}: that
+line's variance, σ²q(f) with :math:`q(f) = 1 - \kappa f(1-f)`, :math:`\kappa = 2(1-\rho)`,
+f = u/Δt, dips to σ²(1+ρ)/2 mid-step (0.71 σ with T_c = 0).  Instead
+
+.. math::
+    v(u) = c + \sigma\,\frac{(1-f)\xi_k + f\xi_{k+1}}{\sqrt{q(f)}} ,
+
+the linear interpolation normalised by its own standard deviation: exactly N(c, σ²) at every
+instant, equal to the grid values at f = 0 and 1, and smooth inside the step.  The difference
+from the straight line, δ(f) = L(f)(q^{-1/2} − 1) with L = σ((1-f)ξ_k + fξ_{k+1}), is a bridge
+(zero at both ends) carried per step as ``bridge``/``noise_mps``; its integral (closed form, see
+:func:`_bridge`) is added to s, and its derivative to the acceleration, so v = ds/dt and
+a = dv/dt still hold exactly.  The bridge is applied only where it keeps v ≥ 0
+(min(v_k, v_{k+1}) ≥ (√2 − 1) max |σξ|); elsewhere (accelerating, braking, capped) the step keeps
+its constant acceleration.
+
 Randomness enters only through pre-drawn per-profile arrays (speed normals, stop uniforms, wait
 uniforms), drawn from each vehicle's own stream by the caller, so the kernel is deterministic.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
-from tqdm import tqdm
 
 TRACK, BRAKE_RANDOM, STOPPED, BRAKE_POINT = 0, 1, 2, 4
+_BRIDGE_GUARD = np.sqrt(2.0) - 1.0     # max of q^{-1/2} - 1 (kappa <= 2)
+
+
+def _asinh_ratio(z):
+    """asinh(z)/z, 1 at z = 0 (series below 1e-4)."""
+    z = np.asarray(z, float)
+    small = np.abs(z) < 1e-4
+    safe = np.where(small, 1.0, z)
+    return np.where(small, 1.0 - z * z / 6.0, np.arcsinh(safe) / safe)
+
+
+def _bridge(x0, x1, kappa, f):
+    """The free-cruise speed bridge of a step (module doc): δ(f), dδ/df and ∫_0^f δ df'.
+
+    ``x0``, ``x1`` = σξ_k, σξ_{k+1} (m/s), ``kappa`` = 2(1 − ρ) in [0, 2], ``f`` in [0, 1].
+    With g = f − ½, q = κg² + m (m = 1 − κ/4), L = A + Bg (A = (x0 + x1)/2, B = x1 − x0):
+    ∫ L q^{-1/2} dg = A asinh(g√(κ/m))/√κ + (B/κ)√q, written stably for κ → 0 as
+    A g m^{-1/2} asinh(z)/z and B(g² − ¼)/(√q + 1) from g = −½.
+    """
+    g = f - 0.5
+    m = 1.0 - 0.25 * kappa
+    q = kappa * g * g + m
+    rq = 1.0 / np.sqrt(q)
+    a = 0.5 * (x0 + x1)
+    b = x1 - x0
+    lin = a + b * g
+    delta = lin * (rq - 1.0)
+    d_delta = b * (rq - 1.0) - lin * kappa * g * rq ** 3
+    rk = np.sqrt(kappa / m)
+
+    def prim(gg):
+        return a * gg / np.sqrt(m) * _asinh_ratio(gg * rk)
+
+    integral_n = prim(g) - prim(-0.5) + b * (g * g - 0.25) / (np.sqrt(q) + 1.0)
+    integral_l = x0 * f + 0.5 * b * f * f
+    return delta, d_delta, integral_n - integral_l
 MODE_CRUISE, MODE_DECEL, MODE_STOPPED, MODE_ACCEL = 0, 1, 2, 3
 
 
@@ -101,6 +156,9 @@ class Profiles:
     a_mps2: np.ndarray     # (K, P)
     tau_s: np.ndarray      # (K, P) duration of a_k within the step
     mode: np.ndarray       # (K, P) uint8 label of the step
+    noise_mps: Optional[np.ndarray] = None   # (K+1, P) σξ_k at the grid points
+    bridge: Optional[np.ndarray] = None      # (K, P) bool: free-cruise step with the bridge
+    kappa: Optional[np.ndarray] = None       # (P,) 2(1 − ρ) of the speed noise
 
     @property
     def n_steps(self) -> int:
@@ -127,9 +185,49 @@ class Profiles:
         s = np.where(early, s0 + v0 * u + 0.5 * a * u * u, s1 - v1 * (dt - u))
         v = np.where(early, np.maximum(v0 + a * u, 0.0), v1)
         acc = np.where(early, a, 0.0)
+        if self.bridge is not None:
+            br = self.bridge[k, p] & early      # at u = Δt the grid value s_{k+1} holds
+            if np.any(br):
+                i = np.flatnonzero(br)
+                ki, pi = np.broadcast_to(k, br.shape)[br], np.broadcast_to(p, br.shape)[br]
+                d, dd, integral = _bridge(self.noise_mps[ki, pi], self.noise_mps[ki + 1, pi],
+                                          self.kappa[pi], np.broadcast_to(u, br.shape)[br] / dt)
+                s, v, acc = (np.array(x, float, copy=True) for x in
+                             np.broadcast_arrays(s, v, acc))
+                s.flat[i] += integral * dt
+                v.flat[i] += d
+                acc.flat[i] += dd / dt
         mode = self.mode[k, p]
         mode = np.where((v == 0.0) & (mode == MODE_DECEL) & ~early, MODE_STOPPED, mode)
         return s, v, acc, mode.astype(np.uint8)
+
+    def _bridged_time(self, k: int, p: int, s_target: float) -> float:
+        """Time into bridged step ``k`` at which profile ``p`` reaches ``s_target``: Newton on
+        s(u) from u = Δt/2 (s is increasing and smooth there, v > 0), bisection as a fallback."""
+        dt = self.dt_s
+        s0, v0, a = float(self.s_m[k, p]), float(self.v_mps[k, p]), float(self.a_mps2[k, p])
+        x0, x1 = float(self.noise_mps[k, p]), float(self.noise_mps[k + 1, p])
+        kap = float(self.kappa[p])
+
+        def s_v(u):
+            d, integral = _bridge_scalar(x0, x1, kap, u / dt)
+            return s0 + v0 * u + 0.5 * a * u * u + integral * dt, v0 + a * u + d
+
+        lo, hi, u = 0.0, dt, 0.5 * dt
+        for _ in range(60):
+            su, vu = s_v(u)
+            err = su - s_target
+            if abs(err) <= 1e-12 * max(1.0, abs(s_target)):
+                return u
+            if err < 0:
+                lo = u
+            else:
+                hi = u
+            nxt = u - err / vu if vu > 0 else 0.5 * (lo + hi)
+            u = nxt if lo < nxt < hi else 0.5 * (lo + hi)
+            if hi - lo < 1e-12 * dt:
+                break
+        return u
 
     def time_at(self, p: int, s_target: float) -> float:
         """First local time at which profile ``p`` reaches arc length ``s_target`` (inf: never)."""
@@ -142,6 +240,8 @@ class Profiles:
         k = i - 1
         dt = self.dt_s
         s0, v0, a, tk = col[k], self.v_mps[k, p], self.a_mps2[k, p], self.tau_s[k, p]
+        if self.bridge is not None and self.bridge[k, p]:
+            return k * dt + self._bridged_time(k, p, s_target)
         s_tau = s0 + v0 * tk + 0.5 * a * tk * tk
         x = s_target - s0
         if s_target <= s_tau:
@@ -152,6 +252,26 @@ class Profiles:
             v1 = self.v_mps[k + 1, p]
             u = tk + (s_target - s_tau) / v1 if v1 > 0 else dt
         return k * dt + min(max(u, 0.0), dt)
+
+
+def _bridge_scalar(x0, x1, kappa, f):
+    """:func:`_bridge` for one float (math module: no numpy overhead in a per-vehicle loop)."""
+    g = f - 0.5
+    m = 1.0 - 0.25 * kappa
+    q = kappa * g * g + m
+    rq = 1.0 / math.sqrt(q)
+    a, b = 0.5 * (x0 + x1), x1 - x0
+    lin = a + b * g
+    rk = math.sqrt(kappa / m)
+
+    def prim(gg):
+        z = gg * rk
+        ratio = 1.0 - z * z / 6.0 if abs(z) < 1e-4 else math.asinh(z) / z
+        return a * gg / math.sqrt(m) * ratio
+
+    integral = (prim(g) - prim(-0.5) + b * (g * g - 0.25) / (math.sqrt(q) + 1.0)
+                - (x0 * f + 0.5 * b * f * f))
+    return lin * (rq - 1.0), integral
 
 
 def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
@@ -167,11 +287,16 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
     A = np.zeros((K, P))
     TAU = np.full((K, P), dt)
     M = np.zeros((K, P), dtype=np.uint8)
+    W = np.zeros((K + 1, P))                  # σξ_k at the grid points
+    BR = np.zeros((K, P), dtype=bool)         # free-cruise steps carrying the speed bridge
 
     amax, dmax = inp.max_accel_mps2, inp.max_decel_mps2
     sigma = inp.speed_noise_mps
     rho = inp.noise_rho
     rho_c = np.sqrt(1.0 - rho * rho)
+    kappa = 2.0 * (1.0 - rho)
+    # ∫_0^1 δ df = (σξ_k + σξ_{k+1})/2 · c1 (_bridge at f = 1, where q = 1 and the B term is 0)
+    c1 = _bridge(np.ones(P), np.ones(P), kappa, 1.0)[2]
     xi = np.zeros(P)
     # Segment lookup over all profiles at once: key = s + p * span keeps the flat array sorted.
     span = float(2.0 ** np.ceil(np.log2(max(float(np.max(inp.length_m)), 1.0) * 2.0 + 2.0)))
@@ -212,6 +337,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
     S[0] = s
     V[0] = v
     look_a = 0.5 * amax * dt * dt
+    from tqdm import tqdm
     for k in tqdm(range(K), desc="truth", unit="step", leave=False,
                   disable=None if progress else True, mininterval=0.5):
         if done.all():
@@ -257,11 +383,13 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
         with np.errstate(invalid="ignore"):
             ahead = np.maximum(cap_s[j] - (s + v * dt), 0.0)
         cap = np.sqrt(cap_t[j] ** 2 + 2.0 * d_cap * ahead)
+        xi_prev = xi
         if k == 0:
             xi = inp.normal[0].copy()
         else:
             xi = rho * xi + rho_c * inp.normal[k]
-        v_des = np.maximum(np.minimum(target + sigma * xi, cap), 0.0)
+        noisy = target + sigma * xi
+        v_des = np.maximum(np.minimum(noisy, cap), 0.0)
         raw = (v_des - v) / dt
         a_tr = np.clip(raw, -dmax, amax)
         a = np.where(tr, a_tr, a)
@@ -284,6 +412,17 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
         v_end = np.where(stops, 0.0, np.maximum(v + a * tau, 0.0))
         s_end = s + v * tau + 0.5 * a * tau * tau + v_end * (dt - tau)
         s_end = np.where(stops & bp, next_stop, s_end)
+        if k > 0:
+            # free cruise from the free target c + σξ_k to c + σξ_{k+1}: the speed bridge
+            x0, x1 = sigma * xi_prev, sigma * xi
+            free = (tr & (label == MODE_CRUISE) & (v_des == noisy) & (sigma > 0) & ~done
+                    & ~stops & (np.abs(v - (target + x0)) <= 1e-9 * np.maximum(v, 1.0))
+                    & (np.minimum(v, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
+                                                                          np.abs(x1))))
+            if free.any():
+                s_end = np.where(free, s_end + 0.5 * (x0 + x1) * c1 * dt, s_end)
+                BR[k] = free
+        W[k + 1] = sigma * xi
         still = state == STOPPED
         a = np.where(still, 0.0, a)
         v_end = np.where(still, 0.0, v_end)
@@ -310,4 +449,5 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
         S[k + 1] = s
         V[k + 1] = v
         done |= s >= inp.length_m
-    return Profiles(dt_s=dt, s_m=S, v_mps=V, a_mps2=A, tau_s=TAU, mode=M)
+    return Profiles(dt_s=dt, s_m=S, v_mps=V, a_mps2=A, tau_s=TAU, mode=M, noise_mps=W,
+                    bridge=BR, kappa=kappa)

@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
 import numpy as np
-from scipy.special import ndtri
 
 from gmtiflow import frames, rng, schema
 from gmtiflow.errors import ConfigError, RoadMapError
