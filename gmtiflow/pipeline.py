@@ -53,6 +53,7 @@ from gmtiflow.export import export_run, open_live_export, planned_files, stream_
 from gmtiflow.report import build_run_report
 from gmtiflow.scene.platform import Platform
 from gmtiflow.scene.roadmap import RoadMap, load_roadmap
+from gmtiflow.scene import trajectory
 from gmtiflow.scene.terrain import Terrain, build_terrain
 from gmtiflow.scene.vehicles import build_fleet
 from gmtiflow.sensor.effects import build_effects
@@ -525,6 +526,7 @@ def run(cfg: AppConfig, out_dir, *, on_prepared: Optional[Callable[[], None]] = 
     """
     config_mod.validate(cfg)
     budget.check(cfg)                  # refuse what cannot fit before touching the directory
+    trajectory.check_scene_coverage(cfg)   # an external log must span the whole scene
     problem = stream_problem(cfg.export, len(sensor_slots(cfg)))
     if problem:
         raise ConfigError(problem)

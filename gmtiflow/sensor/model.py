@@ -99,6 +99,11 @@ class ChunkContext:
     def _local(self, dwell_id) -> np.ndarray:
         return np.asarray(dwell_id, np.int64) - int(self.dwells["dwell_id"][0])
 
+    @property
+    def radius_m(self) -> float:
+        """The round earth's radius (:func:`gmtiflow.frames.sphere_radius_m`)."""
+        return frames.sphere_radius_m(self.origin)
+
     def _platform(self, k):
         return tuple(self.dwells[f"platform_{c}_m"][k] for c in "xyz")
 
@@ -107,7 +112,8 @@ class ChunkContext:
         k = self._local(dwell_id)
         rng_m, los = geometry.line_of_sight(self._platform(k), (np.asarray(x_m, float),
                                                                 np.asarray(y_m, float),
-                                                                np.asarray(z_m, float)))
+                                                                np.asarray(z_m, float)),
+                                            self.radius_m)
         az, el, _, _ = antenna.target_angles(los, antenna.take(self.boresight, k),
                                              antenna.take(self.scan_axis, k),
                                              antenna.take(self.antenna_up, k))
@@ -127,11 +133,12 @@ class ChunkContext:
         k = self._local(dwell_id)
         pts = (np.asarray(x_m, float), np.asarray(y_m, float), np.asarray(z_m, float))
         plat = self._platform(k)
-        ok = visibility.within_horizon(plat, pts, self.cfg.horizon_k_factor)
+        ok = visibility.within_horizon(plat, pts, self.cfg.horizon_k_factor, self.radius_m)
         if not getattr(self.terrain, "flat", False) and np.any(ok):
             i = np.flatnonzero(ok)
             ok[i] = visibility.terrain_clear(self.terrain, antenna.take(plat, i),
-                                             antenna.take(pts, i), self.los_step_m)
+                                             antenna.take(pts, i), self.los_step_m,
+                                             self.cfg.horizon_k_factor * self.radius_m)
         return ok
 
     def dwell_cell_rad(self, dwell_id):
@@ -150,8 +157,10 @@ class ChunkContext:
         k = self._local(dwell_id)
         _, los = geometry.line_of_sight(self._platform(k), (np.asarray(x_m, float),
                                                             np.asarray(y_m, float),
-                                                            np.asarray(z_m, float)))
-        vel = tuple(self.dwells[f"platform_v{c}_mps"][k] for c in "xyz")
+                                                            np.asarray(z_m, float)),
+                                        self.radius_m)
+        vel = geometry.true_velocity(tuple(self.dwells[f"platform_v{c}_mps"][k] for c in "xyz"),
+                                     self._platform(k)[2], self.radius_m)
         return geometry.clutter_range_rate(vel, los)
 
     def geolocate(self, dwell_id, range_m, azimuth_rad):
@@ -159,7 +168,7 @@ class ChunkContext:
         azimuths (as in /detections), on the terrain, as the sensor geolocates."""
         k = self._local(dwell_id)
         return geolocate.geolocate_world_azimuth(self._platform(k), range_m, azimuth_rad,
-                                                 self.terrain)
+                                                 self.terrain, radius_m=self.radius_m)
 
 
 Effect = Callable[[ChunkContext, Table, Table], Tuple[Table, Table]]
@@ -177,9 +186,11 @@ class _Poses:
     u: tuple
     state: Table
     mdv: Optional[np.ndarray] = None   # per dwell: the notch half-width (set with the dwell table)
+    radius_m: float = geometry.DEFAULT_RADIUS_M   # the round earth (frames.sphere_radius_m)
 
 
-def _poses(cfg: SensorConfig, platform, time_s: np.ndarray) -> _Poses:
+def _poses(cfg: SensorConfig, platform, time_s: np.ndarray,
+           radius_m: float = geometry.DEFAULT_RADIUS_M) -> _Poses:
     st = platform.state_at(time_s)
     n = len(time_s)
     pitch = st.get("pitch_rad", np.zeros(n))
@@ -187,7 +198,7 @@ def _poses(cfg: SensorConfig, platform, time_s: np.ndarray) -> _Poses:
                                    math.radians(cfg.mount_deg))
     pos = tuple(np.asarray(st[k], float) for k in ("x_m", "y_m", "z_m"))
     vel = tuple(np.asarray(st[k], float) for k in ("vx_mps", "vy_mps", "vz_mps"))
-    return _Poses(np.asarray(time_s, float), pos, vel, b, h, u, st)
+    return _Poses(np.asarray(time_s, float), pos, vel, b, h, u, st, radius_m=radius_m)
 
 
 def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, origin) -> Table:
@@ -203,7 +214,7 @@ def _dwell_table(cfg, sched: scan.Schedule, dwell_ids, poses: _Poses, terrain, o
         plat, plon, ph = frames.enu_to_geodetic(origin, *poses.pos)
     r_centre = np.full(n, 0.5 * (cfg.range_min_m + cfg.range_max_m))
     centre, el_centre, _ = geolocate.geolocate(poses.pos, r_centre, beam, poses.b, poses.h,
-                                               poses.u, terrain)
+                                               poses.u, terrain, radius_m=poses.radius_m)
     poses.mdv = _mdv_per_dwell(cfg, poses, beam, el_centre)
     alat, alon, _ = frames.enu_to_geodetic(origin, *centre)
     return {
@@ -283,11 +294,9 @@ def _coarse(cfg, sched, poses, fleet, vehicle_ids, n_rev):
     v_rep = np.tile(vehicle_ids, n_rev)
     st = fleet.state_at(poses.time_s[d_rep], v_rep)
     active = np.asarray(st["active"], bool)
-    d = []
-    for k, c in enumerate(_xyz(st)):
-        if not np.all(active):
-            c = np.where(active, c, 0.0)
-        d.append(c.reshape(n_rev, n_v) - poses.pos[k][ref][:, None])
+    xyz = [(c if np.all(active) else np.where(active, c, 0.0)).reshape(n_rev, n_v)
+           for c in _xyz(st)]
+    d, _ = geometry.offsets(tuple(c[ref][:, None] for c in poses.pos), xyz, poses.radius_m)
     b = [c[ref][:, None] for c in poses.b]
     h = [c[ref][:, None] for c in poses.h]
     lb = d[0] * b[0] + d[1] * b[1] + d[2] * b[2]
@@ -395,12 +404,16 @@ def _pair_geometry(poses: _Poses, dl, st: Table) -> Dict[str, np.ndarray]:
     if not np.all(active):
         pos_t = tuple(np.where(active, c, 0.0) for c in pos_t)
         vel_t = tuple(np.where(active, c, 0.0) for c in vel_t)
-    rng_m, los = geometry.line_of_sight(antenna.take(poses.pos, dl), pos_t)
+    plat = antenna.take(poses.pos, dl)
+    rng_m, los = geometry.line_of_sight(plat, pos_t, poses.radius_m)
     az, el, sin_az, lb = antenna.target_angles(los, antenna.take(poses.b, dl),
                                                antenna.take(poses.h, dl),
                                                antenna.take(poses.u, dl))
-    own_rr = antenna.dot(vel_t, los)                                  # ṙ − ṙ_MLC
-    rr = own_rr + geometry.clutter_range_rate(antenna.take(poses.vel, dl), los)   # ṙ
+    # ṙ − ṙ_MLC: the target's velocity (its own local frame) on the LOS seen there
+    own_rr = antenna.dot(geometry.true_velocity(vel_t, pos_t[2], poses.radius_m),
+                         geometry.target_line_of_sight(plat, pos_t, poses.radius_m))
+    vel_p = geometry.true_velocity(antenna.take(poses.vel, dl), plat[2], poses.radius_m)
+    rr = own_rr + geometry.clutter_range_rate(vel_p, los)   # ṙ
     return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],
             "az": az, "el": el, "sin_az": sin_az, "lb": lb, "own_rr": own_rr,
             "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2],
@@ -511,7 +524,7 @@ def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_mode
     need every detection of a dwell."""
     n_d = sched.n_dwells
     dwell_ids = (rev_ids[:, None] * n_d + np.arange(n_d)[None, :]).ravel()
-    poses = _poses(cfg, platform, sched.dwell_time_s(dwell_ids))
+    poses = _poses(cfg, platform, sched.dwell_time_s(dwell_ids), frames.sphere_radius_m(origin))
     dwells = _dwell_table(cfg, sched, dwell_ids, poses, terrain, origin)
     parts = [_evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_codes,
                              vehicle_ids[v0:v0 + block_vehicles], len(rev_ids), poses,
@@ -579,11 +592,12 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     ci = np.flatnonzero(cand)
     p_ci = antenna.take(poses.pos, dl[ci])
     t_ci = tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m"))
-    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor)
+    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor, poses.radius_m)
     if not getattr(terrain, "flat", False):
         cc = np.flatnonzero(clear[ci])
         clear[ci[cc]] = visibility.terrain_clear(terrain, antenna.take(p_ci, cc),
-                                                 antenna.take(t_ci, cc), los_step_m)
+                                                 antenna.take(t_ci, cc), los_step_m,
+                                                 cfg.horizon_k_factor * poses.radius_m)
     outcome[cand & ~clear] = Outcome.TERRAIN
 
     # --- SNR and the Swerling-I draw for the visible pairs -------------------------------
@@ -635,7 +649,7 @@ def _evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_c
     ppd = antenna.take(poses.pos, dd)
     ground, _, _ = geolocate.geolocate(ppd, r_meas, az_meas, antenna.take(poses.b, dd),
                                        antenna.take(poses.h, dd), antenna.take(poses.u, dd),
-                                       terrain)
+                                       terrain, radius_m=poses.radius_m)
     lat, lon, hgt = frames.enu_to_geodetic(origin, *ground)
     detections = {
         "det_id": np.arange(k, dtype=np.int64),

@@ -16,6 +16,7 @@ from gmtiflow.tables import Table
 
 from ..common import DET_STYLE, RASTER_ABOVE, _col, _scatter, _sub_note, detection_classes, even_subsample, new_figure
 from ..data import n
+from ..relief import hillshade_rgba, relief_grid
 
 
 # ----------------------------------------------------------------------------- page 2: map
@@ -81,6 +82,8 @@ def revisit_footprints(dwells: Table, origin: Origin, max_footprints: int) -> Li
     if not n(dwells):
         return []
     rev = _col(dwells, "revisit_id") if "revisit_id" in dwells else _col(dwells, "dwell_id")
+    if "sensor_id" in dwells:       # several sensors: a revisit is one sensor's, never a mix
+        rev = _col(dwells, "sensor_id").astype(np.int64) * (int(rev.max()) + 1) + rev
     revisits = np.unique(rev)
     chosen = revisits[even_subsample(len(revisits), max_footprints)]
     ax_, ay_, az_ = geodetic_to_enu(origin, _col(dwells, "area_lat_deg"),
@@ -100,7 +103,7 @@ def revisit_footprints(dwells: Table, origin: Origin, max_footprints: int) -> Li
         lo, hi = float(np.min(beam - width)), float(np.max(beam + width))
         out.append({"revisit": int(r), "time_s": float(dwells["time_s"][mid]), "x": px, "y": py,
                     "ground_min_m": g[0], "ground_max_m": g[1], "az_lo": lo, "az_hi": hi})
-    return out
+    return sorted(out, key=lambda fp: fp["time_s"])     # colour = time, across sensors
 
 
 def _footprint_patch(fp: dict, scale: float, **kw) -> Wedge:
@@ -166,8 +169,13 @@ def _track_lines(tracks: Table, max_lines: int, confirmed_only=True):
 def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells: Table,
                detections: Table, tracks: Table, clutter_regions: Sequence[dict], origin: Origin,
                attribution: str = "", *, max_points: int = 20000, max_footprints: int = 12,
-               max_track_lines: int = 200) -> Figure:
+               max_track_lines: int = 200, terrain=None, terrain_name: str = "",
+               terrain_note: str = "") -> Figure:
     """Overview (orbit, footprints) and scene map (roads, truth, clutter, detections, tracks).
+
+    ``terrain`` (a :class:`gmtiflow.scene.terrain.Terrain`, e.g. from
+    :func:`gmtiflow.report.relief.run_terrain`) is drawn as hill-shaded relief under the scene
+    map; ``terrain_note`` says why there is none when the run had a DEM that cannot be read.
 
     The detection layers are the scatter collections labelled ``true detection``, ``merged
     report`` and ``false alarm`` on the scene axes (``fig.axes[1]``).
@@ -181,10 +189,14 @@ def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells
     colours = cm.viridis(np.linspace(0, 1, max(len(fps), 1)))
 
     # Overview: platform orbit, footprints, scene box.
-    if n(platform):
-        over.plot(_col(platform, "x_m") / km, _col(platform, "y_m") / km, color="k", lw=1.2,
-                  label="platform track")
-        over.plot(platform["x_m"][0] / km, platform["y_m"][0] / km, "ko", ms=5, label="platform at t = 0")
+    if n(platform):       # one line per aircraft (several sensors: rows by sensor_id)
+        sid = _col(platform, "sensor_id") if "sensor_id" in platform else np.zeros(n(platform))
+        for i, s_id in enumerate(np.unique(sid)):
+            rows = np.flatnonzero(sid == s_id)
+            over.plot(_col(platform, "x_m", rows) / km, _col(platform, "y_m", rows) / km,
+                      color="k", lw=1.2, label="platform track" if i == 0 else None)
+            over.plot(_col(platform, "x_m", rows[:1]) / km, _col(platform, "y_m", rows[:1]) / km,
+                      "ko", ms=5, label="platform at t = 0" if i == 0 else None)
     for fp, col in zip(fps, colours):
         over.add_patch(_footprint_patch(fp, km, facecolor=col, alpha=0.25, edgecolor=col, lw=0.8))
         over.plot([fp["x"] / km], [fp["y"] / km], "o", color=col, ms=3)
@@ -254,6 +266,18 @@ def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells
         over.add_patch(Polygon([[allx.min() - pad, ally.min() - pad], [allx.max() + pad, ally.min() - pad],
                                 [allx.max() + pad, ally.max() + pad], [allx.min() - pad, ally.max() + pad]],
                                closed=True, fill=False, edgecolor="r", lw=1.0, label="scene map"))
+    relief = None
+    if terrain is not None:
+        relief = relief_grid(terrain, np.asarray(ax.get_xlim()) * km,
+                             np.asarray(ax.get_ylim()) * km, source=terrain_name)
+    if relief is not None:
+        xlim, ylim = ax.get_xlim(), ax.get_ylim()
+        ax.imshow(hillshade_rgba(relief), extent=np.asarray(relief.extent_m) / km,
+                  origin="lower", interpolation="bilinear", zorder=0)
+        ax.set_xlim(xlim)
+        ax.set_ylim(ylim)
+    if terrain_note:
+        dropped.append(terrain_note)
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("east (km)")
     ax.set_ylabel("north (km)")
@@ -275,6 +299,12 @@ def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells
     handles += [Line2D([], [], ls="", marker=m, color=c, label=lab)
                 for key, (c, m, lab) in DET_STYLE.items() if classes[key].any()]
     handles += [p for p in ax.patches if str(p.get_label()).startswith("clutter")]
+    if relief is not None:
+        z = relief.height_m[np.isfinite(relief.height_m)]
+        handles.append(Patch(facecolor="#c9b99a", edgecolor="none",
+                             label=f"terrain ({relief.source or 'DEM'}, {z.min():.0f}–"
+                                   f"{z.max():.0f} m)"))
+
     if n(platform):
         handles += [Line2D([], [], color="k", lw=1.2, label="platform track (left)"),
                     Line2D([], [], ls="", marker="o", color="k", ms=5, label="platform at t = 0"),
