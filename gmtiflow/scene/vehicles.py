@@ -385,47 +385,18 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
                 dt_s: float, progress: bool = False) -> "Fleet":
     """Route every vehicle, draw its randomness from its own stream and run the profiles
     (``progress``: a tqdm bar over the time steps, on a terminal only)."""
-    from scipy.signal import lfilter   # imported here: scipy.signal/special cost ~1 s at start-up
-    from scipy.special import ndtri
-
     _check(cfg)
     if not (dt_s > 0 and math.isfinite(dt_s)):
         raise ConfigError(f"vehicles: time step dt_s must be > 0, got {dt_s!r}")
     if not (duration_s >= 0 and math.isfinite(duration_s)):
         raise ConfigError(f"vehicles: duration_s must be >= 0, got {duration_s!r}")
     profiles, vehicles, routes = _expand(cfg, roadmap, seed)
-    P, N = len(profiles), len(vehicles)
+    P = len(profiles)
     dt = float(dt_s)
     t0 = np.asarray([p.t0 for p in profiles], dtype=float)
-    horizon = max(float(duration_s) - (float(t0.min()) if P else 0.0), 0.0)
-    K = max(int(math.ceil(horizon / dt - 1e-9)), 1)
-
-    normal = np.zeros((K, P))
-    u_stop = np.ones((K, P))
-    u_wait = np.full((K, P), 0.5)
-    knots, knot_off = [], [0]
-    w_t0 = np.zeros(N)
-    w_h = np.ones(N)
-    for vi, veh in enumerate(vehicles):
-        if veh.offset_m == 0.0:
-            # One stream per vehicle, drawn step-major so a longer run extends, never changes,
-            # it; only the steps from the vehicle's own start to the scene's end are drawn.
-            p = veh.profile
-            k_v = min(K, max(int(math.ceil((float(duration_s) - t0[p]) / dt - 1e-9)), 1))
-            u = rng.stream(seed, "truth", "vehicle", veh.name).random((k_v + 1, 6)) + _HALF_ULP
-            normal[:k_v, p] = ndtri(u[:k_v, 0])
-            u_stop[:k_v, p] = u[:k_v, 1]
-            u_wait[:k_v, p] = u[:k_v, 2]
-        n_k = 0
-        if np.any(veh.sigma_pos > 0):
-            w_t0[vi] = t0[veh.profile]
-            w_h[vi] = wander_mod.knot_spacing_s(veh.pos_corr_s, dt)
-            n_k = wander_mod.n_knots(w_t0[vi], t0[veh.profile] + K * dt, w_h[vi])
-            gen = rng.stream(seed, "truth", "vehicle", veh.name, "wander")
-            knots.append(wander_mod.draw_knots(gen, veh.sigma_pos, n_k))
-        knot_off.append(knot_off[-1] + n_k)
-    wander = (np.concatenate(knots) if knots else np.zeros((0, 3)),
-              np.asarray(knot_off, np.int64), w_t0, w_h)
+    # Each profile's own horizon: the steps from its start to the scene's end (at least one).
+    horizon = np.maximum(np.ceil((float(duration_s) - t0) / dt - 1e-9), 1).astype(np.int64)
+    leader = {v.profile: v.name for v in vehicles if v.offset_m == 0.0}
 
     seg_start, seg_target, seg_off = [], [], [0]
     stop_m, stop_off = [], [0]
@@ -454,16 +425,73 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
         q_wait=np.minimum(1.0, dt / arr(lambda s: s.mean_wait_s)),
         max_wait_steps=np.asarray([int(math.floor(s.max_wait_s / dt + 1e-9)) for s in specs],
                                   dtype=np.int64),
-        normal=normal, u_stop=u_stop, u_wait=u_wait)
-    prof = (motion.simulate_profiles(inp, dt, K, progress=progress) if P else None)
-    return Fleet(vehicles, profiles, routes, prof, wander, t0, roadmap)
+        # one step past the scene's end, so the state at its last instant is the one a longer
+        # scene has there (the step's start state and acceleration)
+        horizon_steps=horizon + 1, noise=_trip_noise(seed, [leader[p] for p in range(P)]))
+    prof = motion.simulate_profiles(inp, dt, progress=progress)
+    on, off = _on_off(vehicles, routes, prof)
+    wander = _draw_wander(vehicles, seed, t0, on, off, horizon * dt, dt)
+    return Fleet(vehicles, routes, prof, wander, t0, horizon * dt, on, off, roadmap)
+
+
+def _trip_noise(seed: int, names: List[str]) -> motion.NoiseSource:
+    """The speed-profile noise of each profile from its leader's stream ``rng.stream(seed,
+    "truth", "vehicle", name)``: per local step k, row k of 6 uniforms (normal by inversion of
+    column 0, stop uniform 1, wait uniform 2; 3-5 spare), drawn step-major block by block while
+    the trip lasts, so the draws follow the trip and a longer scene extends, never changes,
+    them."""
+    gens: Dict[int, np.random.Generator] = {}
+
+    def draw(profiles, k0, n):
+        u = np.empty((n, len(profiles), 3))
+        for c, p in enumerate(profiles.tolist()):
+            if k0 == 0:
+                gens[p] = rng.stream(seed, "truth", "vehicle", names[p])
+            u[:, c, :] = gens[p].random((n, 6))[:, :3]
+        u += _HALF_ULP
+        return ndtri(u[:, :, 0]), u[:, :, 1], u[:, :, 2]
+    return draw
+
+
+def _on_off(vehicles: List["_Vehicle"], routes: List[Route], prof: "motion.Profiles"):
+    """Local times at which each vehicle enters and leaves its route (inf: not in its horizon)."""
+    n = len(vehicles)
+    on = np.zeros(n)
+    off = np.zeros(n)
+    for i, v in enumerate(vehicles):
+        on[i] = prof.time_at(v.profile, v.offset_m)
+        off[i] = prof.time_at(v.profile, routes[v.route].length_m + v.offset_m)
+    return on, off
+
+
+def _draw_wander(vehicles, seed, t0, on, off, horizon_s, dt):
+    """Each wandering vehicle's knots from ``rng.stream(…, name, "wander")`` for its own trip
+    (its start to its arrival, or to the scene's end), knot-major: a prefix of the same draws
+    for a longer trip (:mod:`wander`)."""
+    N = len(vehicles)
+    knots, knot_off = [], [0]
+    w_t0 = np.zeros(N)
+    w_h = np.ones(N)
+    for vi, veh in enumerate(vehicles):
+        n_k = 0
+        if np.any(veh.sigma_pos > 0) and math.isfinite(on[vi]):
+            p = veh.profile
+            w_t0[vi] = t0[p]
+            w_h[vi] = wander_mod.knot_spacing_s(veh.pos_corr_s, dt)
+            end = t0[p] + min(off[vi], horizon_s[p])
+            n_k = wander_mod.n_knots(w_t0[vi], end, w_h[vi])
+            gen = rng.stream(seed, "truth", "vehicle", veh.name, "wander")
+            knots.append(wander_mod.draw_knots(gen, veh.sigma_pos, n_k))
+        knot_off.append(knot_off[-1] + n_k)
+    return (np.concatenate(knots) if knots else np.zeros((0, 3)),
+            np.asarray(knot_off, np.int64), w_t0, w_h)
 
 
 # --------------------------------------------------------------------------------------------
 class Fleet:
     """All vehicles of a scene; truth at any instant (``state_at``) and ``/truth`` tables."""
 
-    def __init__(self, vehicles, profiles, routes, prof, wander, t0, roadmap):
+    def __init__(self, vehicles, routes, prof, wander, t0, horizon_s, on, off, roadmap):
         self._veh = vehicles
         self._routes = routes
         self.routes = [routes[v.route] for v in vehicles]
@@ -475,11 +503,7 @@ class Fleet:
         self._route = np.asarray([v.route for v in vehicles], dtype=np.int64)
         self._offset = np.asarray([v.offset_m for v in vehicles], dtype=float)
         self._t0 = t0[self._profile] if n else np.zeros(0)
-        on = np.zeros(n)
-        off = np.zeros(n)
-        for i, v in enumerate(vehicles):
-            on[i] = prof.time_at(v.profile, v.offset_m)
-            off[i] = prof.time_at(v.profile, routes[v.route].length_m + v.offset_m)
+        self._horizon = horizon_s[self._profile] if n else np.zeros(0)
         self._on, self._off = on, off
         #: Time each vehicle appears and reaches its end (inf: not within the simulated time).
         self.start_time_s = self._t0 + on
@@ -546,8 +570,8 @@ class Fleet:
             out["active"] = np.zeros(n, bool)
             return {k: c.reshape(shape) for k, c in out.items()}
         tau = t - self._t0[vs]
-        horizon = self.profiles.n_steps * self.profiles.dt_s
-        active = (valid & (tau >= self._on[vs]) & (tau < self._off[vs]) & (tau <= horizon)
+        active = (valid & (tau >= self._on[vs]) & (tau < self._off[vs])
+                  & (tau <= self._horizon[vs])
                   & np.isfinite(t))
         idx = np.flatnonzero(active)
         out["active"] = active
@@ -603,19 +627,33 @@ class Fleet:
             out["invisible"][idx] = self._seg_inv[j]
         return {k: c.reshape(shape) for k, c in out.items()}
 
-    def truth_table(self, times_s, chunk_rows: int = 2_000_000) -> Table:
-        """``/truth`` rows of the active vehicles at ``times_s``, sorted by time then vehicle."""
+    def truth_table(self, times_s, chunk_rows: int = 500_000) -> Table:
+        """``/truth`` rows of the active vehicles at ``times_s``, sorted by time then vehicle.
+
+        Only the (time, vehicle) pairs within each vehicle's trip (one sample of margin on each
+        side, then the exact ``active`` test) are evaluated, so the cost is the rows written,
+        not vehicles x times."""
         times = np.sort(np.asarray(times_s, dtype=float).ravel(), kind="stable")
         n = self.n_vehicles
+        if n and len(times):
+            end = np.minimum(self.end_time_s, self._t0 + self._horizon)
+            i0 = np.maximum(np.searchsorted(times, self.start_time_s, side="left") - 1, 0)
+            i1 = np.minimum(np.searchsorted(times, end, side="right") + 1, len(times))
+            count = np.maximum(i1 - i0, 0)
+        else:
+            count = np.zeros(n, np.int64)
+        vid = np.repeat(np.arange(n, dtype=np.int64), count)
+        first = np.cumsum(count) - count
+        ti = np.arange(len(vid), dtype=np.int64) - np.repeat(first - i0[:n], count) \
+            if len(vid) else np.zeros(0, np.int64)
+        order = np.argsort(ti * max(n, 1) + vid, kind="stable")
+        vid, ti = vid[order], ti[order]
         parts = []
-        step = max(1, chunk_rows // max(n, 1))
-        ids = np.arange(n, dtype=np.int64)
-        for i in range(0, len(times), step):
-            tt = times[i:i + step]
-            st = self.state_at(tt[:, None], ids[None, :])
-            mask = st.pop("active").ravel()
-            parts.append({k: c.ravel()[mask] for k, c in st.items()})
-        if not parts or n == 0:
+        for a in range(0, len(vid), chunk_rows):
+            st = self.state_at(times[ti[a:a + chunk_rows]], vid[a:a + chunk_rows])
+            mask = st.pop("active")
+            parts.append({k: c[mask] for k, c in st.items()})
+        if not parts:
             st = self.state_at(np.zeros(0), np.zeros(0, np.int64))
             st.pop("active")
             return st

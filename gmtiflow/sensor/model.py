@@ -513,6 +513,7 @@ def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_mode
     dwell_ids = (rev_ids[:, None] * n_d + np.arange(n_d)[None, :]).ravel()
     poses = _poses(cfg, platform, sched.dwell_time_s(dwell_ids))
     dwells = _dwell_table(cfg, sched, dwell_ids, poses, terrain, origin)
+    vehicle_ids = _on_the_road(fleet, vehicle_ids, poses.time_s)
     parts = [_evaluate_block(cfg, sched, fleet, terrain, seed, origin, rcs_models, type_codes,
                              vehicle_ids[v0:v0 + block_vehicles], len(rev_ids), poses,
                              dwell_ids, los_step_m)
@@ -530,6 +531,21 @@ def _simulate_chunk(cfg, sched, fleet, platform, terrain, seed, origin, rcs_mode
         for effect in effects:
             detections, looks = effect(ctx, detections, looks)
     return dwells, detections, looks, n_eval
+
+
+def _on_the_road(fleet, vehicle_ids, time_s):
+    """The vehicles on the road at some instant of the chunk (a fleet with ``start_time_s`` /
+    ``end_time_s``; else all): one inactive at every dwell of the chunk has no look row, so
+    leaving it out changes nothing and keeps the cost at the traffic, not the fleet size."""
+    start = getattr(fleet, "start_time_s", None)
+    end = getattr(fleet, "end_time_s", None)
+    if start is None or end is None or not len(time_s):
+        return vehicle_ids
+    t_lo, t_hi = float(np.min(time_s)), float(np.max(time_s))
+    pad = 1e-6 * max(1.0, abs(t_hi))       # the fleet's own activity test rounds differently
+    on = ((np.asarray(start)[vehicle_ids] <= t_hi + pad)
+          & (np.asarray(end)[vehicle_ids] >= t_lo - pad))
+    return vehicle_ids if on.all() else vehicle_ids[on]
 
 
 def _merge_blocks(dets, looks):
