@@ -16,53 +16,23 @@ from __future__ import annotations
 
 import argparse
 import copy
-import dataclasses
-import re
 import signal
 import sys
 import tempfile
 import time
 from collections import Counter
 from pathlib import Path
-from typing import Iterator, List, Tuple
+from typing import List, Tuple
 
 import numpy as np
 
 from gmtiflow import budget, config, pipeline
 from gmtiflow.compose import compose
+from gmtiflow.config_tree import numeric_leaves, set_leaf
 from gmtiflow.errors import ConfigError, GmtiflowError
 
 BASE = ["scene.duration_s=5", "progress=false", "export=none", "report=none",
         "cache.enabled=false"]
-
-
-def numeric_leaves(obj, prefix="") -> Iterator[Tuple[str, object]]:
-    """(full key path, value) of every int/float leaf (bools excluded) of a config tree."""
-    if dataclasses.is_dataclass(obj):
-        for f in dataclasses.fields(obj):
-            yield from numeric_leaves(getattr(obj, f.name), f"{prefix}{f.name}.")
-    elif isinstance(obj, (list, tuple)):
-        for i, item in enumerate(obj):
-            yield from numeric_leaves(item, f"{prefix[:-1]}[{i}].")
-    elif isinstance(obj, dict):
-        for key, item in obj.items():
-            yield from numeric_leaves(item, f"{prefix}{key}.")
-    elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
-        yield prefix[:-1], obj
-
-
-def set_leaf(obj, path: str, value) -> None:
-    parts = re.findall(r"[^.\[\]]+|\[\d+\]", path)
-    for part in parts[:-1]:
-        obj = obj[int(part[1:-1])] if part.startswith("[") else \
-            (obj[part] if isinstance(obj, dict) else getattr(obj, part))
-    last = parts[-1]
-    if last.startswith("["):
-        obj[int(last[1:-1])] = value
-    elif isinstance(obj, dict):
-        obj[last] = value
-    else:
-        object.__setattr__(obj, last, value)
 
 
 def extremes(value) -> List[object]:

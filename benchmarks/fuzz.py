@@ -107,8 +107,10 @@ def _seeds_csv_truth() -> List[bytes]:
 
 def _seeds_geojson() -> List[bytes]:
     dwells, dets = synthetic.tables(2, 4)
-    return [geojson.encode_geojson(detections=dets, truth=synthetic.truth(2, 3),
-                                   epoch_utc=META["epoch_utc"])]
+    # scene.geojson and truth.geojson are separate documents (truth's per-vertex list
+    # properties would clash with the detections' scalars: one property, one type)
+    return [geojson.encode_geojson(detections=dets, epoch_utc=META["epoch_utc"]),
+            geojson.encode_geojson(truth=synthetic.truth(2, 3), epoch_utc=META["epoch_utc"])]
 
 
 def _on_file(loader: Callable, suffix: str) -> Callable[[bytes], object]:

@@ -7,7 +7,11 @@ best wall time of each and its CPU time (user + sys: what the wall time would be
 core) with the machine load.  Only what a user waits for: process start,
 imports, Hydra's composition and the error message.
 
-    python benchmarks/startup_time.py [--repeat 5]
+    python benchmarks/startup_time.py [--repeat 5] [--against CHECKOUT]
+
+``--against`` alternates every case with the same command run from another checkout of the
+repository (its ``gmtiflow`` package first on ``PYTHONPATH``; the installed entry point and
+config are shared), for a before/after ratio measured under the same load.
 """
 from __future__ import annotations
 
@@ -38,28 +42,42 @@ def gmtiflow_command() -> list:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--against", metavar="CHECKOUT",
+                    help="also time another checkout of the repository, alternating")
     args = ap.parse_args()
     cmd = gmtiflow_command()
-    times = {k: [] for k in CASES}
-    cpu = {k: [] for k in CASES}
+    variants = {"this": dict(os.environ)}
+    if args.against:
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(Path(args.against).resolve()),
+                                                          env.get("PYTHONPATH")]))
+        variants[f"against {args.against}"] = env
+    times = {(v, k): [] for v in variants for k in CASES}
+    cpu = {key: [] for key in times}
+    load0 = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(args.repeat):
             for name, extra in CASES.items():
-                t0 = time.perf_counter()
-                r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-                p = subprocess.run(cmd + extra + [f"hydra.run.dir={tmp}/run"], cwd=tmp,
-                                   capture_output=True, text=True)
-                times[name].append(time.perf_counter() - t0)
-                r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-                cpu[name].append(r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
-                want_ok = name == "--help"
-                if (p.returncode == 0) != want_ok:
-                    sys.exit(f"{name}: unexpected exit status {p.returncode}\n{p.stderr[-2000:]}")
-                shutil.rmtree(f"{tmp}/run", ignore_errors=True)
-    print(f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} cores, {args.repeat} runs each")
-    for name, t in times.items():
-        print(f"{name:40s} wall median {statistics.median(t):5.2f} s, best {min(t):5.2f} s;"
-              f"  CPU median {statistics.median(cpu[name]):5.2f} s")
+                for variant, env in variants.items():
+                    t0 = time.perf_counter()
+                    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    p = subprocess.run(cmd + extra + [f"hydra.run.dir={tmp}/run"], cwd=tmp,
+                                       capture_output=True, text=True, env=env)
+                    times[variant, name].append(time.perf_counter() - t0)
+                    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    cpu[variant, name].append(r1.ru_utime + r1.ru_stime
+                                              - r0.ru_utime - r0.ru_stime)
+                    want_ok = name == "--help"
+                    if (p.returncode == 0) != want_ok:
+                        sys.exit(f"{variant} {name}: unexpected exit status {p.returncode}\n"
+                                 f"{p.stderr[-2000:]}")
+                    shutil.rmtree(f"{tmp}/run", ignore_errors=True)
+    print(f"load average {load0:.2f} at start, {os.getloadavg()[0]:.2f} at end, "
+          f"{os.cpu_count()} cores, {args.repeat} runs each")
+    for (variant, name), t in times.items():
+        label = name if len(variants) == 1 else f"{variant}: {name}"
+        print(f"{label:60s} wall median {statistics.median(t):5.2f} s, best {min(t):5.2f} s;"
+              f"  CPU median {statistics.median(cpu[variant, name]):5.2f} s")
 
 
 if __name__ == "__main__":

@@ -49,6 +49,18 @@ COLUMNS: dict[str, dict[str, str]] = {
         "wrap_velocity_mps": F, "sigma_cross_range_m": F, "sigma_height_m": F,
         "classification": U8,
     },
+    # Where the sensor was and what it looked at, one row per dwell (dwells without
+    # detections too): a CSV-only tracker's negative information.
+    "dwells": {
+        "time_s": F, "dwell_id": I, "sensor_id": I, "revisit_id": I, "dwell_index": I,
+        "last_dwell": B, "cpi_s": F, "platform_x_m": F, "platform_y_m": F, "platform_z_m": F,
+        "platform_lat_deg": F, "platform_lon_deg": F, "platform_height_m": F,
+        "platform_vx_mps": F, "platform_vy_mps": F, "platform_vz_mps": F,
+        "platform_heading_rad": F, "platform_pitch_rad": F, "platform_bank_rad": F,
+        "beam_az_rad": F, "beam_scan_rad": F, "area_lat_deg": F, "area_lon_deg": F,
+        "range_half_extent_m": F, "angle_half_extent_rad": F, "mdv_mps": F,
+        "wrap_velocity_mps": F,
+    },
     "truth": {
         "time_s": F, "vehicle_id": I, "convoy_id": I, "x_m": F, "y_m": F, "z_m": F,
         "lat_deg": F, "lon_deg": F, "height_m": F, "vx_mps": F, "vy_mps": F, "vz_mps": F,
@@ -62,10 +74,11 @@ COLUMNS: dict[str, dict[str, str]] = {
 }
 REQUIRED = {
     "detections": ("time_s", "det_id", "dwell_id"),
+    "dwells": ("time_s", "dwell_id"),
     "truth": ("time_s", "vehicle_id", "x_m", "y_m"),
     "tracks": ("time_s", "track_id", "x_m", "y_m"),
 }
-_ID = {"detections": "det_id", "truth": "vehicle_id", "tracks": "track_id"}
+_ID = {"detections": "det_id", "dwells": "dwell_id", "truth": "vehicle_id", "tracks": "track_id"}
 TIME_UTC = "time_utc"
 
 

@@ -7,7 +7,11 @@ ellipsoid), no ``crs`` member (RFC 7946 §4).  Every feature has ``properties.ki
   (``det_id``, ``dwell_id``, ``time_s``, ``range_m``, ... ``truth_id``) and ``time_utc``.
 * ``"truth"`` — LineString per vehicle through its samples in time order (a Point if it has one
   sample); properties: ``vehicle_id``, ``convoy_id`` and, per vertex, arrays of the other truth
-  columns (``time_s``, ``speed_mps``, ...), so the truth table can be read back.
+  columns (``time_s``, ``speed_mps``, ...), so the truth table can be read back.  Booleans are
+  written per vertex as 0/1 (GDAL reads lists of integers, not of booleans); NaN is ``null``,
+  and GDAL types a list holding ``null`` as text (gmtiflow's /truth has no NaN).  Truth goes in a file of
+  its own (``truth.geojson``): one property name has one type in a file, and ``time_s`` is a
+  scalar on detections but a list on truth lines, which GDAL cannot read as one field.
 * ``"road_node"`` — Point per road node (``node_id``, ``name``, ``x_m y_m z_m``);
   ``"road"`` — LineString per edge between its two nodes (``edge_id from_node to_node length_m
   oneway speed_limit_mps invisible road_class``).
@@ -109,6 +113,9 @@ def _truth_features(truth: Mapping[str, np.ndarray]) -> list[dict]:
     ends = np.r_[starts[1:], len(vid)]
     cols = {c: np.asarray(v)[order] for c, v in truth.items()}
     per_vertex = [c for c in cols if c not in _GEO + ("vehicle_id", "convoy_id")]
+    for c in per_vertex:
+        if cols[c].dtype.kind == "b":
+            cols[c] = cols[c].astype(np.int64)
     feats = []
     for a, b in zip(starts.tolist(), ends.tolist()):
         h = cols["height_m"][a:b].tolist() if "height_m" in cols else None
@@ -189,6 +196,14 @@ def encode_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=N
                    clutter_regions=None, epoch_utc: str | None = None) -> bytes:
     """UTF-8 bytes of a FeatureCollection of whatever is given (see the module docstring)."""
     epoch = parse_epoch(epoch_utc) if epoch_utc is not None else None
+    has_truth = truth is not None and n_rows(truth, "truth") > 0
+    if has_truth and any(x is not None and (len(x) if not isinstance(x, Mapping) else
+                                            n_rows(x, "table"))
+                         for x in (detections, road_nodes, clutter_regions)):
+        raise ValueError("GeoJSON writer: write truth to a file of its own (truth.geojson): its "
+                         "per-vertex list properties (time_s, ...) would clash with the scalar "
+                         "properties of the same name on detections and roads, which GIS tools "
+                         "(GDAL) cannot read as one field")
     parts: list[str] = []
     if detections is not None and n_rows(detections, "detections"):
         parts += _detection_features(detections, epoch)
@@ -357,6 +372,11 @@ def read_geojson(source) -> dict:
         keys = list(dict.fromkeys(k for r in tparts for k in r))
         merged = [{k: r[k][j] if k in r else None for k in keys}
                   for r in tparts for j in range(len(r["vehicle_id"]))]
+        for k, kind in COLUMNS["truth"].items():      # booleans travel as 0/1 per vertex
+            if kind == "bool" and k in keys:
+                for r in merged:
+                    if r[k] in (0, 1) and not isinstance(r[k], bool):
+                        r[k] = bool(r[k])
         truth = _props_table(merged, COLUMNS["truth"], f"{where(name)}truth")
         order = np.lexsort((truth["vehicle_id"], truth["time_s"])) if "time_s" in truth else None
         if order is not None:

@@ -225,7 +225,8 @@ def _sensor_ids(dwells: Mapping, nd: int) -> np.ndarray:
 
 def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarray],
                 meta: Mapping, *, edition: str = "30",
-                platform: Mapping[str, np.ndarray] | None = None) -> bytes:
+                platform: Mapping[str, np.ndarray] | None = None,
+                max_packet_bytes: int = MAX_PACKET_BYTES) -> bytes:
     """The bytes of a 4607 file for these tables (see the module docstring and docs/formats.md).
 
     ``dwells`` needs ``dwell_id revisit_id dwell_index last_dwell time_s platform_lat_deg
@@ -234,7 +235,8 @@ def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nd
     used when present (0 otherwise).  ``detections`` needs ``dwell_id lat_deg lon_deg``; the
     optional columns each add their D32 field (D32.7 from ``los_velocity_mps``: the LOS velocity
     corrected for platform motion).  ``platform`` (a /platform table) adds Platform Location
-    packets, interleaved by time.
+    packets, interleaved by time.  ``max_packet_bytes`` (default 65,535) splits dwells into
+    smaller packets, e.g. 65,507 to fit UDP datagrams.
     """
     if edition not in ("30", "41"):
         raise ValueError(f"4607 edition must be '30' (STANAG 4607 Ed. 3) or '41' (AEDP-4607 Ed. A "
@@ -277,7 +279,8 @@ def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nd
         h = _packet_header(ms, edition, 0, int(ms["job_id"]))
         for name in PACKET_HEADER.names:
             headers[name][sensor == s] = h[name][0]
-    parts, p_dwell, p_k = encode_dwell_packets(dw, det, row, masks, headers, m, epoch_sod)
+    parts, p_dwell, p_k = encode_dwell_packets(dw, det, row, masks, headers, m, epoch_sod,
+                                               max_packet_bytes=max_packet_bytes)
 
     # --- the stream ------------------------------------------------------------------------
     heads = [(_single_segment_packet(ms, edition, MISSION, _mission_body(ms)),

@@ -26,9 +26,9 @@ from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.export import ExportConfig
 from gmtiflow.report.config import ReportConfig
-from gmtiflow.scene.platform import PlatformConfig
-from gmtiflow.scene.roadmap import RoadmapConfig
-from gmtiflow.scene.terrain import TerrainConfig
+from gmtiflow.scene.platform_config import PlatformConfig
+from gmtiflow.scene.roadmap_config import RoadmapConfig
+from gmtiflow.scene.terrain_config import TerrainConfig
 from gmtiflow.scene.vehicles import VehiclesConfig
 from gmtiflow.schema import Problem, positive
 from gmtiflow.sensor.clutter import ClutterConfig

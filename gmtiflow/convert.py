@@ -57,8 +57,9 @@ def _parser() -> argparse.ArgumentParser:
         prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
         description="Convert a gmtiflow run file (run.h5) to STANAG 4607, GMTI XML, CSV or "
                     "GeoJSON, or read one of those formats back into HDF5 tables.")
-    p.add_argument("input", type=Path, metavar="INPUT",
-                   help="run.h5, or a .4607/.gmti, .xml, .csv, .geojson/.json file")
+    p.add_argument("input", metavar="INPUT",
+                   help="run.h5, or a .4607/.gmti, .xml, .csv, .geojson/.json file, or a live "
+                        "4607 stream to receive: udp://[HOST]:PORT or tcp://[HOST]:PORT")
     p.add_argument("--to", required=True, choices=TO_CHOICES,
                    help="output format: 4607, xml, csv, geojson (from a run file) or h5 "
                         "(from any of the formats)")
@@ -70,7 +71,8 @@ def _parser() -> argparse.ArgumentParser:
                         "suffix; HDF5 files are also recognised by their signature)")
     p.add_argument("--table", choices=export_mod.CSV_TABLES, default=None,
                    help="CSV: which table (run.h5 -> csv: default detections; csv -> h5: "
-                        "default guessed from the header's id column)")
+                        "default guessed from the header's id column); GeoJSON: truth writes "
+                        "truth.geojson (the truth trajectories, a file of their own)")
     p.add_argument("--edition", choices=("30", "41"), default="30",
                    help="4607 edition P1: 30 = STANAG 4607 Ed. 3 (default), 41 = AEDP-4607 Ed. A")
     p.add_argument("--platform-location", action="store_true",
@@ -79,6 +81,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--origin", metavar="LAT,LON[,H]",
                    help="4607 -> h5: scene origin (deg, deg, m HAE) to add ENU x_m y_m z_m and "
                         "scene-frame azimuths")
+    p.add_argument("--max-packets", type=int, default=None, metavar="N",
+                   help="live stream: stop after N packets (default: when the sender stops)")
+    p.add_argument("--idle-timeout", type=float, default=5.0, metavar="S",
+                   help="live stream: stop after S seconds without a packet (default 5)")
     p.add_argument("--epoch", metavar="ISO_UTC",
                    help="4607 -> h5: count time_s from this UTC instant (default: the file's "
                         "scene_epoch_utc free text, else 00:00 UTC of the mission date)")
@@ -131,10 +137,12 @@ def csv_kind(path: Path) -> str:
     cols = {c.strip() for c in header.strip().split(",")}
     found = [kind for kind, idc in (("detections", "det_id"), ("truth", "vehicle_id"),
                                     ("tracks", "track_id")) if idc in cols]
+    if not found and "dwell_id" in cols:
+        found = ["dwells"]
     if len(found) != 1:
         raise InputFileError(f"{path}: line 1: cannot tell the CSV table from the header (expected "
-                             f"exactly one of the id columns det_id, vehicle_id, track_id); use "
-                             f"--table")
+                             f"exactly one of the id columns det_id, vehicle_id, track_id, or "
+                             f"dwell_id alone); use --table")
     return found[0]
 
 
@@ -192,7 +200,40 @@ def write_tables_h5(out: Path, tables: Dict[str, dict], attrs: dict,
         return w.commit()
 
 
+def receive_stream(args) -> Path:
+    """``gmtiflow-convert udp://:PORT --to h5``: receive a live 4607 stream, decode it with the
+    file reader, write HDF5 tables (as for a .4607 file)."""
+    from gmtiflow import live
+    if args.to != "h5":
+        raise InputFileError(f"{args.input}: a live stream converts to HDF5 tables only (--to h5)")
+    if args.output is None:
+        raise InputFileError(f"{args.input}: give the output file with -o OUT.h5")
+    try:
+        data = b"".join(live.receive(args.input, max_packets=args.max_packets,
+                                     idle_timeout_s=args.idle_timeout))
+    except ValueError as exc:
+        raise InputFileError(str(exc)) from None
+    except OSError as exc:
+        raise InputFileError(f"{args.input}: cannot listen: {exc.strerror or exc}") from None
+    if not data:
+        raise InputFileError(f"{args.input}: no 4607 packet arrived within "
+                             f"{args.idle_timeout:g} s")
+    raw = formats.stanag4607.decode_4607(data, args.input, epoch_utc=args.epoch)
+    origin = _origin(args.origin)
+    tables = export_mod.from_4607_tables(raw, origin)
+    attrs = {"source_file": args.input, "source_format": "4607"}
+    attrs.update({k: v for k, v in raw["attrs"].items() if v is not None})
+    if origin is not None:
+        attrs.update(origin_lat_deg=origin.lat_deg, origin_lon_deg=origin.lon_deg,
+                     origin_height_m=origin.height_m)
+    return write_tables_h5(Path(args.output), tables, attrs)
+
+
 def convert(args) -> Path:
+    from gmtiflow import live
+    if live.is_url(args.input):
+        return receive_stream(args)
+    args.input = Path(args.input)
     fmt = detect_format(args.input, args.source_format)
     if fmt == "h5":
         if args.to == "h5":
@@ -214,6 +255,9 @@ def convert(args) -> Path:
         if args.to == "csv":
             name = args.table or "detections"
             key, default = f"csv:{name}", f"{name}.csv"
+        elif args.to == "geojson" and args.table == "truth":
+            key = "geojson:truth"
+            default = export_mod.FILE_NAMES[key]
         else:
             key = _FORMAT_OF_TO[args.to]
             default = export_mod.FILE_NAMES[key]

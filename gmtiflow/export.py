@@ -44,23 +44,21 @@ from pathlib import Path
 from typing import Dict, List, Optional
 
 import numpy as np
-import pymap3d
 from omegaconf import OmegaConf
 
-from gmtiflow import formats
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError
+from gmtiflow.live import StreamConfig
 from gmtiflow.schema import Problem, non_negative
 from gmtiflow.sensor import geometry
-from gmtiflow.store import open_run, read_attrs, read_table, read_text
 from gmtiflow.tables import Table
 
 log = logging.getLogger(__name__)
 
 FORMATS = ("stanag4607", "xml", "csv", "geojson")
-CSV_TABLES = ("detections", "truth", "tracks")
+CSV_TABLES = ("detections", "dwells", "truth", "tracks")
 FILE_NAMES = {"stanag4607": "detections.4607", "xml": "detections.xml",
-              "geojson": "scene.geojson"}
+              "geojson": "scene.geojson", "geojson:truth": "truth.geojson"}
 """Output file of each format (CSV: ``<table>.csv`` per entry of ``csv_tables``)."""
 
 
@@ -70,8 +68,8 @@ class ExportConfig:
 
     formats: List[str] = field(default_factory=lambda: list(FORMATS))
     """Any of stanag4607, xml, csv, geojson; [] writes nothing."""
-    csv_tables: List[str] = field(default_factory=lambda: ["detections", "tracks"])
-    """Tables written as CSV when ``csv`` is selected: detections, truth, tracks.  Truth is
+    csv_tables: List[str] = field(default_factory=lambda: ["detections", "dwells", "tracks"])
+    """Tables written as CSV when ``csv`` is selected: detections, dwells, truth, tracks.  Truth is
     opt-in (``export.csv_tables=[detections,truth,tracks]``): it is in run.h5 already and a
     1,000-vehicle, 30-min scene makes a 110 MB truth.csv (``gmtiflow-convert RUN.h5 --to csv
     --table truth`` writes it on demand)."""
@@ -98,6 +96,8 @@ class ExportConfig:
     and truth.csv (a 1,000-vehicle, 30-min scene at 1 s makes a 150 MB GeoJSON)."""
     geojson_roads: bool = True
     geojson_clutter: bool = True
+    stream: StreamConfig = field(default_factory=StreamConfig)
+    """Live 4607 over UDP/TCP while the run simulates (``export=stream``; gmtiflow.live)."""
     blind: bool = False
     """Exports without truth, for handing to a tracker under test: no truth.csv, no truth in
     the GeoJSON, and the detections without ``truth_id``, ``true_*``, ``merged``, the
@@ -127,6 +127,14 @@ class ExportConfig:
         if not 0 <= self.exercise_indicator <= 255:
             out.append(Problem("exercise_indicator", f"must be 0..255, got "
                                                      f"{self.exercise_indicator}"))
+        if self.stream.url is not None:
+            from gmtiflow.live import is_url
+            if not is_url(self.stream.url):
+                out.append(Problem("stream.url", f"must be udp://HOST:PORT or tcp://HOST:PORT, "
+                                                 f"got {self.stream.url!r}"))
+        if not (np.isfinite(self.stream.speed) and self.stream.speed >= 0):
+            out.append(Problem("stream.speed", f"must be a finite number >= 0 (0 = unpaced), "
+                                               f"got {self.stream.speed}"))
         if self.pd is not None and not 0.0 <= self.pd <= 1.0:
             out.append(Problem("pd", f"must be a probability in [0, 1], got {self.pd}"))
         return out
@@ -150,6 +158,7 @@ class RunTables:
 
 def load_run(run_path) -> RunTables:
     """Read the tables the exports use from a complete run file (StoreError if it is not one)."""
+    from gmtiflow.store import open_run, read_attrs, read_table, read_text   # h5py: lazy
     run_path = Path(run_path)
     with open_run(run_path, require_columns=True) as f:
         attrs = read_attrs(f)
@@ -174,6 +183,8 @@ def load_run(run_path) -> RunTables:
 def is_converted_4607(run_path) -> bool:
     """Whether ``run_path`` was converted from a 4607 file (``gmtiflow-convert X.4607 --to h5``)
     and holds every table :func:`formats.stanag4607.encode_read_tables` needs."""
+    from gmtiflow import formats
+    from gmtiflow.store import open_run, read_attrs
     with open_run(run_path) as f:
         attrs = read_attrs(f)
         return (str(attrs.get("source_format", "")) == "4607"
@@ -187,6 +198,8 @@ def rewrite_converted_4607(run_path, dest) -> None:
     was converted with ``--origin`` has its dwells in the scene frame, and they are rotated back
     to the sensor's local frame first.  A valid input file comes back byte for byte.
     """
+    from gmtiflow import formats
+    from gmtiflow.store import open_run, read_attrs, read_table
     with open_run(run_path) as f:
         attrs = read_attrs(f)
         tables = {name: read_table(f, name) for name in formats.stanag4607.READ_TABLES}
@@ -229,6 +242,7 @@ def _cfg(config: dict, *keys, default=None):
 
 def scene_to_local_velocity(origin: frames.Origin, lat_deg, lon_deg, ve, vn, vu):
     """Rotate scene-ENU vectors to the local ENU at (lat_deg, lon_deg) (through ECEF)."""
+    import pymap3d
     u, v, w = pymap3d.enu2uvw(np.asarray(ve, float), np.asarray(vn, float),
                               np.asarray(vu, float), origin.lat_deg, origin.lon_deg)
     e, n, up = pymap3d.uvw2enu(u, v, w, np.asarray(lat_deg, float), np.asarray(lon_deg, float))
@@ -248,6 +262,7 @@ def ground_range_rate_scene(dwells: Table, detections: Table) -> np.ndarray:
 def ground_range_rate_geodetic(dwells: Table, detections: Table) -> np.ndarray:
     """ṙ_MLC from geodetic positions and a sensor velocity in the sensor's local ENU (as 4607
     carries them: D7–D9, D15–D17, D32.2/3/6).  A report without height is put at 0 m HAE."""
+    import pymap3d
     k = _dwell_rows(dwells, detections["dwell_id"])
     slat = np.asarray(dwells["platform_lat_deg"], float)[k]
     slon = np.asarray(dwells["platform_lon_deg"], float)[k]
@@ -298,6 +313,7 @@ def from_4607_tables(tables: dict, origin: Optional[frames.Origin] = None) -> di
     ``platform_v*_mps`` / ``platform_heading_rad`` on dwells, and detection ``azimuth_rad``
     from the platform in the scene frame (the reader's is relative to true north at the sensor).
     """
+    import pymap3d
     out = {k: v for k, v in tables.items() if k != "attrs"}
     dw = dict(out["dwells"])
     det = dict(out["detections"])
@@ -414,6 +430,7 @@ def clutter_regions(config: dict, origin: frames.Origin) -> list:
 # ---------------------------------------------------------------------------------------------
 
 def _csv_table(run: RunTables, name: str) -> Optional[Table]:
+    from gmtiflow import formats
     table = run.tables.get(name)
     if table is None:
         return None
@@ -442,6 +459,7 @@ def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
 
     ``fmt`` is ``stanag4607``, ``xml``, ``geojson`` or ``csv:<table>``.
     """
+    from gmtiflow import formats   # lxml, the writers: imported when exporting
     t = run.tables
     if fmt == "stanag4607":
         dw, det = to_4607_tables(run)
@@ -458,20 +476,25 @@ def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
         if table is None:
             raise InputFileError(f"{run.path}: has no table /{name} to write as CSV")
         formats.write_csv(dest, table, name, epoch_utc=run.epoch_utc)
+    elif fmt == "geojson:truth":
+        if "truth" not in t:
+            raise InputFileError(f"{run.path}: has no table /truth to write as GeoJSON")
+        formats.write_geojson(dest, truth=with_geodetic(thin_truth(t["truth"],
+                                                                   cfg.geojson_truth_step_s),
+                                                        run.origin),
+                              epoch_utc=run.epoch_utc)
     elif fmt == "geojson":
         det = t.get("detections")
         if det is not None:
             ok = np.isfinite(np.asarray(det["lat_deg"], float)) & \
                 np.isfinite(np.asarray(det["lon_deg"], float))
             det = {k: np.asarray(v)[ok] for k, v in det.items()}
-        truth = with_geodetic(thin_truth(t["truth"], cfg.geojson_truth_step_s), run.origin) \
-            if cfg.geojson_truth and "truth" in t else None
         nodes = edges = None
         if cfg.geojson_roads and "roads/nodes" in t:
             nodes = with_geodetic(t["roads/nodes"], run.origin)
             edges = t.get("roads/edges")
         regions = clutter_regions(run.config, run.origin) if cfg.geojson_clutter else None
-        formats.write_geojson(dest, detections=det, truth=truth, road_nodes=nodes,
+        formats.write_geojson(dest, detections=det, road_nodes=nodes,
                               road_edges=edges, clutter_regions=regions,
                               epoch_utc=run.epoch_utc)
     else:
@@ -505,7 +528,34 @@ def planned_files(cfg: ExportConfig) -> list:
                     if name in cfg.csv_tables and not (cfg.blind and name == "truth")]
         else:
             out.append((fmt, FILE_NAMES[fmt]))
+            if fmt == "geojson" and cfg.geojson_truth and not cfg.blind:
+                out.append(("geojson:truth", FILE_NAMES["geojson:truth"]))
     return out
+
+
+def stream_problem(cfg: ExportConfig, n_sensors: int) -> Optional[str]:
+    """Why ``export.stream`` cannot serve a run of ``n_sensors`` sensors, or None.
+
+    A run simulates its sensors one after the other (gmtiflow.pipeline), so a live stream of
+    several sensors could not be paced in scene time; it is refused before any work."""
+    if cfg.stream.url and n_sensors > 1:
+        return (f"export.stream.url: a live stream carries one sensor, and this run has "
+                f"{n_sensors} (simulated one after the other, so they cannot be paced together); "
+                "stream a one-sensor run, or write detections.4607 and send it with "
+                "gmtiflow.live.Sender")
+    return None
+
+
+def open_live_export(cfg: ExportConfig, origin: frames.Origin, epoch_utc: str,
+                     config: Optional[dict] = None):
+    """The live 4607 sink of a run (:class:`gmtiflow.live.LiveExport`), or None when
+    ``export.stream.url`` is not set.  The pipeline appends every simulated chunk to it."""
+    if not cfg.stream.url:
+        return None
+    from gmtiflow.live import LiveExport
+    log.info("export: streaming 4607 live to %s at %gx real time", cfg.stream.url,
+             cfg.stream.speed)
+    return LiveExport(cfg.stream, cfg, origin, epoch_utc, config)
 
 
 def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
@@ -534,6 +584,9 @@ def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
         for fmt, name in plan:
             if fmt == "csv:tracks" and "tracks" not in run.tables:
                 log.info("no /tracks in %s: tracks.csv not written", run.path)
+                continue
+            if fmt == "geojson:truth" and "truth" not in run.tables:
+                log.info("no /truth in %s: truth.geojson not written", run.path)
                 continue
             path = out_dir / name
             write_format(fmt, run, cfg, path)

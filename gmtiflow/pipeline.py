@@ -47,9 +47,9 @@ from gmtiflow import budget, rundir
 from gmtiflow.cache import StageCache, stage_key
 from gmtiflow.coverage import sensors_table
 from gmtiflow.config import AppConfig, SensorSlot, sensor_slots
-from gmtiflow.errors import GmtiflowError
+from gmtiflow.errors import ConfigError, GmtiflowError
 from gmtiflow.evaluate import evaluate, track
-from gmtiflow.export import export_run, planned_files
+from gmtiflow.export import export_run, open_live_export, planned_files, stream_problem
 from gmtiflow.report import build_run_report
 from gmtiflow.scene.platform import Platform
 from gmtiflow.scene.roadmap import RoadMap, load_roadmap
@@ -218,6 +218,8 @@ class RunState:
     seconds: Dict[str, float] = field(default_factory=dict)
     sinks: Dict[str, "TableSink"] = field(default_factory=dict)
     rcs: Dict[str, RcsModels] = field(default_factory=dict)
+    live: Any = None
+    """``export.stream``: the live 4607 sink every sensor chunk is sent to (gmtiflow.live)."""
 
     @property
     def keep(self) -> bool:
@@ -340,11 +342,18 @@ def _write_sensor(state: RunState, chunks, slot: SensorSlot):
                  "det_id": np.int64, "truth_id": np.int64}, keep=False),
              "looks": state.sink("looks", {**LOOK_COLUMNS, **SENSOR_ID})}
     dwell0, det0 = sinks["dwells"].n_rows, sinks["detections"].n_rows
+    if state.cfg.export.stream.url and state.live is None:
+        state.live = open_live_export(
+            state.cfg.export, state.values["scene"][0].origin, state.cfg.scene.epoch_utc,
+            {"sensor": {"revisit_s": slot.sensor.revisit_s},
+             "clutter": {"fov_density_per_km2": state.cfg.clutter.fov_density_per_km2}})
     counts = dict.fromkeys(("dwells", "detections", "fa", "merged", "looks", "detected"), 0)
     for dw, det, look in tqdm(chunks, desc=f"sensor {slot.name}", unit="chunk", leave=False,
                               disable=None if state.cfg.progress else True):
         anc = detection_ancestors(det, look)
         dw, det, look = _as_run_wide(slot.sensor_id, dwell0, det0, dw, det, look)
+        if state.live is not None:          # export.stream: out on the network as simulated
+            state.live.append(dw, det)
         anc["det_id"] = anc["det_id"] + det0
         for name, table in (("dwells", dw), ("detections", det), ("looks", look),
                             ("detection_ancestors", anc)):
@@ -516,6 +525,9 @@ def run(cfg: AppConfig, out_dir, *, on_prepared: Optional[Callable[[], None]] = 
     """
     config_mod.validate(cfg)
     budget.check(cfg)                  # refuse what cannot fit before touching the directory
+    problem = stream_problem(cfg.export, len(sensor_slots(cfg)))
+    if problem:
+        raise ConfigError(problem)
     out_dir = Path(out_dir)
     with rundir.claim(out_dir):
         rundir.prepare(out_dir, planned_names(cfg), cfg.seed)
@@ -535,18 +547,22 @@ def _run(cfg: AppConfig, out_dir: Path) -> Path:
     keys = stage_keys(cfg, declared) if cache.enabled else {}
     with RunWriter(out_dir / RUN_FILE, seed=cfg.seed) as state.writer:
         state.writer.write_text("config", config_mod.to_yaml(cfg))
-        for st in declared:
-            start = time.perf_counter()
-            compute = partial(st.compute, state)
-            if st.name not in keys:
-                value = compute()
-            elif st.stream:
-                value = cache.stream(st.name, keys[st.name], compute)
-            else:
-                value = cache.get_or_compute(st.name, keys[st.name], compute)
-            state.values[st.name] = st.write(state, value) if st.write else value
-            state.seconds[st.name] = time.perf_counter() - start
-            log.info("stage %-14s %8.3f s", st.name, state.seconds[st.name])
+        try:
+            for st in declared:
+                start = time.perf_counter()
+                compute = partial(st.compute, state)
+                if st.name not in keys:
+                    value = compute()
+                elif st.stream:
+                    value = cache.stream(st.name, keys[st.name], compute)
+                else:
+                    value = cache.get_or_compute(st.name, keys[st.name], compute)
+                state.values[st.name] = st.write(state, value) if st.write else value
+                state.seconds[st.name] = time.perf_counter() - start
+                log.info("stage %-14s %8.3f s", st.name, state.seconds[st.name])
+        finally:
+            if state.live is not None:      # the live stream ends with the sensor stages
+                state.live.close()
     if cache.enabled:
         log.info("cache: hits %s, misses %s", ",".join(cache.hits) or "-",
                  ",".join(cache.misses) or "-")

@@ -32,7 +32,6 @@ from pathlib import Path
 from typing import Dict, Iterable, Iterator, List
 
 from gmtiflow.errors import GmtiflowError
-from gmtiflow.formats import write_atomic
 
 log = logging.getLogger(__name__)
 
@@ -151,6 +150,7 @@ def write_hydra_files(out_dir: os.PathLike, files: Dict[str, str]) -> None:
     sub = Path(out_dir) / HYDRA_SUBDIR
     check_hydra_outputs(out_dir)
     sub.mkdir(exist_ok=True)
+    from gmtiflow.formats import write_atomic   # the writers: not on every start-up
     for name, text in files.items():
         write_atomic(sub / name, text.encode("utf-8"))
 
@@ -187,6 +187,7 @@ def read_manifest(out_dir: Path) -> List[str]:
 
 
 def write_manifest(out_dir: Path, doc: dict) -> None:
+    from gmtiflow.formats import write_atomic
     write_atomic(Path(out_dir) / MANIFEST, (json.dumps(doc, indent=1) + "\n").encode())
 
 

@@ -67,7 +67,7 @@ def required_columns() -> Dict[str, tuple]:
     """Columns every simulation run file of this layout has, per table: read off the writers'
     own column lists (imported lazily: the store sits below the stages)."""
     from gmtiflow.evaluate.events import EVENT_COLUMNS
-    from gmtiflow.evaluate.tracker import TRACK_COLUMNS
+    from gmtiflow.evaluate.tracks import TRACK_COLUMNS
     from gmtiflow.formats.geojson import EDGE_COLUMNS, NODE_COLUMNS
     from gmtiflow.scene.vehicles import TRUTH_COLUMNS
     from gmtiflow.sensor.model import DETECTION_COLUMNS, DWELL_COLUMNS, LOOK_COLUMNS
@@ -433,15 +433,8 @@ def _read_group(f: h5py.File, name: str) -> Table:
     try:
         if name not in f or not isinstance(f[name], h5py.Group):
             raise StoreError(f"{f.filename}: has no table /{name}")
-        out = {}
-        for column, ds in f[name].items():
-            if not isinstance(ds, h5py.Dataset):
-                continue
-            data = ds[()]
-            if h5py.check_string_dtype(ds.dtype) is not None:
-                data = np.asarray([v.decode("utf-8") if isinstance(v, bytes) else v
-                                   for v in data], dtype=str)
-            out[column] = data
+        out = {column: _read_dataset(ds) for column, ds in f[name].items()
+               if isinstance(ds, h5py.Dataset)}
     except _DAMAGED as exc:
         raise StoreError(f"{f.filename}: table /{name} cannot be read, the file is damaged "
                          f"({exc})") from None
@@ -452,6 +445,26 @@ def _read_group(f: h5py.File, name: str) -> Table:
     table = StoredTable(out)
     table.source, table.name = f.filename, name
     return table
+
+
+def _read_dataset(ds: h5py.Dataset) -> np.ndarray:
+    data = ds[()]
+    if h5py.check_string_dtype(ds.dtype) is not None:
+        data = np.asarray([v.decode("utf-8") if isinstance(v, bytes) else v for v in data],
+                          dtype=str)
+    return data
+
+
+def read_column(f: h5py.File, name: str, column: str) -> np.ndarray:
+    """One column of table ``name`` of an open run file (StoreError if missing or damaged)."""
+    try:
+        ds = f[name][column] if name in f and column in f[name] else None
+        if not isinstance(ds, h5py.Dataset):
+            raise StoreError(f"{f.filename}: table /{name} has no column {column!r}")
+        return _read_dataset(ds)
+    except _DAMAGED as exc:
+        raise StoreError(f"{f.filename}: table /{name} cannot be read, the file is damaged "
+                         f"({exc})") from None
 
 
 def read_text(source, name: str) -> str:

@@ -139,9 +139,13 @@ def test_geojson_round_trip_is_exact(run, tmp_path):
     det = store.read_table(run, "detections")
     assert_equal(by(det, "det_id"), by(store.read_table(tmp_path / "g.h5", "detections"),
                                        "det_id"), "detections")
+    code, _, err = cli(run, "--to", "geojson", "--table", "truth", "-o", tmp_path / "t.geojson")
+    assert code == 0, err
+    code, _, err = cli(tmp_path / "t.geojson", "--to", "h5", "-o", tmp_path / "t.h5")
+    assert code == 0, err
     truth = store.read_table(run, "truth")
     assert_equal(by(truth, "time_s", "vehicle_id"),
-                 by(store.read_table(tmp_path / "g.h5", "truth"), "time_s", "vehicle_id"), "truth")
+                 by(store.read_table(tmp_path / "t.h5", "truth"), "time_s", "vehicle_id"), "truth")
     nodes = store.read_table(run, "roads/nodes")
     assert_equal(nodes, store.read_table(tmp_path / "g.h5", "roads/nodes"), "nodes")
     with h5py.File(tmp_path / "g.h5") as f:

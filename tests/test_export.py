@@ -17,7 +17,8 @@ from gmtiflow.export import ExportConfig, export_run
 from tests.conftest import compose_app
 
 OVERRIDES = ["scene.duration_s=30", "fidelity.truth_output_dt_s=1.0", "progress=false"]
-FOUR = {"detections.4607", "detections.xml", "detections.csv", "scene.geojson"}
+FOUR = {"detections.4607", "detections.xml", "detections.csv", "dwells.csv", "scene.geojson",
+        "truth.geojson"}
 
 
 @pytest.fixture(scope="module")
@@ -181,6 +182,8 @@ def test_geojson_has_geodetic_truth_roads_and_the_clutter_region(lake_run, tmp_p
     path = _copy(run, tmp_path)
     export_run(ExportConfig(formats=["geojson"], geojson_truth_step_s=0.0), path)
     g = formats.read_geojson(tmp_path / "scene.geojson")
+    assert len(g["truth"]) == 0                    # truth is a file of its own
+    g["truth"] = formats.read_geojson(tmp_path / "truth.geojson")["truth"]
     truth = store.read_table(run, "truth")
     with h5py.File(run) as f:
         origin = frames.Origin(f.attrs["origin_lat_deg"], f.attrs["origin_lon_deg"],
@@ -248,3 +251,37 @@ def test_geojson_truth_is_thinned_to_its_step_with_each_vehicles_ends():
                    (1, 3.0), (1, 5.0), (1, 10.0), (1, 12.0)]
     assert np.array_equal(thin["x_m"], thin["time_s"] * 2)
     assert thin_truth({"time_s": t, "vehicle_id": v}, 0.0)["time_s"] is t
+
+
+def test_every_export_is_read_by_gdal_tshark_and_as_a_road_map(lake_run, tmp_path):
+    """The external readers: GDAL (pyogrio) opens every GeoJSON with one type per field, tshark
+    finds no expert error in the 4607, and scene.geojson read back as a road map has the run's
+    roads and nothing else (no truth lines)."""
+    import shutil
+    from gmtiflow.scene.geojson_roads import load_geojson
+    from gmtiflow.errors import GmtiflowError
+    _, run = lake_run
+    path = _copy(run, tmp_path)
+    written = export_run(ExportConfig(), path)
+    names = {p.name for p in written}
+    assert {"scene.geojson", "truth.geojson", "dwells.csv"} <= names
+    pyogrio_raw = pytest.importorskip("pyogrio.raw")
+    for name in ("scene.geojson", "truth.geojson"):
+        meta, _, _, data = pyogrio_raw.read(str(tmp_path / name))
+        assert len(data[0]) > 0
+        assert "OFTString" not in [t for f, t in zip(meta["fields"], meta["ogr_types"])
+                                   if f not in ("kind", "name", "shape", "road_class", "time_utc")]
+    edges = store.read_table(run, "roads/edges")
+    roads = load_geojson(tmp_path / "scene.geojson")
+    assert 0 < len(roads.edges["edge_id"]) <= 2 * len(edges["edge_id"])
+    with pytest.raises(GmtiflowError):
+        load_geojson(tmp_path / "truth.geojson")      # trajectories are not roads
+    dw = formats.read_csv(tmp_path / "dwells.csv", "dwells")
+    ref = store.read_table(run, "dwells")
+    assert dw["dwell_id"].tolist() == sorted(ref["dwell_id"].tolist())
+    assert np.array_equal(np.sort(dw["platform_x_m"]), np.sort(ref["platform_x_m"]))
+    if shutil.which("tshark") is None:
+        pytest.skip("tshark is not installed (CI installs it)")
+    out = subprocess.run(["tshark", "-r", str(tmp_path / "detections.4607"), "-q", "-z", "expert"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and "Errors" not in out.stdout, out.stdout

@@ -141,24 +141,31 @@ def height_sigma_m(det: dict, dw: dict, row: np.ndarray) -> np.ndarray:
     if "sigma_height_m" in det:
         s = np.asarray(det["sigma_height_m"], float)
     else:
-        slat = np.asarray(dw["platform_lat_deg"], float)[row]
-        slon = np.asarray(dw["platform_lon_deg"], float)[row]
         sh = np.asarray(dw["platform_height_m"], float)[row]
         th = np.asarray(det.get("height_m", np.zeros(len(row))), float)
         th = np.where(np.isfinite(th), th, 0.0)
         with np.errstate(invalid="ignore", divide="ignore"):
-            rng, _ = range_azimuth(slat, slon, sh, np.asarray(det["lat_deg"], float),
-                                   np.asarray(det["lon_deg"], float), th)
+            if "range_m" in det:            # the measured slant range
+                rng = np.asarray(det["range_m"], float)
+            else:
+                rng = slant_range(np.asarray(dw["platform_lat_deg"], float)[row],
+                                  np.asarray(dw["platform_lon_deg"], float)[row], sh,
+                                  np.asarray(det["lat_deg"], float),
+                                  np.asarray(det["lon_deg"], float), th)
             sin_dep = np.clip((sh - th) / rng, 0.0, 1.0)
         s = np.asarray(det["sigma_range_m"], float) * sin_dep
     return np.where(np.isfinite(s), np.maximum(s, 0.5), s)
 
 
-def target_raw(det: dict, n: int, row: np.ndarray, dw: dict, draw: dict, m: dict) -> dict:
-    """Raw D32.1..D32.18 values (int64 columns) of ``n`` detections; ``row`` = dwell row."""
+def target_raw(det: dict, n: int, row: np.ndarray, dw: dict, draw: dict, m: dict,
+               needed=None) -> dict:
+    """Raw D32.1..D32.18 values (int64 columns) of ``n`` detections; ``row`` = dwell row
+    (non-decreasing).  ``needed``: the field keys to compute (default: all)."""
+    need = (lambda k: True) if needed is None else (lambda k: k in needed)
     r = {}
-    first = np.searchsorted(row, row, side="left") if n else np.zeros(0, np.int64)
-    mti = np.arange(n) - first
+    nd = len(draw["revisit"])
+    counts = np.bincount(row, minlength=nd) if n else np.zeros(nd, np.int64)
+    mti = np.arange(n) - (np.cumsum(counts) - counts)[row] if n else np.zeros(0, np.int64)
     if "mti_report_index" in det:
         given = np.asarray(det["mti_report_index"], np.int64)
         mti = np.where(given >= 0, given, mti)
@@ -169,12 +176,15 @@ def target_raw(det: dict, n: int, row: np.ndarray, dw: dict, draw: dict, m: dict
     r["hr_lat"] = enc_sa32(lat)
     r["hr_lon"] = enc_ba32(lon)
     # reduced resolution (GUIDE Annex E): lat = D24 + D32.4 x D10, lon = D25 + D32.5 x D11 mod 2^32
-    lsc, osc = draw["lat_scale"][row], draw["lon_scale"][row]
-    dlat = r["hr_lat"] - draw["area_lat"][row]
-    dlon = (r["hr_lon"] - draw["area_lon"][row] + 2**31) % 2**32 - 2**31
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r["d_lat"] = sat(np.where(lsc != 0, dlat / np.where(lsc != 0, lsc, 1), 0), -32768, 32767)
-        r["d_lon"] = sat(np.where(osc != 0, dlon / np.where(osc != 0, osc, 1), 0), -32768, 32767)
+    if need("d_lat") or need("d_lon"):
+        lsc, osc = draw["lat_scale"][row], draw["lon_scale"][row]
+        dlat = r["hr_lat"] - draw["area_lat"][row]
+        dlon = (r["hr_lon"] - draw["area_lon"][row] + 2**31) % 2**32 - 2**31
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r["d_lat"] = sat(np.where(lsc != 0, dlat / np.where(lsc != 0, lsc, 1), 0),
+                             -32768, 32767)
+            r["d_lon"] = sat(np.where(osc != 0, dlon / np.where(osc != 0, osc, 1), 0),
+                             -32768, 32767)
     r["height_m"] = sat(_f(det, "height_m", n), -1000, 32767)
     r["los_cmps"] = sat(_f(det, "los_velocity_mps", n) * 100.0, -32768, 32767)
     wrap = det.get("wrap_velocity_mps")
@@ -187,8 +197,8 @@ def target_raw(det: dict, n: int, row: np.ndarray, dw: dict, draw: dict, m: dict
     r["sr_cm"] = sat(_f(det, "sigma_range_m", n) * 100.0, 0, 65535)
     cr = cross_range_sigma_m(det)
     r["cr_dm"] = sat((cr if cr is not None else np.full(n, np.nan)) * 10.0, 0, 65535)
-    r["h_m"] = (sat(height_sigma_m(det, dw, row), 0, 255) if n and "sigma_range_m" in det
-                else np.zeros(n, np.int64))
+    r["h_m"] = (sat(height_sigma_m(det, dw, row), 0, 255)
+                if n and "sigma_range_m" in det and need("h_m") else np.zeros(n, np.int64))
     r["rv_cmps"] = sat(_f(det, "sigma_range_rate_mps", n) * 100.0, 0, 65535)
     app = np.full(n, int(m["truth_tag_application"]) & 0xFF, np.int64)
     if "truth_application" in det:
@@ -221,11 +231,18 @@ def generated_masks(dw: dict, det: dict, row: np.ndarray, nd: int) -> np.ndarray
     if any(c in dw for c in ("sensor_heading_rad", "sensor_pitch_rad", "sensor_roll_rad")):
         dmask |= mask_of(dwell_fields=(28, 29, 30))
 
+    counts_ = np.bincount(row, minlength=nd) if nd else np.zeros(0, np.int64)
+    nonempty = np.flatnonzero(counts_ > 0)
+    starts = (np.cumsum(counts_) - counts_)[nonempty]
+
     def avail(values):
+        out = np.zeros(nd, bool)
         if values is None:
-            return np.zeros(nd, bool), False
+            return out, False
         ok = np.isfinite(np.asarray(values, float))
-        return np.bincount(row, weights=ok, minlength=nd) > 0, bool(ok.any())
+        if len(ok):          # rows are grouped by dwell: one reduceat over the groups
+            out[nonempty] = np.logical_or.reduceat(ok, starts)
+        return out, bool(out.any())
 
     per = {}
     file_level = {}
@@ -262,7 +279,8 @@ def generated_masks(dw: dict, det: dict, row: np.ndarray, nd: int) -> np.ndarray
 
 def encode_dwell_packets(dw: dict, det: dict, row: np.ndarray, masks: np.ndarray,
                          headers: np.ndarray, m: dict, epoch_sod: float,
-                         piece_counts=None, piece_last=None):
+                         piece_counts=None, piece_last=None,
+                         max_packet_bytes: int = MAX_PACKET_BYTES):
     """Dwell packets of every dwell, in dwell order, as (parts, piece_dwell, piece_k).
 
     ``dw``: dwell columns (``nd`` rows in stream order); ``det``: detection columns grouped by
@@ -275,7 +293,10 @@ def encode_dwell_packets(dw: dict, det: dict, row: np.ndarray, masks: np.ndarray
     nd = len(masks)
     nt = len(row)
     draw = dwell_raw(dw, nd, epoch_sod, m["sensor_position_sigma_m"])
-    traw = target_raw(det, nt, row, dw, draw, m)
+    needed = set()
+    for mask in np.unique(np.asarray(masks, dtype=np.uint64)).tolist():
+        needed |= set(mask_layout(int(mask))[1].names)
+    traw = target_raw(det, nt, row, dw, draw, m, needed)
     counts = np.bincount(row, minlength=nd) if nd else np.zeros(0, np.int64)
     first = np.concatenate([[0], np.cumsum(counts)[:-1]]) if nd else np.zeros(0, np.int64)
     last = np.asarray(_col(dw, "last_dwell", nd, False), dtype=bool)
@@ -294,7 +315,7 @@ def encode_dwell_packets(dw: dict, det: dict, row: np.ndarray, masks: np.ndarray
         piece_dtype = np.dtype(PACKET_HEADER.descr + SEGMENT_HEADER.descr + [("mask", ">u8")]
                                + ddt.descr)
         fixed = piece_dtype.itemsize
-        per_packet = (MAX_PACKET_BYTES - fixed) // tlen if tlen else 2**31
+        per_packet = (max_packet_bytes - fixed) // tlen if tlen else 2**31
         c = counts[sel]
         if piece_counts is None:
             n_pieces = np.maximum(1, -(-c // per_packet))
@@ -328,10 +349,16 @@ def encode_dwell_packets(dw: dict, det: dict, row: np.ndarray, masks: np.ndarray
                 pk[name] = draw[name][p_dw]
         pkb = pk.tobytes()
         # targets of this mask's dwells, in dwell order
-        t_idx = np.flatnonzero(np.isin(row, sel)) if nt else np.zeros(0, np.int64)
-        tg = np.zeros(len(t_idx), tdt)
-        for name in tdt.names:
-            tg[name] = traw[name][t_idx]
+        if len(sel) == nd:
+            t_idx = np.arange(nt)
+            tg = np.zeros(nt, tdt)
+            for name in tdt.names:
+                tg[name] = traw[name]
+        else:
+            t_idx = np.flatnonzero(np.isin(row, sel)) if nt else np.zeros(0, np.int64)
+            tg = np.zeros(len(t_idx), tdt)
+            for name in tdt.names:
+                tg[name] = traw[name][t_idx]
         tgb = tg.tobytes()
         # position of each target of this mask in tgb: targets are in dwell order
         pos_in_group = np.full(nt, -1, np.int64)
@@ -366,6 +393,13 @@ def _ecef(lat_deg, lon_deg, h_m):
     n = _WGS84_A / np.sqrt(1.0 - _WGS84_E2 * np.sin(lat) ** 2)
     return ((n + h_m) * np.cos(lat) * np.cos(lon), (n + h_m) * np.cos(lat) * np.sin(lon),
             (n * (1.0 - _WGS84_E2) + h_m) * np.sin(lat))
+
+
+def slant_range(slat, slon, sh, tlat, tlon, th):
+    """Slant range (m) between geodetic points (WGS-84 ECEF distance)."""
+    sx, sy, sz = _ecef(slat, slon, sh)
+    tx, ty, tz = _ecef(tlat, tlon, th)
+    return np.sqrt((tx - sx) ** 2 + (ty - sy) ** 2 + (tz - sz) ** 2)
 
 
 def range_azimuth(slat, slon, sh, tlat, tlon, th):

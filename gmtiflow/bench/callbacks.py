@@ -24,7 +24,7 @@ class BenchVerdict(Callback):
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(OmegaConf.select(config, "hydra.sweep.dir"))
         try:
-            from gmtiflow.bench.verdict import build
+            from gmtiflow.bench.outputs import build
             paths = build([sweep_dir], sweep_dir, reference=self.reference)
             log.info("benchmark verdict: %s", ", ".join(str(p) for p in paths.values()))
         except Exception as exc:   # never turn a finished benchmark into a failure

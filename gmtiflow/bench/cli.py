@@ -86,11 +86,11 @@ def sweep_command(args, out: Path) -> List[str]:
 
 
 def _finish(dirs, out, reference, commands, timeout) -> int:
-    from . import external, verdict
+    from . import external, outputs
     if commands:
         for name, template in commands.items():
             external.score_command(name, template, dirs[0], timeout=timeout)
-    paths = verdict.build(dirs, out, reference=reference)
+    paths = outputs.build(dirs, out, reference=reference)
     for p in paths.values():
         print(p)
     return 0
@@ -113,7 +113,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if proc.returncode != 0:
             log.error("the sweep failed (exit %d); the verdict below covers the jobs that "
                       "completed", proc.returncode)
-        from .verdict import CSV_NAME, MD_NAME, PDF_NAME
+        from .outputs import CSV_NAME, MD_NAME, PDF_NAME
         done = [out / n for n in (CSV_NAME, MD_NAME, PDF_NAME)]
         if proc.returncode == 0 and not commands and all(p.is_file() for p in done):
             print("\n".join(map(str, done)))    # the sweep's callback wrote the verdict

@@ -10,8 +10,9 @@ after stop events" and its kin), then on the common ones.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import Dict, List, Mapping
+from typing import Dict, List, Mapping, Tuple
 
 import numpy as np
 
@@ -22,40 +23,42 @@ class Metric:
     label: str
     unit: str
     higher_is_better: bool
+    #: The values the metric can take: fractions in [0, 1], MOTA in (-inf, 1], the rest >= 0.
+    bounds: Tuple[float, float] = (0.0, math.inf)
 
-    @property
-    def bounds(self) -> tuple:
-        """The values the metric can take: fractions in [0, 1], everything else >= 0."""
-        fraction = self.name.endswith(("_fraction", "coverage_mean", "purity_mean"))
-        return (0.0, 1.0) if fraction else (0.0, float("inf"))
+
+FRACTION = (0.0, 1.0)
+
+
+def _event_metrics(prefix: str, kept_label: str, delay_label: str) -> List[Metric]:
+    """An event kind's pair: identity kept through it, and the re-acquisition delay after it."""
+    return [Metric(f"{prefix}_id_kept_fraction", f"id kept {kept_label}", "", True, FRACTION),
+            Metric(f"{prefix}_reacq_delay_mean_s", f"re-acquisition delay {delay_label}", "s",
+                   False)]
 
 
 _ALL = [
     Metric("identity_switches", "identity switches", "", False),
-    Metric("track_purity_mean", "track purity", "", True),
+    Metric("track_purity_mean", "track purity", "", True, FRACTION),
     Metric("convoy_confused_tracks", "convoy-confused tracks", "", False),
-    Metric("stop_id_kept_fraction", "id kept after stops", "", True),
-    Metric("stop_reacq_delay_mean_s", "re-acquisition delay after stops", "s", False),
-    Metric("doppler_blind_id_kept_fraction", "id kept after Doppler-blind gaps", "", True),
-    Metric("doppler_blind_reacq_delay_mean_s", "re-acquisition delay after blind gaps", "s",
-           False),
-    Metric("invisible_road_id_kept_fraction", "id kept through tunnels", "", True),
-    Metric("invisible_road_reacq_delay_mean_s", "re-acquisition delay after tunnels", "s",
-           False),
-    Metric("terrain_id_kept_fraction", "id kept through terrain shadow", "", True),
-    Metric("terrain_reacq_delay_mean_s", "re-acquisition delay after shadow", "s", False),
+    *_event_metrics("stop", "after stops", "after stops"),
+    *_event_metrics("doppler_blind", "after Doppler-blind gaps", "after blind gaps"),
+    *_event_metrics("invisible_road", "through tunnels", "after tunnels"),
+    *_event_metrics("terrain", "through terrain shadow", "after shadow"),
     Metric("false_tracks_per_step", "false tracks per step", "", False),
     Metric("missed_per_step", "missed vehicles per step", "", False),
     Metric("ospa_mean_m", "OSPA mean", "m", False),
-    Metric("coverage_mean", "coverage", "", True),
+    Metric("coverage_mean", "coverage", "", True, FRACTION),
     Metric("fragmentations", "fragmentations", "", False),
     Metric("position_rmse_m", "position RMSE", "m", False),
+    Metric("mota", "MOTA", "", True, (-math.inf, 1.0)),
+    Metric("idf1", "IDF1", "", True, FRACTION),
 ]
 METRICS: Dict[str, Metric] = {m.name: m for m in _ALL}
 
 #: Metrics every scenario reports, after its challenge metrics.
 COMMON = ("ospa_mean_m", "coverage_mean", "identity_switches", "false_tracks_per_step",
-          "position_rmse_m")
+          "position_rmse_m", "mota", "idf1")
 
 #: The challenge metrics of each scenario; the first is its headline in the summary.
 CHALLENGE: Dict[str, tuple] = {

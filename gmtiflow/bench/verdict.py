@@ -4,7 +4,8 @@ seeds, and its paired difference to the reference tracker; as CSV, Markdown and 
 :func:`compare` turns job records (:mod:`gmtiflow.bench.collect`) into :class:`Cell` rows;
 :func:`write_outputs` writes ``bench_results.csv`` (one row per scenario × metric × tracker),
 ``bench_results.md`` (a summary of the headline metric per scenario, then one table per
-scenario) and ``bench_report.pdf`` (:mod:`gmtiflow.bench.pdf`).  Statistics: :mod:`.stats`.
+scenario); :mod:`.outputs` writes them with ``bench_report.pdf`` (:mod:`.pdf`).  Statistics:
+:mod:`.stats`.
 """
 from __future__ import annotations
 
@@ -13,19 +14,15 @@ import io
 import logging
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Dict, Iterable, List, Optional, Sequence
 
-from gmtiflow.formats import write_atomic
-
 from . import stats
-from .collect import JobRecord, collect
+from .collect import JobRecord
 from .metrics import METRICS, headline, scenario_metrics
 from .scenarios import SCENARIOS
 
 log = logging.getLogger(__name__)
 
-CSV_NAME, MD_NAME, PDF_NAME = "bench_results.csv", "bench_results.md", "bench_report.pdf"
 MARK = {"better": "▲ better", "worse": "▼ worse", "tie": "= n.d."}
 
 
@@ -191,24 +188,3 @@ def to_markdown(comp: Comparison, title: str = "Tracker benchmark") -> str:
         lines += ["", "## Failed jobs", ""]
         lines += [f"- `{r.dir}`: {r.error}" for r in comp.failed]
     return "\n".join(lines) + "\n"
-
-
-def write_outputs(comp: Comparison, out_dir, pdf: bool = True) -> Dict[str, Path]:
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = {"csv": out_dir / CSV_NAME, "md": out_dir / MD_NAME}
-    write_atomic(paths["csv"], to_csv(comp).encode())
-    write_atomic(paths["md"], to_markdown(comp).encode())
-    if pdf:
-        from .pdf import build_pdf
-        paths["pdf"] = build_pdf(comp, out_dir / PDF_NAME)
-    return paths
-
-
-def build(paths: Iterable, out_dir=None, reference: Optional[str] = None,
-          pdf: bool = True) -> Dict[str, Path]:
-    """Collect the jobs under ``paths``, compare, and write the outputs (into the first path)."""
-    paths = [Path(p) for p in paths]
-    records = collect(paths)
-    comp = compare(records, reference)
-    return write_outputs(comp, out_dir or paths[0], pdf=pdf)

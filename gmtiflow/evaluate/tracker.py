@@ -52,11 +52,8 @@ from gmtiflow.evaluate.assignment import gated_assignment
 from gmtiflow.evaluate.config import TrackerConfig
 from gmtiflow.evaluate.protocol import (Batch, SceneInfo, _Prepared, load_tracker,
                                         run_tracker)
+from gmtiflow.evaluate.tracks import TRACK_COLUMNS
 from gmtiflow.tables import Table
-
-TRACK_COLUMNS = ("track_id", "time_s", "x_m", "y_m", "vx_mps", "vy_mps", "cov_xx_m2",
-                 "cov_xy_m2", "cov_yy_m2", "range_rate_mps", "confirmed")
-
 
 
 def empty_tracks() -> Table:

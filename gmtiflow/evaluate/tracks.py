@@ -25,6 +25,10 @@ from gmtiflow import frames
 from gmtiflow.errors import InputFileError
 from gmtiflow.tables import Table
 
+#: The columns of the tracks the baseline (and the Stone Soup trackers) write into /tracks.
+TRACK_COLUMNS = ("track_id", "time_s", "x_m", "y_m", "vx_mps", "vy_mps", "cov_xx_m2",
+                 "cov_xy_m2", "cov_yy_m2", "range_rate_mps", "confirmed")
+
 GROUPS = (("vx_mps", "vy_mps"), ("cov_xx_m2", "cov_xy_m2", "cov_yy_m2"))
 SINGLE_OPTIONAL = ("range_rate_mps", "confirmed", "z_m")
 ALLOWED = (("track_id", "time_s", "x_m", "y_m", "lat_deg", "lon_deg", "height_m")

@@ -9,12 +9,12 @@ from .config import ReportConfig
 __all__ = ["ReportConfig", "build_run_report", "build_sweep_report"]
 
 
-def build_run_report(cfg: ReportConfig, run_path, out_pdf):
+def build_run_report(cfg: ReportConfig, run_path, out_pdf, extra_pages=()):
     """The run report (:func:`gmtiflow.report.run_report.build_run_report`), imported on first
     call: matplotlib's PDF backend costs a second that ``import gmtiflow.pipeline`` (and with it
     ``gmtiflow --help`` and config errors) should not pay."""
     from .run_report import build_run_report as build
-    return build(cfg, run_path, out_pdf)
+    return build(cfg, run_path, out_pdf, extra_pages)
 
 
 def __getattr__(name):

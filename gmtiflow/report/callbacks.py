@@ -29,8 +29,6 @@ from typing import Any, Dict
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from gmtiflow.formats import write_atomic
-
 log = logging.getLogger(__name__)
 
 TIMING_FILE = "timing.json"
@@ -49,7 +47,8 @@ class SweepReport(Callback):
 
     def on_job_end(self, config: DictConfig, job_return: Any, **kwargs: Any) -> None:
         try:
-            out = _output_dir(config)
+            from gmtiflow.formats import write_atomic   # not at import: the callback is built
+            out = _output_dir(config)                     # on every start (--help, typos)
             end = time.time()
             start = self._start.pop(str(out), None)
             status = getattr(getattr(job_return, "status", None), "name", "UNKNOWN")

@@ -57,6 +57,14 @@ def even_subsample(count: int, max_count: int) -> np.ndarray:
     return np.unique(np.linspace(0, count - 1, max_count).round().astype(np.int64))
 
 
+def rectangles(x0, x1, y0, y1) -> np.ndarray:
+    """Vertices (N, 4, 2) of axis-aligned rectangles, for one PolyCollection: drawing N bars
+    as one collection costs what one bar does (``bar``/``barh`` make a patch, and redo the
+    autoscale, per bar)."""
+    x0, x1, y0, y1 = np.broadcast_arrays(*(np.ravel(np.asarray(v, float)) for v in (x0, x1, y0, y1)))
+    return np.stack([np.c_[x0, y0], np.c_[x1, y0], np.c_[x1, y1], np.c_[x0, y1]], 1)
+
+
 def _note(ax, text: str) -> None:
     ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", fontsize=11,
             color="0.35", wrap=True)

@@ -105,6 +105,9 @@ def load_geojson(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         hw = props.get("highway")
         if hw is not None and str(hw) not in drivable:
             continue
+        kind = props.get("kind")
+        if kind is not None and kind != "road":
+            continue        # gmtiflow's own exports: truth trajectories etc. are not roads
         parts = [geom.get("coordinates")] if gtype == "LineString" else geom.get("coordinates")
         if not isinstance(parts, list):
             raise RoadMapError(f"{p}: features[{i}] {gtype} has no coordinates list")

@@ -48,6 +48,24 @@ per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 
   (mean :math:`\bar w` = mean_wait_s), drawn by inversion, capped at
   :math:`\lfloor w_{max}/\Delta t \rfloor` steps; then ``TRACK`` again.
 
+Speed noise between grid points.  In a *free cruise* step (tracking, unclipped, not at the
+speed floor or the braking cap, and the step's start speed the free target c + σξ_k of the
+same cruise c) the speed is not the straight line between c + σξ_k and c + σξ_{k+1}: that
+line's variance, σ²q(f) with :math:`q(f) = 1 - \kappa f(1-f)`, :math:`\kappa = 2(1-\rho)`,
+f = u/Δt, dips to σ²(1+ρ)/2 mid-step (0.71 σ with T_c = 0).  Instead
+
+.. math::
+    v(u) = c + \sigma\,\frac{(1-f)\xi_k + f\xi_{k+1}}{\sqrt{q(f)}} ,
+
+the linear interpolation normalised by its own standard deviation: exactly N(c, σ²) at every
+instant, equal to the grid values at f = 0 and 1, and smooth inside the step.  The difference
+from the straight line, δ(f) = L(f)(q^{-1/2} − 1) with L = σ((1-f)ξ_k + fξ_{k+1}), is a bridge
+(zero at both ends) carried per step as ``bridge``/``noise_mps``; its integral (closed form, see
+:func:`_bridge`) is added to s, and its derivative to the acceleration, so v = ds/dt and
+a = dv/dt still hold exactly.  The bridge is applied only where it keeps v ≥ 0
+(min(v_k, v_{k+1}) ≥ (√2 − 1) max |σξ|); elsewhere (accelerating, braking, capped) the step keeps
+its constant acceleration.
+
 Randomness enters only through per-profile noise blocks (speed normals, stop uniforms, wait
 uniforms) that the caller draws from each vehicle's own stream on demand (:class:`NoiseSource`),
 so the kernel is deterministic.
@@ -59,14 +77,50 @@ profiles are stored flat, one run of steps per profile (:class:`Profiles`).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Tuple
 
 import numpy as np
-from tqdm import tqdm
 
 TRACK, BRAKE_RANDOM, STOPPED, BRAKE_POINT = 0, 1, 2, 4
 MODE_CRUISE, MODE_DECEL, MODE_STOPPED, MODE_ACCEL = 0, 1, 2, 3
+_BRIDGE_GUARD = np.sqrt(2.0) - 1.0     # max of q^{-1/2} - 1 (kappa <= 2)
+
+
+def _asinh_ratio(z):
+    """asinh(z)/z, 1 at z = 0 (series below 1e-4)."""
+    z = np.asarray(z, float)
+    small = np.abs(z) < 1e-4
+    safe = np.where(small, 1.0, z)
+    return np.where(small, 1.0 - z * z / 6.0, np.arcsinh(safe) / safe)
+
+
+def _bridge(x0, x1, kappa, f):
+    """The free-cruise speed bridge of a step (module doc): δ(f), dδ/df and ∫_0^f δ df'.
+
+    ``x0``, ``x1`` = σξ_k, σξ_{k+1} (m/s), ``kappa`` = 2(1 − ρ) in [0, 2], ``f`` in [0, 1].
+    With g = f − ½, q = κg² + m (m = 1 − κ/4), L = A + Bg (A = (x0 + x1)/2, B = x1 − x0):
+    ∫ L q^{-1/2} dg = A asinh(g√(κ/m))/√κ + (B/κ)√q, written stably for κ → 0 as
+    A g m^{-1/2} asinh(z)/z and B(g² − ¼)/(√q + 1) from g = −½.
+    """
+    g = f - 0.5
+    m = 1.0 - 0.25 * kappa
+    q = kappa * g * g + m
+    rq = 1.0 / np.sqrt(q)
+    a = 0.5 * (x0 + x1)
+    b = x1 - x0
+    lin = a + b * g
+    delta = lin * (rq - 1.0)
+    d_delta = b * (rq - 1.0) - lin * kappa * g * rq ** 3
+    rk = np.sqrt(kappa / m)
+
+    def prim(gg):
+        return a * gg / np.sqrt(m) * _asinh_ratio(gg * rk)
+
+    integral_n = prim(g) - prim(-0.5) + b * (g * g - 0.25) / (np.sqrt(q) + 1.0)
+    integral_l = x0 * f + 0.5 * b * f * f
+    return delta, d_delta, integral_n - integral_l
 
 #: Steps of noise drawn per block for the active profiles (bounded temporaries).
 NOISE_BLOCK_STEPS = 128
@@ -121,10 +175,12 @@ class Profiles:
 
     Profile p has ``n_steps_p[p]`` steps (until it is done or reaches its horizon): its step
     values (``a_flat``, ``tau_flat``, ``mode_flat``) are at ``step_offset[p] + k`` and its grid
-    values (``s_flat``, ``v_flat``, one more) at ``step_offset[p] + p + k``.  The dense (K+1, P)
-    / (K, P) views ``s_m``, ``v_mps``, ``a_mps2``, ``tau_s``, ``mode`` (K = the longest horizon)
-    are for inspection and tests: after its last step a profile holds its end position at rest
-    (a = 0, tau = dt, mode cruise).
+    values (``s_flat``, ``v_flat``, ``noise_flat``, one more) at ``step_offset[p] + p + k``;
+    ``bridge_flat`` marks the free-cruise steps that carry the speed bridge (module doc) and
+    ``kappa`` is 2(1 − ρ) per profile.  The dense (K+1, P) / (K, P) views ``s_m``, ``v_mps``,
+    ``noise_mps``, ``a_mps2``, ``tau_s``, ``mode``, ``bridge`` (K = the longest horizon) are for
+    inspection and tests: after its last step a profile holds its end position at rest (a = 0,
+    tau = dt, mode cruise, no noise).
     """
 
     dt_s: float
@@ -136,6 +192,9 @@ class Profiles:
     a_flat: np.ndarray
     tau_flat: np.ndarray
     mode_flat: np.ndarray
+    noise_flat: np.ndarray     # σξ_k at the grid points
+    bridge_flat: np.ndarray    # bool per step
+    kappa: np.ndarray          # (P,)
     _dense: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -149,8 +208,9 @@ class Profiles:
             p = np.repeat(np.arange(P), self.n_steps_p)
             k = np.arange(len(p)) - self.step_offset[p]
             last = self.step_offset[1:] + np.arange(P)      # each profile's last grid value
-            if name in ("s_m", "v_mps"):
-                flat = self.s_flat if name == "s_m" else self.v_flat
+            if name in ("s_m", "v_mps", "noise_mps"):
+                flat = {"s_m": self.s_flat, "v_mps": self.v_flat,
+                        "noise_mps": self.noise_flat}[name]
                 out = (np.broadcast_to(flat[last], (K + 1, P)).copy() if name == "s_m"
                        else np.zeros((K + 1, P)))
                 out[0] = flat[self.step_offset[:-1] + np.arange(P)]
@@ -158,7 +218,8 @@ class Profiles:
             else:
                 flat, fill, dtype = {"a_mps2": (self.a_flat, 0.0, float),
                                      "tau_s": (self.tau_flat, self.dt_s, float),
-                                     "mode": (self.mode_flat, MODE_CRUISE, np.uint8)}[name]
+                                     "mode": (self.mode_flat, MODE_CRUISE, np.uint8),
+                                     "bridge": (self.bridge_flat, False, bool)}[name]
                 out = np.full((K, P), fill, dtype=dtype)
                 out[k, p] = flat
             self._dense[name] = out
@@ -169,6 +230,8 @@ class Profiles:
     a_mps2 = property(lambda self: self._view("a_mps2"))    # (K, P)
     tau_s = property(lambda self: self._view("tau_s"))      # (K, P) duration of a_k in the step
     mode = property(lambda self: self._view("mode"))        # (K, P) uint8 label of the step
+    noise_mps = property(lambda self: self._view("noise_mps"))  # (K+1, P) σξ_k
+    bridge = property(lambda self: self._view("bridge"))    # (K, P) bool
 
     def evaluate(self, tau_s, p):
         """(s, v, a, mode) of profiles ``p`` at local times ``tau_s`` (broadcast arrays).
@@ -176,9 +239,9 @@ class Profiles:
         Times are clipped to the profile's stored steps; beyond them its last state holds.
         """
         dt = self.dt_s
-        p = np.asarray(p, dtype=np.int64)
+        tau, p = np.broadcast_arrays(np.asarray(tau_s, float), np.asarray(p, dtype=np.int64))
         n = self.n_steps_p[p]
-        tau = np.clip(np.asarray(tau_s, float), 0.0, n * dt)
+        tau = np.clip(tau, 0.0, n * dt)
         k = np.clip(np.floor(tau / dt).astype(np.int64), 0, n - 1)
         u = tau - k * dt
         i = self.step_offset[p] + k
@@ -193,9 +256,49 @@ class Profiles:
         s = np.where(early, s0 + v0 * u + 0.5 * a * u * u, s1 - v1 * (dt - u))
         v = np.where(early, np.maximum(v0 + a * u, 0.0), v1)
         acc = np.where(early, a, 0.0)
+        br = self.bridge_flat[i] & early      # at u = Δt the grid value s_{k+1} holds
+        if np.any(br):
+            j = np.flatnonzero(br)
+            gb = g[br]
+            d, dd, integral = _bridge(self.noise_flat[gb], self.noise_flat[gb + 1],
+                                      self.kappa[p[br]], u[br] / dt)
+            s, v, acc = (np.array(x, float, copy=True) for x in np.broadcast_arrays(s, v, acc))
+            s.flat[j] += integral * dt
+            v.flat[j] += d
+            acc.flat[j] += dd / dt
         mode = self.mode_flat[i]
         mode = np.where((v == 0.0) & (mode == MODE_DECEL) & ~early, MODE_STOPPED, mode)
         return s, v, acc, mode.astype(np.uint8)
+
+    def _bridged_time(self, k: int, p: int, s_target: float) -> float:
+        """Time into bridged step ``k`` at which profile ``p`` reaches ``s_target``: Newton on
+        s(u) from u = Δt/2 (s is increasing and smooth there, v > 0), bisection as a fallback."""
+        dt = self.dt_s
+        i = int(self.step_offset[p]) + k
+        g = i + p
+        s0, v0, a = float(self.s_flat[g]), float(self.v_flat[g]), float(self.a_flat[i])
+        x0, x1 = float(self.noise_flat[g]), float(self.noise_flat[g + 1])
+        kap = float(self.kappa[p])
+
+        def s_v(u):
+            d, integral = _bridge_scalar(x0, x1, kap, u / dt)
+            return s0 + v0 * u + 0.5 * a * u * u + integral * dt, v0 + a * u + d
+
+        lo, hi, u = 0.0, dt, 0.5 * dt
+        for _ in range(60):
+            su, vu = s_v(u)
+            err = su - s_target
+            if abs(err) <= 1e-12 * max(1.0, abs(s_target)):
+                return u
+            if err < 0:
+                lo = u
+            else:
+                hi = u
+            nxt = u - err / vu if vu > 0 else 0.5 * (lo + hi)
+            u = nxt if lo < nxt < hi else 0.5 * (lo + hi)
+            if hi - lo < 1e-12 * dt:
+                break
+        return u
 
     def time_at(self, p: int, s_target: float) -> float:
         """First local time at which profile ``p`` reaches arc length ``s_target`` (inf: never
@@ -212,6 +315,8 @@ class Profiles:
         dt = self.dt_s
         s0, v0 = col[k], self.v_flat[i0 + p + k]
         a, tk = self.a_flat[i0 + k], self.tau_flat[i0 + k]
+        if self.bridge_flat[i0 + k]:
+            return k * dt + self._bridged_time(k, p, s_target)
         s_tau = s0 + v0 * tk + 0.5 * a * tk * tk
         x = s_target - s0
         if s_target <= s_tau:
@@ -224,8 +329,30 @@ class Profiles:
         return k * dt + min(max(u, 0.0), dt)
 
 
-def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, rec: list) -> Profiles:
-    """The recorded steps (per step: active ids, a, tau, label, s_end, v_end) as flat profiles."""
+def _bridge_scalar(x0, x1, kappa, f):
+    """:func:`_bridge` for one float (math module: no numpy overhead in a per-vehicle loop)."""
+    g = f - 0.5
+    m = 1.0 - 0.25 * kappa
+    q = kappa * g * g + m
+    rq = 1.0 / math.sqrt(q)
+    a, b = 0.5 * (x0 + x1), x1 - x0
+    lin = a + b * g
+    rk = math.sqrt(kappa / m)
+
+    def prim(gg):
+        z = gg * rk
+        ratio = 1.0 - z * z / 6.0 if abs(z) < 1e-4 else math.asinh(z) / z
+        return a * gg / math.sqrt(m) * ratio
+
+    integral = (prim(g) - prim(-0.5) + b * (g * g - 0.25) / (math.sqrt(q) + 1.0)
+                - (x0 * f + 0.5 * b * f * f))
+    return lin * (rq - 1.0), integral
+
+
+def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.ndarray,
+             rec: list) -> Profiles:
+    """The recorded steps (per step: active ids, a, tau, label, s_end, v_end, bridge, σξ at
+    the step's end) as flat profiles."""
     ids = np.concatenate([r[0] for r in rec]) if rec else np.zeros(0, np.int64)
     n_p = np.bincount(ids, minlength=P).astype(np.int64)
     off = np.concatenate([[0], np.cumsum(n_p)]).astype(np.int64)
@@ -239,16 +366,22 @@ def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, rec: list) 
     a = np.empty(n)
     tau = np.empty(n)
     mode = np.empty(n, np.uint8)
-    a[i], tau[i], mode[i] = cat(1, float), cat(2, float), cat(3, np.uint8)
+    bridge = np.empty(n, bool)
+    a[i], tau[i], mode[i], bridge[i] = (cat(1, float), cat(2, float), cat(3, np.uint8),
+                                        cat(6, bool))
     s = np.empty(n + P)
     v = np.empty(n + P)
+    w = np.empty(n + P)
     first = off[:-1] + np.arange(P)
     s[first] = 0.0
     v[first] = v0
+    w[first] = 0.0
     s[i + ids + 1] = cat(4, float)
     v[i + ids + 1] = cat(5, float)
+    w[i + ids + 1] = cat(7, float)
     return Profiles(dt_s=dt, n_steps_p=n_p, horizon_steps=horizon, step_offset=off,
-                    s_flat=s, v_flat=v, a_flat=a, tau_flat=tau, mode_flat=mode)
+                    s_flat=s, v_flat=v, a_flat=a, tau_flat=tau, mode_flat=mode, noise_flat=w,
+                    bridge_flat=bridge, kappa=kappa)
 
 
 def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -> Profiles:
@@ -289,10 +422,13 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
 
     # Per-profile state and constants of the active set (compacted as profiles leave it).
     rho = np.asarray(inp.noise_rho, float)
+    kappa = 2.0 * (1.0 - rho)
     act = {
         "pid": np.arange(P, dtype=np.int64),
         "amax": inp.max_accel_mps2, "dmax": inp.max_decel_mps2, "d_cap": d_cap_all,
         "sigma": inp.speed_noise_mps, "rho": rho, "rho_c": np.sqrt(1.0 - rho * rho),
+        # ∫_0^1 δ df = (σξ_k + σξ_{k+1})/2 · c1 (_bridge at f = 1: q = 1, the B term is 0)
+        "c1": _bridge(np.ones(P), np.ones(P), kappa, 1.0)[2],
         "p_stop": inp.p_stop, "q_wait": inp.q_wait, "max_wait": inp.max_wait_steps,
         "length": inp.length_m, "horizon": horizon,
         "first_seg": inp.seg_offset[:-1], "last_seg": inp.seg_offset[1:] - 1,
@@ -304,6 +440,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
     }
     block: Optional[tuple] = None
     rec = []
+    from tqdm import tqdm     # imported here: start-up time of the CLI
     for k in tqdm(range(K), desc="truth", unit="step", leave=False,
                   disable=None if progress else True, mininterval=0.5):
         if act["pid"].size == 0:
@@ -353,12 +490,15 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
         with np.errstate(invalid="ignore"):
             ahead = np.maximum(cap_s[j] - (s + v * dt), 0.0)
         cap = np.sqrt(cap_t[j] ** 2 + 2.0 * act["d_cap"] * ahead)
+        xi_prev = act["xi"]
         if k == 0:
             xi = normal.copy()
         else:
-            xi = act["rho"] * act["xi"] + act["rho_c"] * normal
+            xi = act["rho"] * xi_prev + act["rho_c"] * normal
         act["xi"] = xi
-        v_des = np.maximum(np.minimum(target + act["sigma"] * xi, cap), 0.0)
+        sigma = act["sigma"]
+        noisy = target + sigma * xi
+        v_des = np.maximum(np.minimum(noisy, cap), 0.0)
         raw = (v_des - v) / dt
         a_tr = np.clip(raw, -dmax, amax)
         a = np.where(tr, a_tr, a)
@@ -381,6 +521,16 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
         v_end = np.where(stops, 0.0, np.maximum(v + a * tau, 0.0))
         s_end = s + v * tau + 0.5 * a * tau * tau + v_end * (dt - tau)
         s_end = np.where(stops & bp, next_stop, s_end)
+        free = np.zeros(n_act, bool)
+        if k > 0:
+            # free cruise from the free target c + σξ_k to c + σξ_{k+1}: the speed bridge
+            x0, x1 = sigma * xi_prev, sigma * xi
+            free = (tr & (label == MODE_CRUISE) & (v_des == noisy) & (sigma > 0)
+                    & ~stops & (np.abs(v - (target + x0)) <= 1e-9 * np.maximum(v, 1.0))
+                    & (np.minimum(v, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
+                                                                          np.abs(x1))))
+            if free.any():
+                s_end = np.where(free, s_end + 0.5 * (x0 + x1) * act["c1"] * dt, s_end)
         still = state == STOPPED
         a = np.where(still, 0.0, a)
         v_end = np.where(still, 0.0, v_end)
@@ -395,11 +545,11 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
             wait_left[stops] = w
             state[stops] = STOPPED
             stop_ptr[stops & bp] += 1
-        rec.append((act["pid"], a, tau, label, s_end, v_end))
+        rec.append((act["pid"], a, tau, label, s_end, v_end, free, sigma * xi))
         act["s"], act["v"] = s_end, v_end
         # -- profiles that are done or at their horizon leave the active set
         keep = (s_end < act["length"]) & (act["horizon"] > k + 1)
         if not keep.all():
             act = {name: x[keep] for name, x in act.items()}
             block = tuple(b[:, keep] for b in block)
-    return _flatten(P, dt, np.asarray(inp.v0_mps, float), horizon, rec)
+    return _flatten(P, dt, np.asarray(inp.v0_mps, float), horizon, kappa, rec)

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
-import networkx as nx
 import numpy as np
 
 from gmtiflow import frames
@@ -142,13 +141,15 @@ class RoadMap:
 
     def largest_component(self) -> np.ndarray:
         """Node ids of the largest strongly connected component (sorted)."""
+        import networkx as nx   # 0.15 s to import: only once a road map is built
         comps = nx.strongly_connected_components(self.graph)
         best = max(comps, key=lambda c: (len(c), -min(c)))
         return np.asarray(sorted(best), dtype=np.int64)
 
 
-def _build_graph(nodes: Table, edges: Table) -> nx.DiGraph:
+def _build_graph(nodes: Table, edges: Table) -> "nx.DiGraph":
     """Directed routing graph: both directions unless oneway; the first road between a pair wins."""
+    import networkx as nx
     g = nx.DiGraph()
     g.add_nodes_from(range(len(nodes["node_id"])))
     for eid, f, t, length, one in zip(edges["edge_id"].tolist(), edges["from_node"].tolist(),

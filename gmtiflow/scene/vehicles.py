@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
 import numpy as np
-from scipy.special import ndtri
 
 from gmtiflow import frames, rng, schema
 from gmtiflow.errors import ConfigError, RoadMapError
@@ -440,6 +439,7 @@ def _trip_noise(seed: int, names: List[str]) -> motion.NoiseSource:
     column 0, stop uniform 1, wait uniform 2; 3-5 spare), drawn step-major block by block while
     the trip lasts, so the draws follow the trip and a longer scene extends, never changes,
     them."""
+    from scipy.special import ndtri   # imported here: scipy.special costs start-up time
     gens: Dict[int, np.random.Generator] = {}
 
     def draw(profiles, k0, n):

@@ -72,3 +72,20 @@ def test_compare_pairs_trackers_per_scenario_and_writes_tables():
     assert "▲ better" in md and "## Failed jobs" in md and "boom" in md
     with pytest.raises(ValueError, match="reference tracker 'nope'"):
         compare(recs, reference="nope")
+
+
+def test_mota_and_idf1_are_in_every_scenario_table_with_their_ranges():
+    # MOTA may be negative (more errors than truths), so its interval is not cut at 0; IDF1 is a
+    # fraction; both are "higher is better"
+    recs = [_rec("crossing", t, s, mota=m, idf1=f)
+            for t, m, f in (("nn_kalman", -0.5, 0.6), ("other", 0.5, 0.9))
+            for s in (1, 2, 3)]
+    recs += [_rec("crossing", "other", 4, mota=0.6, idf1=0.95),
+             _rec("crossing", "nn_kalman", 4, mota=-0.4, idf1=0.99)]
+    comp = compare(recs)
+    ref = comp.cell("crossing", "mota", "nn_kalman")
+    assert ref.est.mean == pytest.approx(-0.475) and ref.est.low < -0.475
+    assert comp.cell("crossing", "mota", "other").verdict == "better"
+    assert comp.cell("crossing", "idf1", "other").est.high <= 1.0
+    md = to_markdown(comp)
+    assert "| MOTA, higher is better |" in md and "| IDF1, higher is better |" in md

@@ -7,23 +7,8 @@ import sys
 import numpy as np
 import pytest
 
-from gmtiflow import convert, pipeline, store
+from gmtiflow import convert, store
 from gmtiflow.evaluate import cli as evaluate_cli
-from tests.conftest import compose_app
-
-OVERRIDES = ["scene.duration_s=40", "fidelity.truth_output_dt_s=1.0", "progress=false"]
-
-
-@pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    return pipeline.run(compose_app(OVERRIDES), tmp_path_factory.mktemp("run"))
-
-
-@pytest.fixture(scope="module")
-def tracks_csv(run, tmp_path_factory):
-    path = tmp_path_factory.mktemp("tracks") / "baseline.csv"
-    assert convert.main([str(run), "--to", "csv", "--table", "tracks", "-o", str(path)]) == 0
-    return path
 
 
 def cli(*args):

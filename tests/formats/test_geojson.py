@@ -38,12 +38,14 @@ def test_feature_collection_layout_follows_rfc7946():
     _, dets = synthetic.tables(3, 5)
     nodes, edges = _roads()
     doc = json.loads(geojson.encode_geojson(
-        detections=dets, truth=synthetic.truth(2, 3), road_nodes=nodes, road_edges=edges,
+        detections=dets, road_nodes=nodes, road_edges=edges,
         clutter_regions=[{"name": "c", "lat_deg": [43.0, 43.1, 43.0], "lon_deg": [7.0, 7.0, 7.1]}],
         epoch_utc=EPOCH))
     assert doc["type"] == "FeatureCollection" and "crs" not in doc
     kinds = [f["properties"]["kind"] for f in doc["features"]]
-    assert kinds.count("detection") == 5 and kinds.count("truth") == 2
+    assert kinds.count("detection") == 5
+    truth_doc = json.loads(geojson.encode_geojson(truth=synthetic.truth(2, 3), epoch_utc=EPOCH))
+    assert [f["properties"]["kind"] for f in truth_doc["features"]] == ["truth", "truth"]
     assert kinds.count("road_node") == 3 and kinds.count("road") == 2 and kinds.count("clutter") == 1
     det = doc["features"][0]
     assert det["geometry"]["type"] == "Point"
@@ -67,11 +69,12 @@ def test_round_trip_of_everything_is_exact(tmp_path):
     regions = [{"name": "town", "density_per_km2": 3.5,
                 "lat_deg": np.array([43.7, 43.8, 43.7]), "lon_deg": np.array([7.4, 7.45, 7.5])}]
     path = tmp_path / "scene.geojson"
-    geojson.write_geojson(path, detections=dets, truth=truth, road_nodes=nodes, road_edges=edges,
+    geojson.write_geojson(path, detections=dets, road_nodes=nodes, road_edges=edges,
                           clutter_regions=regions, epoch_utc=EPOCH)
+    geojson.write_geojson(tmp_path / "truth.geojson", truth=truth, epoch_utc=EPOCH)
     r = geojson.read_geojson(path)
     _same(dets, r["detections"])
-    _same(truth, r["truth"])
+    _same(truth, geojson.read_geojson(tmp_path / "truth.geojson")["truth"])
     _same(nodes, r["road_nodes"])
     _same(edges, r["road_edges"])
     reg = r["clutter_regions"][0]
@@ -84,11 +87,19 @@ def test_single_sample_vehicle_is_a_point_and_unlocated_detection_has_null_geome
     truth = synthetic.truth(2, 1)
     _, dets = synthetic.tables(2, 2)
     dets["lat_deg"][1] = np.nan
-    doc = json.loads(geojson.encode_geojson(truth=truth, detections=dets))
-    assert [f["geometry"]["type"] for f in doc["features"] if f["properties"]["kind"] == "truth"] == ["Point", "Point"]
+    doc = json.loads(geojson.encode_geojson(truth=truth))
+    assert [f["geometry"]["type"] for f in doc["features"]] == ["Point", "Point"]
+    assert len(geojson.read_geojson(json.dumps(doc).encode())["truth"]["time_s"]) == 2
+    doc = json.loads(geojson.encode_geojson(detections=dets))
     assert doc["features"][1]["geometry"] is None
     r = geojson.read_geojson(json.dumps(doc).encode())
-    assert np.isnan(r["detections"]["lat_deg"][1]) and len(r["truth"]["time_s"]) == 2
+    assert np.isnan(r["detections"]["lat_deg"][1])
+
+
+def test_truth_is_refused_beside_other_layers():
+    _, dets = synthetic.tables(2, 2)
+    with pytest.raises(ValueError, match="truth.geojson"):
+        geojson.encode_geojson(truth=synthetic.truth(2, 2), detections=dets)
 
 
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -17,8 +17,11 @@ def _documents():
         "xml": (xmldoc.encode_xml(dwells, dets, META), xmldoc.read_xml),
         "csv": (csvtable.encode_csv(dets, "detections", epoch_utc=META["epoch_utc"]),
                 csvtable.read_detections_csv),
-        "geojson": (geojson.encode_geojson(detections=dets, truth=truth,
-                                           epoch_utc=META["epoch_utc"]), geojson.read_geojson),
+        # truth lives in a GeoJSON file of its own: mutate a truth document too
+        "geojson": (geojson.encode_geojson(detections=dets, epoch_utc=META["epoch_utc"])
+                    if truth is None else geojson.encode_geojson(truth=truth,
+                                                                 epoch_utc=META["epoch_utc"]),
+                    geojson.read_geojson),
     }
 
 

@@ -3,49 +3,13 @@ independent PyPI decoder.  The tshark tests skip only where tshark is not instal
 installs it: .ci/run)."""
 from __future__ import annotations
 
-import shutil
-import subprocess
-
 import numpy as np
 import pytest
 
 from gmtiflow.formats import stanag4607 as s4607, synthetic
+from tests.external_tools import needs_tshark, tshark_expert_errors, tshark_fields
 
 META = {"epoch_utc": synthetic.EPOCH_UTC}
-TSHARK = shutil.which("tshark")
-needs_tshark = pytest.mark.skipif(TSHARK is None, reason="tshark is not installed "
-                                  "(apt-get install tshark; CI installs it)")
-
-
-def tshark_expert_errors(path) -> list:
-    """The error lines of ``tshark -r FILE -q -z expert`` (empty when the file is clean)."""
-    out = subprocess.run([TSHARK, "-r", str(path), "-q", "-z", "expert"], capture_output=True,
-                         text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    lines = out.stdout.splitlines()
-    if "Errors" not in "".join(lines):
-        return []
-    i = next(k for k, line in enumerate(lines) if line.startswith("Errors"))
-    errs = []
-    for line in lines[i + 3:]:
-        if not line.strip() or line.startswith(("Warns", "Notes", "Chats", "=")):
-            break
-        errs.append(line.strip())
-    return errs
-
-
-def tshark_fields(path, *fields) -> dict:
-    """Raw values of tshark fields over all packets, each as one flat int array."""
-    cmd = [TSHARK, "-r", str(path), "-T", "fields", "-E", "separator=|", "-E", "aggregator=,"]
-    for f in fields:
-        cmd += ["-e", f]
-    out = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    cols = {f: [] for f in fields}
-    for line in out.stdout.splitlines():
-        for f, cell in zip(fields, line.split("|")):
-            cols[f] += [int(v, 0) for v in cell.split(",") if v]
-    return {f: np.array(v, dtype=np.int64) for f, v in cols.items()}
 
 
 def two_sensor_tables():

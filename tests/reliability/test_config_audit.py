@@ -7,7 +7,6 @@ field added later without a check fails here rather than deep inside numpy.
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 import re
 
@@ -15,6 +14,7 @@ import pytest
 
 from gmtiflow import config
 from gmtiflow.compose import compose
+from gmtiflow.config_tree import get_path, numeric_leaves, set_leaf
 from gmtiflow.errors import ConfigError
 
 PRESETS = {
@@ -39,56 +39,14 @@ SIGNED_OK = {
 }
 
 
-def numeric_leaves(obj, prefix=""):
-    """Full key paths of every int/float leaf (bools excluded) of a config tree."""
-    if dataclasses.is_dataclass(obj):
-        for f in dataclasses.fields(obj):
-            yield from numeric_leaves(getattr(obj, f.name), f"{prefix}{f.name}.")
-    elif isinstance(obj, (list, tuple)):
-        for i, item in enumerate(obj):
-            yield from numeric_leaves(item, f"{prefix[:-1]}[{i}].")
-    elif isinstance(obj, dict):
-        for key, item in obj.items():
-            yield from numeric_leaves(item, f"{prefix}{key}.")
-    elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
-        yield prefix[:-1]
-
-
-def set_leaf(obj, path: str, value) -> None:
-    parts = re.findall(r"[^.\[\]]+|\[\d+\]", path)
-    for part in parts[:-1]:
-        obj = _child(obj, part)
-    last = parts[-1]
-    if last.startswith("["):
-        obj[int(last[1:-1])] = value
-    elif isinstance(obj, dict):
-        obj[last] = value
-    else:
-        object.__setattr__(obj, last, value)
-
-
-def _child(obj, part):
-    if part.startswith("["):
-        return obj[int(part[1:-1])]
-    return obj[part] if isinstance(obj, dict) else getattr(obj, part)
-
-
 def named_in(message: str, key: str, tree) -> bool:
     """The message names ``key``, or the list/dict field that holds it (``types``, ``[1]``)."""
     candidates = {key, re.sub(r"(\[\d+\])+$", "", key)}
     parts = key.split(".")
-    holder = _child_path(tree, parts[:-1])
+    holder = get_path(tree, ".".join(parts[:-1]))
     if isinstance(holder, dict):          # a dict entry: the dict's key names it
         candidates.add(".".join(parts[:-1]))
     return any(c in message for c in candidates)
-
-
-def _child_path(tree, parts):
-    obj = tree
-    for part in parts:
-        for piece in re.findall(r"[^\[\]]+|\[\d+\]", part):
-            obj = _child(obj, piece)
-    return obj
 
 
 def generic(key: str) -> str:
@@ -102,7 +60,7 @@ def preset(request):
 
 def test_every_numeric_field_rejects_nan_and_infinity_by_name(preset):
     name, base = preset
-    keys = list(numeric_leaves(base))
+    keys = [key for key, _ in numeric_leaves(base)]
     assert len(keys) > 100, keys           # the walk really reaches the whole tree
     silent, unnamed, tried = [], [], 0
     for key in keys:
@@ -124,7 +82,7 @@ def test_every_numeric_field_rejects_nan_and_infinity_by_name(preset):
 def test_every_negative_number_is_refused_by_name_or_a_signed_quantity(preset):
     name, base = preset
     accepted = []
-    for key in numeric_leaves(base):
+    for key, _ in numeric_leaves(base):
         cfg = copy.deepcopy(base)
         set_leaf(cfg, key, -1.0)
         try:

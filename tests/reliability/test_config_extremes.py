@@ -10,6 +10,7 @@ every accepted case is ``python benchmarks/config_extremes.py --run all``.
 from __future__ import annotations
 
 import importlib.util
+import math
 import re
 from pathlib import Path
 
@@ -101,3 +102,48 @@ def test_the_estimate_counts_vehicles_and_steps():
     e = budget.estimate(cfg)
     assert e.n_vehicles == 10 + sum(v.convoy.count for v in cfg.vehicles.vehicles)
     assert e.profile_samples == e.n_vehicles * 201 and e.truth_rows == e.n_vehicles * 101
+
+
+def test_the_sensor_chunk_is_in_the_estimate():
+    """A chunk holds at least one revisit's pairs and at least chunk_pairs of them, each about
+    SENSOR_PAIR_BYTES; the default scene's tiny fleet is the chunk_pairs floor."""
+    cfg = compose(["tracker=none", "metrics.enabled=false"])
+    e = budget.estimate(cfg)
+    floor = 300_000 * budget.SENSOR_PAIR_BYTES
+    assert e.sensor_bytes == pytest.approx(floor)
+    budget.check(cfg)                                   # the default scene is accepted
+    two = budget.estimate(compose(["tracker=none", "metrics.enabled=false", "sensor_workers=2"]))
+    assert two.sensor_bytes == pytest.approx(3 * floor)   # two chunks computed + one written
+
+
+def test_false_alarms_per_revisit_are_counted():
+    over = ["tracker=none", "metrics.enabled=false", "sensor.pfa=0.5",
+            "sensor.max_false_alarms_per_dwell=1e9"]
+    cfg = compose(over)
+    s = cfg.sensor
+    per_revisit = s.n_dwells * s.expected_false_alarms_per_dwell + 3 * budget.n_vehicles(cfg)
+    assert budget.estimate(cfg).sensor_bytes == pytest.approx(
+        per_revisit * budget.SENSOR_PAIR_BYTES)
+
+
+def test_a_sensor_beyond_memory_is_refused_naming_its_knobs(monkeypatch):
+    monkeypatch.setenv("GMTIFLOW_MEMORY_BYTES", str(2**30))
+    cfg = compose(["tracker=none", "metrics.enabled=false", "sensor.pfa=0.5",
+                   "sensor.max_false_alarms_per_dwell=1e9"])
+    with pytest.raises(ConfigError, match="the run needs") as info:
+        budget.check(cfg)
+    msg = str(info.value)
+    assert "the sensor stage" in msg and "sensor.pfa" in msg \
+        and "sensor.max_false_alarms_per_dwell" in msg
+    # the same sensor with the tables kept for the tracker needs far more
+    kept = budget.estimate(compose(["sensor.pfa=0.5", "sensor.max_false_alarms_per_dwell=1e9"]))
+    assert kept.sensor_bytes > 10 * budget.estimate(cfg).sensor_bytes
+
+
+def test_fov_clutter_counts_per_dwell():
+    base = ["tracker=none", "metrics.enabled=false", "sensor.noise_false_alarms=false"]
+    cfg = compose(base + ["clutter.fov_density_per_km2=1000"])
+    s = cfg.sensor
+    fov_km2 = 0.5 * math.radians(s.az_max_deg - s.az_min_deg) \
+        * (s.range_max_m ** 2 - s.range_min_m ** 2) / 1e6
+    assert budget.points_per_dwell(s, cfg.clutter) == pytest.approx(1000 * fov_km2 / s.n_dwells)

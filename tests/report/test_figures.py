@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 import pytest
-from matplotlib.collections import PathCollection
+from matplotlib.collections import PathCollection, PolyCollection
 
 from gmtiflow.report import figures as F
 from gmtiflow.report.data import key_numbers, load_run, n
@@ -70,9 +70,12 @@ def test_sensor_figure_histograms_count_unmerged_true_detections(small_run):
     fig = F.sensor_figure(run.table("looks"), det, 1e-6)
     expected = int(np.sum((det["truth_id"] >= 0) & ~det["merged"] & ~det["range_folded"]
                           & ~det["doppler_wrapped"]))
-    for ax in fig.axes[-3:]:
-        counts = sum(1 for p in ax.patches)  # 40 bins per histogram
-        assert counts == 40
+    errors = F.normalised_errors(det)
+    for ax, v in zip(fig.axes[-3:], errors.values()):
+        assert len(ax.patches) == 1          # one filled step outline, not a patch per bin
+        density, _ = np.histogram(np.clip(v, -5, 5), bins=np.linspace(-5, 5, 41), density=True)
+        tops = ax.patches[0].get_xy()[:, 1]
+        assert set(np.round(density, 9)) <= set(np.round(tops, 9))
         assert f"n={expected}" in ax.get_legend().get_texts()[0].get_text()
 
 
@@ -97,8 +100,9 @@ def test_timeline_rows_and_outcome_counts(small_run):
     assert len(ax.get_yticks()) == n(run.table("vehicles"))
     markers = sum(len(c.get_offsets()) for c in ax.collections if isinstance(c, PathCollection))
     assert markers == n(looks)
-    widths = sum(p.get_width() for p in bars.patches)
-    assert widths == n(looks)
+    (stack,) = [c for c in bars.collections if isinstance(c, PolyCollection)]
+    widths = sum(np.ptp(p.vertices[:, 0]) for p in stack.get_paths())
+    assert widths == n(looks)                # one bar segment per vehicle and outcome
     fig = F.timeline_figure(run.table("vehicles"), run.table("truth"), looks, max_vehicles=2)
     assert len(fig.axes[0].get_yticks()) == 2
     assert "first 2 of" in fig._suptitle.get_text()

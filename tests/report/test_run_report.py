@@ -47,3 +47,29 @@ def test_report_config_group_and_validation(tmp_path):
         assert isinstance(app.report, ReportConfig) and app.report.enabled is enabled
     with pytest.raises(ConfigError, match="report.filename.*report.max_points|report.max_points.*report.filename"):
         compose(["report.filename=out.png", "report.max_points=0"])
+
+
+def test_lazy_tables_read_what_read_table_reads_and_only_when_asked(small_run, tmp_path):
+    import shutil
+
+    import numpy as np
+
+    from gmtiflow.report.data import load_run
+    copy = tmp_path / "run.h5"
+    shutil.copy(small_run, copy)
+    eager, lazy = load_run(copy), load_run(copy, lazy=True)
+    assert set(eager.tables) == set(lazy.tables)
+    for name, table in eager.tables.items():
+        assert list(lazy.table(name)) == list(table) and "nosuch" not in lazy.table(name)
+        for column, values in table.items():
+            got = lazy.table(name)[column]
+            assert got.dtype == values.dtype
+            assert np.array_equal(got, values, equal_nan=got.dtype.kind == "f")
+    truth = load_run(copy, lazy=True).table("truth")
+    x_m = truth["x_m"]                         # read now, kept
+    copy.unlink()
+    assert truth["x_m"] is x_m and truth.get("nosuch") is None
+    with pytest.raises(StoreError, match="run.h5"):
+        truth["y_m"]                           # never read, and the file is gone
+    with pytest.raises(StoreError, match="no column 'nosuch'"):
+        truth["nosuch"]

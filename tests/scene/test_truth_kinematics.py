@@ -89,3 +89,63 @@ def test_wander_sigma_holds_at_random_instants(long_road, corr_s):
     for col in range(3):
         q = np.sum((d[:, col] / sig[col]) ** 2)
         assert lo < q < hi, (col, q / n)
+
+
+@pytest.mark.parametrize("corr_s", [0.0, 5.0])
+def test_speed_noise_sigma_holds_at_random_instants(long_road, corr_s):
+    """The speed noise's σ at random instants between motion steps (a straight line between
+    the grid values gave σ√((1+ρ)/2) mid-step: 0.71 σ with correlation time 0), and its
+    mean is the cruise speed."""
+    sigma, cruise = 0.3, 10.0
+    specs = [VehicleSpec(name=f"v{i}", start="a", end="b", cruise_speed_mps=cruise,
+                         speed_noise_mps=sigma, speed_noise_corr_s=corr_s)
+             for i in range(40)]
+    fl = _fleet(long_road, *specs, duration_s=3000.0, dt_s=1.0, seed=7)
+    g = np.random.default_rng(2)
+    # instants 60 s apart (>= 12 correlation times), at a random fraction of a step
+    t = np.arange(30.0, 2900.0, 60.0)[:, None] + g.uniform(0, 1, (1, 40))
+    st = fl.state_at(t, np.arange(40)[None, :])
+    z = ((st["speed_mps"] - cruise) / sigma).ravel()
+    n = z.size
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], n)
+    assert lo < np.sum(z * z) < hi, np.mean(z * z)
+    assert abs(z.mean()) < 3.5 / np.sqrt(n)
+    # mid-step instants alone (where the straight line was lowest)
+    tm = np.arange(30.0, 2900.0, 60.0)[:, None] + 0.5 + np.zeros((1, 40))
+    zm = ((fl.state_at(tm, np.arange(40)[None, :])["speed_mps"] - cruise) / sigma).ravel()
+    assert lo < np.sum(zm * zm) < hi, np.mean(zm * zm)
+
+
+@pytest.mark.parametrize("corr_s", [0.0, 5.0])
+def test_speed_noise_keeps_velocity_the_derivative(long_road, corr_s):
+    """With the bridge, s(t) is still the integral of the speed and the speed that of the
+    acceleration at random instants (central differences, off the grid instants)."""
+    spec = VehicleSpec(name="w", start="a", end="b", cruise_speed_mps=10.0,
+                       speed_noise_mps=0.5, speed_noise_corr_s=corr_s)
+    fl = _fleet(long_road, spec, duration_s=200.0, dt_s=1.0, seed=3)
+    assert fl.profiles.bridge.mean() > 0.5          # most steps are free cruise
+    t = np.random.default_rng(4).uniform(2.0, 190.0, 3000)
+    t = t[np.abs(t - np.round(t)) > 2 * H]
+    st, lo, hi = fl.state_at(t, 0), fl.state_at(t - H, 0), fl.state_at(t + H, 0)
+    ds = (hi["route_s_m"] - lo["route_s_m"]) / (2 * H)
+    assert np.max(np.abs(ds - st["speed_mps"])) < 1e-5
+    dv = (hi["speed_mps"] - lo["speed_mps"]) / (2 * H)
+    acc = np.hypot(st["ax_mps2"], st["ay_mps2"]) * np.sign(dv)
+    assert np.max(np.abs(dv - acc)) < 1e-3
+    # the grid values are the kernel's: s at whole seconds is continuous from both sides
+    tg = np.arange(5.0, 150.0)
+    left, right = fl.state_at(tg - 1e-9, 0), fl.state_at(tg + 1e-9, 0)
+    assert np.max(np.abs(right["route_s_m"] - left["route_s_m"])) < 1e-6
+
+
+def test_time_at_inverts_a_bridged_profile(long_road):
+    """Profiles.time_at (the instant a convoy member or a stop is reached) inverts s(t) inside
+    free-cruise steps carrying the speed bridge."""
+    spec = VehicleSpec(name="w", start="a", end="b", cruise_speed_mps=10.0,
+                       speed_noise_mps=0.8, speed_noise_corr_s=0.0)
+    fl = _fleet(long_road, spec, duration_s=200.0, dt_s=1.0, seed=3)
+    prof = fl.profiles
+    t = np.random.default_rng(5).uniform(2.0, 190.0, 200)
+    s, *_ = prof.evaluate(t, 0)
+    back = np.array([prof.time_at(0, x) for x in s])
+    assert np.max(np.abs(back - t)) < 1e-9

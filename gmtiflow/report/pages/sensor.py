@@ -5,12 +5,13 @@ import math
 from typing import Dict, Optional
 
 import numpy as np
+from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
 from gmtiflow.frames import wrap_pi
 from gmtiflow.tables import Table
 
-from ..common import SNR_FLOOR_DB, _col, _note, new_figure
+from ..common import SNR_FLOOR_DB, _col, _note, new_figure, rectangles
 from ..data import DETECTED, DRAWN, n
 
 
@@ -96,7 +97,10 @@ def sensor_figure(looks: Table, detections: Table, pfa: float, *, snr_bin_db: fl
         ax.errorbar(centres, pd_emp, yerr=err, fmt="o", color="#d73027", ms=5, capsize=2,
                     label=f"empirical: detected / looks ({int(count.sum())} looks, ±1σ binomial)")
         ax2 = ax.twinx()
-        ax2.bar(centres, count, width=0.9 * snr_bin_db, color="0.85", zorder=0)
+        half = 0.45 * snr_bin_db
+        ax2.add_collection(PolyCollection(rectangles(centres - half, centres + half, 0, count),
+                                          facecolor="0.85", lw=0, zorder=0))
+        ax2.set_ylim(0, 1.05 * float(count.max()))
         ax2.set_ylabel("looks per bin", color="0.5")
         ax2.tick_params(axis="y", colors="0.5")
         ax.set_zorder(ax2.get_zorder() + 1)
@@ -118,7 +122,8 @@ def sensor_figure(looks: Table, detections: Table, pfa: float, *, snr_bin_db: fl
         a = fig.add_subplot(gs[1, i])
         if len(v):
             a.hist(np.clip(v, -5, 5), bins=np.linspace(-5, 5, 41), density=True, color="#4393c3",
-                   alpha=0.8, label=f"n={len(v)}\nmean {v.mean():+.2f}\nstd {v.std():.2f}")
+                   alpha=0.8, histtype="stepfilled",    # one polygon, not a patch per bin
+                   label=f"n={len(v)}\nmean {v.mean():+.2f}\nstd {v.std():.2f}")
             a.plot(x, np.exp(-x * x / 2) / math.sqrt(2 * math.pi), "k-", lw=1.3, label="N(0, 1)")
             a.legend(fontsize=7, loc="upper right")
         else:

@@ -4,7 +4,7 @@ from __future__ import annotations
 from typing import List, Tuple
 
 import numpy as np
-from matplotlib.collections import PolyCollection
+from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -12,7 +12,7 @@ from matplotlib.patches import Patch
 from gmtiflow.sensor.outcome import Outcome
 from gmtiflow.tables import Table
 
-from ..common import OUTCOME_STYLE, RASTER_ABOVE, _col, _note, new_figure
+from ..common import OUTCOME_STYLE, RASTER_ABOVE, _col, _note, new_figure, rectangles
 from ..data import n
 
 
@@ -52,25 +52,25 @@ def timeline_figure(vehicles: Table, truth: Table, looks: Table, *,
         u = np.unique(t)
         dt = float(np.median(np.diff(u))) if len(u) > 1 else 1.0
         bounds = np.flatnonzero(np.r_[True, vid[1:] != vid[:-1], True])
-        stops, tunnels = [], []
+        stops, tunnels, spans = [], [], []
         mode = _col(truth, "mode")[order] if "mode" in truth else None
         inv = _col(truth, "invisible")[order].astype(bool) if "invisible" in truth else None
         for a, b in zip(bounds[:-1], bounds[1:]):       # per shown vehicle (≤ max_vehicles)
             r = row[int(vid[a])]
             tt = t[a:b]
-            ax.plot([tt[0], tt[-1]], [r, r], color="0.85", lw=6, solid_capstyle="butt", zorder=0)
+            spans.append([(tt[0], r), (tt[-1], r)])
             if mode is not None:
                 stops += [(s, w, r) for s, w in _runs(tt, mode[a:b] == 2, dt)]
             if inv is not None:
                 tunnels += [(s, w, r) for s, w in _runs(tt, inv[a:b], dt)]
-        for spans, style in ((stops, dict(facecolor="#fee08b", edgecolor="#d8b365")),
-                             (tunnels, dict(facecolor="none", edgecolor="#543005", hatch="xxx",
-                                            lw=0.5))):
-            if spans:
-                s, w, r = (np.asarray(c, float) for c in zip(*spans))
-                verts = np.stack([np.c_[s, r - 0.38], np.c_[s + w, r - 0.38],
-                                  np.c_[s + w, r + 0.38], np.c_[s, r + 0.38]], 1)
-                ax.add_collection(PolyCollection(verts, zorder=1, **style))
+        ax.add_collection(LineCollection(spans, colors="0.85", lw=6, capstyle="butt", zorder=0))
+        for runs, style in ((stops, dict(facecolor="#fee08b", edgecolor="#d8b365")),
+                            (tunnels, dict(facecolor="none", edgecolor="#543005", hatch="xxx",
+                                           lw=0.5))):
+            if runs:
+                s, w, r = (np.asarray(c, float) for c in zip(*runs))
+                ax.add_collection(PolyCollection(rectangles(s, s + w, r - 0.38, r + 0.38),
+                                                 zorder=1, **style))
     counts = np.zeros((len(shown), len(OUTCOME_STYLE)))
     codes = list(OUTCOME_STYLE)
     if n(looks):
@@ -87,11 +87,14 @@ def timeline_figure(vehicles: Table, truth: Table, looks: Table, *,
                            lw=1 if code == Outcome.OUTSIDE_FOV else 0, zorder=3,
                            rasterized=m.sum() > RASTER_ABOVE)
                 counts[:, j] = np.bincount(rows[m], minlength=len(shown))
-    left = np.zeros(len(shown))
-    for j, code in enumerate(codes):
-        colour, label, _ = OUTCOME_STYLE[code]
-        bx.barh(np.arange(len(shown)), counts[:, j], left=left, color=colour, height=0.7)
-        left += counts[:, j]
+    # Stacked horizontal bars as one collection (barh makes a patch per bar and vehicle).
+    right = np.cumsum(counts, axis=1)
+    left = right - counts
+    r = np.broadcast_to(np.arange(len(shown))[:, None], counts.shape).ravel()
+    bars = rectangles(left, right, r - 0.35, r + 0.35)
+    bx.add_collection(PolyCollection(bars, lw=0, facecolors=np.broadcast_to(
+        np.array([OUTCOME_STYLE[c][0] for c in codes]), counts.shape).ravel()))
+    bx.set_xlim(0, max(float(right[:, -1].max()) if right.size else 0.0, 1.0) * 1.05)
     labels = [f"{names.get(v, v)} (#{v})" for v in shown]
     ax.set_yticks(np.arange(len(shown)))
     ax.set_yticklabels(labels, fontsize=max(5, min(9, int(300 / max(len(shown), 1)))))

@@ -53,7 +53,7 @@ def title_figure(attrs: dict, config: dict, numbers: Dict[str, float],
         ("Terrain", f"{c('terrain.kind')}"),
         ("Fidelity", f"{c('fidelity.name')} ({c('fidelity.dwell_mode')}, "
                      f"truth every {c('fidelity.truth_output_dt_s')} s)"),
-        ("Tracker", "baseline NN-Kalman" if c("tracker.enabled", False) else "off"),
+        ("Tracker", _tracker_text(c) if c("tracker.enabled", False) else "off"),
         ("Duration / epoch", f"{c('scene.duration_s')} s from {attrs.get('scene_epoch_utc', '—')}"),
         ("Seed / version", f"{attrs.get('seed', '—')} / gmtiflow {attrs.get('gmtiflow_version', '—')}"),
         ("Origin", f"{attrs.get('origin_lat_deg', float('nan')):.5f}° N, "
@@ -103,3 +103,11 @@ def title_figure(attrs: dict, config: dict, numbers: Dict[str, float],
     if attrs.get("attribution"):
         fig.text(0.05, 0.02, f"Map data: {attrs['attribution']}", fontsize=9, color="0.3")
     return fig
+
+
+def _tracker_text(c) -> str:
+    """What tracked: the baseline, a named tracker config, or an external track file."""
+    name = c("tracker.name", "nn_kalman")
+    if name == "external":
+        return f"external tracks: {c('tracker.tracks_file', '?')}"
+    return "baseline NN-Kalman" if name == "nn_kalman" else str(name)

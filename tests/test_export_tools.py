@@ -1,0 +1,108 @@
+"""Every export of three short scenes, checked with software we did not write and for the
+columns a tracker needs: the default scene, ``clutter=lake`` (false alarms and a clutter region)
+and ``experiment=two_orbits`` (two sensors).  tshark finds no expert error in detections.4607
+and decodes our values; GDAL (pyogrio) opens scene.geojson and truth.geojson with one type per
+field; every CSV has ``time_s`` and ISO-8601 ``time_utc``; detections.csv and dwells.csv carry
+``sensor_id`` (detections their ``dwell_id``) and the CSV and GeoJSON readers bring it back."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gmtiflow import formats, pipeline, store
+from gmtiflow.formats import stanag4607 as s4607
+from gmtiflow.formats._io import iso_utc, parse_epoch
+from tests.conftest import compose_app
+from tests.external_tools import gdal_read, needs_tshark, tshark_expert_errors, tshark_fields
+
+SCENES = {"default": [], "lake": ["clutter=lake"], "two_orbits": ["experiment=two_orbits"]}
+SHORT = ["scene.duration_s=20", "fidelity.truth_output_dt_s=1.0", "progress=false",
+         "report=none", "export=all", "export.csv_tables=[detections,dwells,truth,tracks]",
+         "cache.enabled=false"]
+
+
+@pytest.fixture(scope="module", params=sorted(SCENES))
+def scene_run(request, tmp_path_factory):
+    """(scene name, run.h5 path) of a 20 s run with every export."""
+    name = request.param
+    cfg = compose_app(SCENES[name] + SHORT)
+    return name, pipeline.run(cfg, tmp_path_factory.mktemp(name))
+
+
+def _located(det):
+    return np.isfinite(det["lat_deg"]) & np.isfinite(det["lon_deg"])
+
+
+@needs_tshark
+def test_tshark_reads_the_4607_export_without_errors_and_decodes_our_values(scene_run):
+    name, run = scene_run
+    path = run.parent / "detections.4607"
+    assert tshark_expert_errors(path) == []
+    ours = s4607.read_4607(path)
+    d, t = ours["dwells"], ours["detections"]
+    det = store.read_table(run, "detections")
+    assert len(t["det_id"]) == int(_located(det).sum()) > 0, name
+    got = tshark_fields(path, "s4607.dwell.time", "s4607.dwell.count", "s4607.dwell.sensor.lat",
+                        "s4607.dwell.rpt.lat", "s4607.dwell.rpt.lon", "s4607.dwell.rpt.radial",
+                        "s4607.dwell.rpt.unc.slant", "s4607.dwell.rpt.unc.height")
+    pieces = np.repeat(np.arange(len(d["dwell_id"])), d["n_packets"])
+    assert got["s4607.dwell.time"].tolist() == d["dwell_time_ms"][pieces].tolist()
+    assert got["s4607.dwell.count"].sum() == len(t["det_id"])
+    assert got["s4607.dwell.sensor.lat"].tolist() == s4607.enc_sa32(
+        d["platform_lat_deg"][pieces]).tolist()
+    assert got["s4607.dwell.rpt.lat"].tolist() == s4607.enc_sa32(t["lat_deg"]).tolist()
+    assert got["s4607.dwell.rpt.lon"].tolist() == s4607.enc_ba32(t["lon_deg"]).tolist()
+    assert got["s4607.dwell.rpt.radial"].tolist() == np.rint(
+        t["los_velocity_mps"] * 100).astype(int).tolist()
+    assert got["s4607.dwell.rpt.unc.slant"].tolist() == np.rint(
+        t["sigma_range_m"] * 100).astype(int).tolist()
+    assert got["s4607.dwell.rpt.unc.height"].tolist() == t["sigma_height_m"].astype(int).tolist()
+    n_sensors = len(store.read_table(run, "sensors")["sensor_id"])
+    assert sorted(set(d["sensor_id"].tolist())) == list(range(n_sensors))
+
+
+def test_gdal_opens_every_geojson_with_one_type_per_field(scene_run):
+    name, run = scene_run
+    det = store.read_table(run, "detections")
+    fields, types, _ = gdal_read(run.parent / "scene.geojson")
+    assert not any(t.endswith("List") for t in types.values()), types
+    kind = fields["kind"].astype(str)
+    points = kind == "detection"
+    assert points.sum() == int(_located(det).sum()) > 0
+    assert types["sensor_id"].startswith("OFTInteger") and types["time_s"] == "OFTReal"
+    order = np.argsort(fields["det_id"][points].astype(np.int64))
+    ok = _located(det)
+    np.testing.assert_array_equal(fields["sensor_id"][points].astype(np.int64)[order],
+                                  det["sensor_id"][ok][np.argsort(det["det_id"][ok])])
+    np.testing.assert_array_equal(fields["time_s"][points].astype(float)[order],
+                                  det["time_s"][ok][np.argsort(det["det_id"][ok])])
+    truth, ttypes, geom = gdal_read(run.parent / "truth.geojson")
+    # LineStrings, and a Point for a vehicle with one sample (GDAL: "Unknown", i.e. mixed)
+    assert geom in ("LineString", "LineString Z", "Unknown") and ttypes["time_s"] == "OFTRealList"
+    assert len(truth["vehicle_id"]) == len(np.unique(store.read_table(run, "truth")["vehicle_id"]))
+    back = formats.read_geojson(run.parent / "scene.geojson")["detections"]
+    assert sorted(back["sensor_id"].tolist()) == sorted(det["sensor_id"][ok].tolist())
+
+
+@pytest.mark.parametrize("table", ["detections", "dwells", "truth", "tracks"])
+def test_every_csv_has_both_times_and_the_sensor_comes_back(scene_run, table):
+    name, run = scene_run
+    path = run.parent / f"{table}.csv"
+    header = path.read_text().split("\n", 1)[0].split(",")
+    assert header[:2] == ["time_utc", "time_s"]
+    back = formats.read_csv(path, table)
+    ref = store.read_table(run, table)
+    with store.open_run(run) as f:
+        epoch = parse_epoch(store.read_attrs(f)["scene_epoch_utc"])
+    column = [line.split(",")[0] for line in path.read_text().splitlines()[1:]]
+    assert column == iso_utc(epoch, back["time_s"]).tolist()
+    assert len(back["time_s"]) == len(ref["time_s"])
+    if table in ("detections", "dwells"):
+        assert "sensor_id" in header and "dwell_id" in header
+        key = "det_id" if table == "detections" else "dwell_id"
+        o, r = np.argsort(back[key]), np.argsort(ref[key])
+        np.testing.assert_array_equal(back["sensor_id"][o], ref["sensor_id"][r])
+        np.testing.assert_array_equal(back["dwell_id"][o], ref["dwell_id"][r])
+        np.testing.assert_array_equal(back["time_s"][o], ref["time_s"][r])
+        if name == "two_orbits":
+            assert set(back["sensor_id"].tolist()) == {0, 1}

@@ -1,0 +1,53 @@
+"""What `gmtiflow` imports before it can answer ``--help`` or reject a config (issue 18/19:
+both within 1.5 s).  Nothing here is timed (benchmarks/startup_time.py measures): the test
+runs the real entry point in a fresh interpreter and checks which modules it loaded, so a heavy
+import moved back to the top of a module fails here however fast the machine is."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+# What a config error must not pay for: plotting, routing graphs, scipy (interpolation,
+# optimisation, statistics), HDF5, the viewer, and the simulation itself.
+HEAVY = ("matplotlib", "networkx", "scipy", "h5py", "plotly", "PIL",
+         "gmtiflow.pipeline", "gmtiflow.sensor.model", "gmtiflow.evaluate.tracker",
+         "gmtiflow.report.run_report", "gmtiflow.scene.trajectory")
+
+PROBE = """
+import json, sys
+sys.argv = ["gmtiflow", *json.loads(sys.argv[1])]
+from gmtiflow.cli import main
+code = 0
+try:
+    main()
+except SystemExit as exc:
+    code = exc.code
+print("\\n" + json.dumps({"code": code, "modules": sorted(sys.modules)}))
+"""
+
+
+def loaded_modules(args, cwd):
+    proc = subprocess.run([sys.executable, "-c", PROBE, json.dumps(args)], cwd=cwd,
+                          capture_output=True, text=True, timeout=120)
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    return out["code"], out["modules"]
+
+
+def heavy_in(modules):
+    return sorted(m for m in modules if any(m == h or m.startswith(h + ".") for h in HEAVY))
+
+
+@pytest.mark.parametrize("args", [["sensor.peak_power_w=-1"], ["sensor.nosuch=1"]],
+                         ids=["range-error", "unknown-key"])
+def test_config_error_imports_nothing_heavy(tmp_path, args):
+    code, modules = loaded_modules(args + [f"hydra.run.dir={tmp_path}/run"], tmp_path)
+    assert code not in (0, None), "the bad config was accepted"
+    assert "gmtiflow.config" in modules        # the probe really reached validation
+    assert heavy_in(modules) == []
+
+
+def test_help_imports_neither_hydra_nor_numpy(tmp_path):
+    code, modules = loaded_modules(["--help"], tmp_path)
+    assert code in (0, None)
+    assert [m for m in modules if m.split(".")[0] in ("hydra", "numpy", "omegaconf")] == []
