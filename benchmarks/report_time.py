@@ -1,9 +1,12 @@
-"""Time the run report on the default scene (target < 10 s) and on a bigger random fleet.
+"""Time the run report: on the default scene and a bigger random fleet, or on a given run file.
 
-    cd /work/wt/report && /work/venvs/report/bin/python benchmarks/report_time.py [--big N]
+    python benchmarks/report_time.py [--big N]            # simulate, then time the report
+    python benchmarks/report_time.py --run RUN_DIR/run.h5  # e.g. issue 18's 1,000-vehicle scene
 
-Simulates each scene once (not timed) into a temporary dir, then builds report.pdf three times
-and prints the best total and the per-page seconds of the best build.
+Without ``--run`` it simulates each scene once (not timed) into a temporary dir, then builds
+report.pdf three times and prints the best total and the per-page seconds of the best build;
+with ``--run`` it prints, per build, the wall and CPU time and every page's CPU seconds, with
+the machine load (CPU time is what counts on a shared machine).
 """
 from __future__ import annotations
 

@@ -5,6 +5,8 @@
   ``hydra.verbose`` was given.
 * :func:`run_summary` — the end-of-run block: detections (targets / false alarms / merged),
   P_D achieved, tracks, OSPA/GOSPA and the files written, read back from the finished run file.
+* :func:`progress` — a tqdm bar for the slow steps after the simulation (export, report): only
+  on a terminal, and only once the step has taken 2 s, so short runs and logs stay quiet.
 * :func:`discard_failed_run_dir` — a run that failed before finishing any stage (a config
   range error, a missing map file) leaves no empty run directory behind; a log that records
   finished stages is worth keeping and stays.
@@ -71,6 +73,17 @@ def help_text() -> str:
     groups = "\n".join(f"{g}: {', '.join(opts)}" for g, opts in config_groups().items())
     return (f"{spec['header']}\nConfig groups (choose one option per group with GROUP=OPTION):\n\n"
             f"{groups}\n\n{spec['footer']}")
+
+
+PROGRESS_DELAY_S = 2.0
+"""A progress bar appears only once its step has run this long."""
+
+
+def progress(items, desc: str, unit: str, *, file=None, delay_s: float = PROGRESS_DELAY_S):
+    """``items`` wrapped in a tqdm bar that shows on a terminal (``file``, default stderr) and
+    only after ``delay_s``; elsewhere (a log, a pipe, a test) it writes nothing."""
+    from tqdm import tqdm
+    return tqdm(items, desc=desc, unit=unit, leave=False, delay=delay_s, disable=None, file=file)
 
 
 def set_verbosity(verbose: bool) -> None:

@@ -47,6 +47,7 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from gmtiflow import frames
+from gmtiflow.console import progress
 from gmtiflow.errors import InputFileError
 from gmtiflow.live import StreamConfig
 from gmtiflow.schema import Problem, non_negative
@@ -581,7 +582,7 @@ def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     written: List[Path] = []
     try:
-        for fmt, name in plan:
+        for fmt, name in progress(plan, "export", "file"):   # on a terminal, after 2 s
             if fmt == "csv:tracks" and "tracks" not in run.tables:
                 log.info("no /tracks in %s: tracks.csv not written", run.path)
                 continue

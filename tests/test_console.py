@@ -1,5 +1,6 @@
 """What the ``gmtiflow`` command says: a short --help, a quiet run with a summary at the end,
 INFO lines only with -v, and no empty run directory after a config error."""
+import io
 import os
 import subprocess
 import sys
@@ -91,3 +92,18 @@ def test_discard_keeps_a_directory_with_a_log_worth_keeping(tmp_path):
     (run / "notes.txt").unlink()
     assert console.discard_failed_run_dir(run) and not run.exists()
     assert tmp_path.is_dir()          # not a Hydra date dir: the parent stays
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_bar_only_on_a_terminal_and_only_for_slow_steps():
+    quiet, slow, fast = io.StringIO(), _Terminal(), _Terminal()
+    assert list(console.progress(range(3), "export", "file", file=quiet, delay_s=0)) == [0, 1, 2]
+    assert quiet.getvalue() == ""                        # a pipe or a log: nothing
+    list(console.progress(range(3), "export", "file", file=slow, delay_s=0))
+    assert "export:" in slow.getvalue() and "/3 [" in slow.getvalue()   # the bar
+    list(console.progress(range(3), "report", "page", file=fast))   # done within 2 s
+    assert fast.getvalue() == ""

@@ -21,15 +21,17 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 from matplotlib.backends.backend_pdf import PdfPages
-from tqdm import tqdm
 from matplotlib.figure import Figure
 
 from gmtiflow.formats import atomic_path
 from gmtiflow import __version__
+from gmtiflow.console import progress
 
 from . import figures as F
 from .config import ReportConfig
 from .data import RunData, key_numbers, load_run, n, summary
+from .pages.title import reference_values
+from .relief import run_terrain, terrain_source
 from .sensors_page import sensors_figure
 
 log = logging.getLogger(__name__)
@@ -43,14 +45,18 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
     t = run.table
     tracker_on = bool(run.cfg("tracker.enabled", True))
     pages = [
-        ("title", lambda: F.title_figure(run.attrs, run.config, key_numbers(run),
-                                         summary(t("metrics")), str(run.path))),
+        ("title", lambda: F.title_figure(
+            run.attrs, run.config, key_numbers(run), summary(t("metrics")), str(run.path),
+            overrides=recorded_overrides(run.path),
+            references=reference_values(run.config, key_numbers(run), t("detections"),
+                                        _expected_false_alarms(run)))),
         ("map", lambda: F.map_figure(t("roads/nodes"), t("roads/edges"), t("truth"), t("platform"),
                                      t("dwells"), t("detections"), t("tracks"),
                                      run.cfg("clutter.regions", []) or [], run.origin,
                                      str(run.attrs.get("attribution", "") or ""),
                                      max_points=cfg.max_points, max_footprints=cfg.max_footprints,
-                                     max_track_lines=cfg.max_track_lines)),
+                                     max_track_lines=cfg.max_track_lines,
+                                     **_terrain_args(run))),
         ("sensor", lambda: F.sensor_figure(t("looks"), t("detections"),
                                            float(run.cfg("sensor.pfa", 1e-6)),
                                            snr_bin_db=cfg.snr_bin_db,
@@ -74,6 +80,24 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
             for s in (run.cfg("sensors", {}) or {}).values()))
         pages.insert(1, ("sensors", lambda: sensors_figure(sensors, window_s)))
     return pages
+
+
+def _terrain_args(run: RunData) -> dict:
+    """The map page's terrain arguments: the run's DEM rebuilt from its config (gmtiflow.report.relief)."""
+    terrain, note = run_terrain(run.config, run.origin)
+    return dict(terrain=terrain, terrain_name=terrain_source(run.config), terrain_note=note)
+
+
+def recorded_overrides(run_path: Path) -> Optional[List[str]]:
+    """The command-line overrides of the run (Hydra's ``.hydra/overrides.yaml`` beside the run
+    file), or None when the run did not record them (made from Python, or moved)."""
+    import yaml
+    path = Path(run_path).parent / ".hydra" / "overrides.yaml"
+    try:
+        items = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return None
+    return [str(x) for x in items] if isinstance(items, list) else None
 
 
 def _expected_false_alarms(run: RunData) -> Optional[float]:
@@ -111,8 +135,7 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf,
                            "Creator": f"gmtiflow {__version__}"}) as pdf:
         pages = run_figures(run, cfg)
         pages[1:1] = list(extra_pages)
-        for page, builder in tqdm(pages, desc="report", unit="page", leave=False, delay=2.0,
-                                  disable=None):   # a bar on a terminal when it takes > 2 s
+        for page, builder in progress(pages, "report", "page"):   # on a terminal, after 2 s
             t0, c0 = time.perf_counter(), time.process_time()
             pdf.savefig(builder(), dpi=cfg.dpi)   # the figure is dropped here (no pyplot)
             seconds[page] = time.perf_counter() - t0

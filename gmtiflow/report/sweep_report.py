@@ -39,6 +39,7 @@ from matplotlib.figure import Figure
 
 from gmtiflow.formats import atomic_path
 from gmtiflow import __version__
+from gmtiflow.console import progress
 from gmtiflow.errors import GmtiflowError
 
 from . import figures as F
@@ -111,6 +112,16 @@ def find_job_dirs(paths: Iterable) -> List[Path]:
         raise SweepReportError("no run or job directories (with run.h5 or .hydra/) in "
                                + ", ".join(map(str, paths)))
     return unique
+
+
+def skipped_dirs(paths: Iterable) -> List[str]:
+    """Subdirectories of the given sweep dirs that are not jobs (empty, or foreign)."""
+    out: List[str] = []
+    for p in map(Path, paths):
+        if p.is_dir() and not _is_job(p):
+            out += [d.name for d in sorted(p.iterdir(), key=_natural)
+                    if d.is_dir() and not _is_job(d) and not d.name.startswith(".")]
+    return out
 
 
 def read_overrides(job_dir: Path) -> Dict[str, str]:
@@ -204,20 +215,32 @@ def _fmt(v: float, key: str = "") -> str:
 
 # ----------------------------------------------------------------------------- pages
 
-def table_figures(jobs: Sequence[Job], keys: Sequence[str], sources: Sequence, rows_per_page=22
-                  ) -> List[Figure]:
-    """Title and the job table: swept parameters against key results, paginated."""
+MAX_TABLE_COLUMNS = 14
+"""Columns of one job table; beyond, parameters and results go on separate pages."""
+
+
+def table_figures(jobs: Sequence[Job], keys: Sequence[str], sources: Sequence, rows_per_page=22,
+                  skipped: Sequence[str] = ()) -> List[Figure]:
+    """Title and the job table: swept parameters against key results, paginated; ``skipped``:
+    directories of the sweep that are not jobs (named once, on the title page)."""
     common = {}
     if jobs:
         first = jobs[0].overrides
         common = {k: v for k, v in first.items() if k not in keys
                   and all(j.overrides.get(k) == v for j in jobs)}
     results = [r for r in RESULTS if any(math.isfinite(j.values.get(r[0], float("nan"))) for j in jobs)]
-    header = ["job"] + list(keys) + ["status"] + [f"{lab}" + (f" ({u})" if u else "") for _, lab, u in results]
+    # One table while it stays legible; with many swept keys the parameters and the results
+    # get pages of their own (each row still starts with the job and its status).
+    together = len(keys) + 2 + len(results) <= MAX_TABLE_COLUMNS
+    parts = [(list(keys), results)] if together else [(list(keys), []), ([], results)]
+    chunks = [jobs[i:i + rows_per_page] for i in range(0, max(len(jobs), 1), rows_per_page)]
     figs = []
-    pages = max(1, math.ceil(len(jobs) / rows_per_page))
+    pages = len(chunks) * len(parts)
     n_ok = sum(j.ok for j in jobs)
-    for page in range(pages):
+    for page, (part_keys, part_results) in enumerate(
+            (pk, pr) for pk, pr in parts for _ in range(len(chunks))):
+        chunk = chunks[page % len(chunks)]
+        what = "" if together else (" — swept parameters" if part_keys else " — results")
         fig = F.new_figure()
         if page == 0:
             fig.text(0.04, 0.94, "gmtiflow sweep report", fontsize=20, weight="bold")
@@ -229,18 +252,23 @@ def table_figures(jobs: Sequence[Job], keys: Sequence[str], sources: Sequence, r
                      f"common overrides: {textwrap.shorten(' '.join(f'{k}={v}' for k, v in common.items()) or 'none', 150)}",
                      "wall time: job start to run file written (timing.json of the sweep callback); "
                      "P_D achieved: detected / looks with a detection draw"]
+            if skipped:
+                lines.append(f"not jobs (no run.h5 and no .hydra/, left out): "
+                             f"{textwrap.shorten(', '.join(skipped), 120)}")
             for i, ln in enumerate(lines):
                 fig.text(0.04, 0.895 - 0.03 * i, ln, fontsize=9)
             top = 0.72
         else:
-            fig.text(0.04, 0.94, f"Jobs (page {page + 1} of {pages})", fontsize=14, weight="bold")
+            fig.text(0.04, 0.94, f"Jobs{what} (page {page + 1} of {pages})", fontsize=14,
+                     weight="bold")
             top = 0.9
-        chunk = jobs[page * rows_per_page:(page + 1) * rows_per_page]
+        header = (["job", "status"] + list(part_keys)
+                  + [f"{lab}" + (f" ({u})" if u else "") for _, lab, u in part_results])
         cells = []
         for j in chunk:
-            row = [textwrap.shorten(j.label, 18)] + [textwrap.shorten(str(j.overrides.get(k, "–")), 22) for k in keys]
-            row.append(j.status)
-            row += [_fmt(j.values.get(k, float("nan")), k) if j.ok else "" for k, _, _ in results]
+            row = [textwrap.shorten(j.label, 18), j.status]
+            row += [textwrap.shorten(str(j.overrides.get(k, "–")), 22) for k in part_keys]
+            row += [_fmt(j.values.get(k, float("nan")), k) if j.ok else "" for k, _, _ in part_results]
             cells.append(row)
         ax = fig.add_axes([0.03, 0.04, 0.94, top - 0.04])
         ax.axis("off")
@@ -254,7 +282,7 @@ def table_figures(jobs: Sequence[Job], keys: Sequence[str], sources: Sequence, r
                 if r == 0:
                     cell.set_facecolor("#deebf7")
                     cell.set_height(cell.get_height() * 1.8)
-                elif cells[r - 1][len(keys) + 1] != "COMPLETED":
+                elif cells[r - 1][1] != "COMPLETED":
                     cell.set_facecolor("#fddbc7")
         figs.append(fig)
     return figs
@@ -300,6 +328,26 @@ def _x_axis(values: Sequence[str], param: str):
     return {v: float(i) for i, v in enumerate(values)}, False, False
 
 
+def _results_grid(count: int):
+    """(figure, axes): one panel per result, 2 or 3 columns, room for a legend below."""
+    fig = F.new_figure()
+    ncols = 3 if count > 4 else 2
+    axes = fig.subplots(max(1, math.ceil(count / ncols)), ncols, squeeze=False,
+                        gridspec_kw=dict(left=0.07, right=0.98, top=0.86, bottom=0.14,
+                                         hspace=0.6, wspace=0.3))
+    return fig, axes
+
+
+def _finish_grid(fig, axes, count: int) -> None:
+    """Blank the unused panels; one legend (the first panel's entries) below them all."""
+    for ax in axes.ravel()[count:]:
+        ax.axis("off")
+    handles, labels = axes.ravel()[0].get_legend_handles_labels()
+    if labels:
+        fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8,
+                   frameon=False)
+
+
 def parameter_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Figure:
     """Every result against one swept parameter, mean ± 95 % interval over the seeds of a point
     (the jobs' own values as dots).  Numbers: one line per combination of the other swept
@@ -307,12 +355,7 @@ def parameter_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Fi
     ok = [j for j in jobs if j.ok]
     others = [k for k in keys if k != param and k != "seed"]
     results = [r for r in RESULTS if any(math.isfinite(j.values.get(r[0], float("nan"))) for j in ok)]
-    fig = F.new_figure()
-    ncols = 3 if len(results) > 4 else 2
-    nrows = max(1, math.ceil(len(results) / ncols))
-    axes = fig.subplots(nrows, ncols, squeeze=False,
-                        gridspec_kw=dict(left=0.07, right=0.98, top=0.86, bottom=0.14,
-                                         hspace=0.6, wspace=0.3))
+    fig, axes = _results_grid(len(results))
     values = list(dict.fromkeys(j.overrides.get(param, "–") for j in ok))
     if values and all(_number(v) is not None for v in values):
         values.sort(key=float)
@@ -352,14 +395,9 @@ def parameter_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Fi
                                rotation=20 if len(values) > 3 else 0)
         ax.tick_params(labelsize=7)
         ax.set_xlabel(param + (" (log)" if log_x else ""), fontsize=8)
-    for ax in axes.ravel()[len(results):]:
-        ax.axis("off")
+    _finish_grid(fig, axes, len(results))
     if not results:
         F._note(axes.ravel()[0], "no completed jobs: nothing to plot")
-    handles, labels = axes.ravel()[0].get_legend_handles_labels()
-    if labels:
-        fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8,
-                   frameon=False)
     spread = (f"; mean ± 95 % interval (t) over up to {repeats} seeds per point, dots = jobs"
               if repeats > 1 else "")
     fig.suptitle(f"Results vs {param}{spread}", fontsize=13, weight="bold", x=0.04, ha="left")
@@ -400,12 +438,7 @@ def paired_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Figur
     ok = [j for j in jobs if j.ok]
     results = [r for r in RESULTS if r[0] != "wall_s" and
                any(math.isfinite(j.values.get(r[0], float("nan"))) for j in ok)]
-    fig = F.new_figure()
-    ncols = 3 if len(results) > 4 else 2
-    nrows = max(1, math.ceil(len(results) / ncols))
-    axes = fig.subplots(nrows, ncols, squeeze=False,
-                        gridspec_kw=dict(left=0.07, right=0.98, top=0.86, bottom=0.14,
-                                         hspace=0.6, wspace=0.3))
+    fig, axes = _results_grid(len(results))
     base = None
     for ax, (key, label, unit) in zip(axes.ravel(), results):
         base, deltas = paired_deltas(jobs, param, others, key)
@@ -430,12 +463,7 @@ def paired_figure(jobs: Sequence[Job], param: str, keys: Sequence[str]) -> Figur
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3, axis="y")
         ax.set_xlabel(param, fontsize=8)
-    for ax in axes.ravel()[len(results):]:
-        ax.axis("off")
-    handles, labels = axes.ravel()[0].get_legend_handles_labels()
-    if labels:
-        fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8,
-                   frameon=False)
+    _finish_grid(fig, axes, len(results))
     fig.suptitle(f"Paired by seed: change from {param}={base} (mean ± 95 % interval of the "
                  f"per-seed differences)", fontsize=12, weight="bold", x=0.04, ha="left")
     return fig
@@ -500,7 +528,7 @@ def failures_figure(jobs: Sequence[Job]) -> Figure:
 
 def sweep_figures(jobs: Sequence[Job], sources: Sequence) -> List[Figure]:
     keys = swept_keys(jobs)
-    figs = table_figures(jobs, keys, sources)
+    figs = table_figures(jobs, keys, sources, skipped=skipped_dirs(sources))
     plot_params = [k for k in keys if k != "seed"]     # seeds are the spread, not a parameter
     for k in plot_params:
         figs.append(parameter_figure(jobs, k, keys))
@@ -527,9 +555,8 @@ def build_sweep_report(paths: Sequence, out_pdf) -> Path:
     with atomic_path(out_pdf) as tmp, PdfPages(
             tmp, metadata={"Title": "gmtiflow sweep report",
                            "Creator": f"gmtiflow {__version__}"}) as pdf:
-        for fig in sweep_figures(jobs, paths):
+        for fig in progress(sweep_figures(jobs, paths), "sweep report", "page"):
             pdf.savefig(fig)
-            fig.clear()
     log.info("sweep report %s: %d jobs (%d failed)", out_pdf, len(jobs),
              sum(not j.ok for j in jobs))
     return out_pdf

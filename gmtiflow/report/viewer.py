@@ -117,6 +117,37 @@ def _footprint(dwells, rows, origin) -> tuple:
     return xs / KM, ys / KM, px / KM, py / KM
 
 
+def frame_of_dwells(dwells) -> np.ndarray:
+    """The viewer frame of each dwell: frame k holds the k-th revisit of the first sensor and
+    every other sensor's dwells since the previous one ended (one sensor: frame = revisit)."""
+    if not n(dwells):
+        return np.zeros(0, np.int64)
+    rev = np.asarray(dwells["revisit_id"] if "revisit_id" in dwells else dwells["dwell_id"])
+    sensor = np.asarray(dwells["sensor_id"]) if "sensor_id" in dwells else np.zeros(len(rev), int)
+    time_s = np.asarray(dwells["time_s"], float)
+    clock = sensor == sensor.min()
+    revs, inverse = np.unique(rev[clock], return_inverse=True)
+    ends = np.full(len(revs), -np.inf)
+    np.maximum.at(ends, inverse, time_s[clock])
+    ends = np.maximum.accumulate(ends)
+    frame = np.searchsorted(ends, time_s, side="left")      # first revisit end at or after
+    out = np.minimum(frame, len(revs) - 1)
+    out[clock] = inverse
+    return out.astype(np.int64)
+
+
+def sensor_names(run: RunData) -> Dict[int, str]:
+    """sensor_id -> name: ``sensor_name`` then the ``sensors`` entries in order (the run's
+    sensor ids follow that order), else "sensor N"."""
+    names = [str(run.cfg("sensor_name", "main"))] + [str(k) for k in (run.cfg("sensors", {}) or {})]
+    ids = np.unique(np.asarray(run.table("dwells").get("sensor_id", np.zeros(1, int))))
+    return {int(i): names[int(i)] if int(i) < len(names) else f"sensor {int(i)}" for i in ids}
+
+
+SENSOR_COLOURS = ("#fdae61", "#74add1", "#a6d96a", "#f46d43", "#c2a5cf", "#fee090")
+"""Beam footprint (and platform outline) colour of sensor 0, 1, ... (cycled)."""
+
+
 def _r(a, digits=3):
     """Km rounded to 1 m as float32 (plotly ships typed arrays: 4 bytes a value instead of 8;
     float32 keeps 1 m up to ~8,000 km); NaN stays NaN (a line break for plotly)."""
@@ -132,11 +163,11 @@ class _Frames:
         self.tracks = self._sorted(t("tracks"), "time_s")
         det, dwells, looks = t("detections"), t("dwells"), t("looks")
         self.dwells = dwells
-        rev = np.asarray(dwells["revisit_id"] if "revisit_id" in dwells else dwells["dwell_id"])
-        self.rev_of_dwell = dict(zip(np.asarray(dwells["dwell_id"]).tolist(), rev.tolist())) \
-            if n(dwells) else {}
+        rev = frame_of_dwells(dwells)
         self.revisits = np.unique(rev) if n(dwells) else np.zeros(0, np.int64)
         self.dwell_rev = rev
+        self.sensor_of_dwell = np.asarray(dwells["sensor_id"]) if "sensor_id" in dwells else \
+            np.zeros(n(dwells), np.int64)
         did = np.asarray(dwells["dwell_id"]) if n(dwells) else np.zeros(0, np.int64)
         order = np.argsort(did)
         self._did_sorted, self._rev_sorted = did[order], rev[order] if n(dwells) else rev
@@ -198,25 +229,47 @@ def build_viewer(run_path, out_html, *, max_frames: int = 150, max_labels: int =
     static.append(go.Scatter(x=_r(tx_), y=_r(ty_), mode="lines", name="tunnel (invisible road)",
                              line=dict(color="#8c510a", width=2.5, dash="dash"), hoverinfo="skip"))
     plat = t("platform")
-    if n(plat):
-        k = max(1, n(plat) // 2000)
-        static.append(go.Scatter(x=_r(np.asarray(plat["x_m"])[::k] / KM),
-                                 y=_r(np.asarray(plat["y_m"])[::k] / KM), mode="lines",
-                                 line=dict(color="#636363", width=1), name="platform track",
-                                 hoverinfo="skip"))
+    names = sensor_names(run)
+    several = len(names) > 1
+    plat_sid = np.asarray(plat["sensor_id"]) if "sensor_id" in plat else np.zeros(n(plat), int)
+    plat_by_sensor = {}
+    for sid in names:
+        m = plat_sid == sid
+        if not m.any():
+            continue
+        order = np.argsort(np.asarray(plat["time_s"])[m], kind="stable")
+        ps = {c: np.asarray(plat[c])[m][order] for c in ("time_s", "x_m", "y_m")}
+        plat_by_sensor[sid] = ps
+        k = max(1, len(ps["time_s"]) // 2000)
+        static.append(go.Scatter(x=_r(ps["x_m"][::k] / KM), y=_r(ps["y_m"][::k] / KM),
+                                 mode="lines", line=dict(color="#636363", width=1),
+                                 name=f"platform track: {names[sid]}" if several else
+                                 "platform track", hoverinfo="skip"))
 
     def frame_traces(rev) -> List:
-        rows = np.flatnonzero(fr.dwell_rev == rev)
-        te = float(dw_t[rows].max()) if len(rows) else 0.0
+        rows_all = np.flatnonzero(fr.dwell_rev == rev)
+        te = float(dw_t[rows_all].max()) if len(rows_all) else 0.0
         out = []
-        fx, fy, px, py = _footprint(fr.dwells, rows, origin) if len(rows) else ([], [], [], [])
-        out.append(go.Scatter(x=_r(fx), y=_r(fy), mode="lines", fill="toself", name="beam footprint",
-                              line=dict(color="#fdae61", width=1), fillcolor="rgba(253,174,97,0.18)",
-                              hoverinfo="skip"))
-        out.append(go.Scatter(x=[px] if len(rows) else [], y=[py] if len(rows) else [],
-                              mode="markers", name="platform",
-                              marker=dict(symbol="triangle-up", size=12, color="black"),
-                              hovertemplate=f"platform at t = {te:.1f} s<extra></extra>"))
+        for j, (sid, name) in enumerate(names.items()):
+            rows = rows_all[fr.sensor_of_dwell[rows_all] == sid]
+            fx, fy, _, _ = _footprint(fr.dwells, rows, origin) if len(rows) else ([], [], 0, 0)
+            ps = plat_by_sensor.get(sid)
+            if ps is not None and len(ps["time_s"]):     # where that aircraft is at te
+                i = int(np.clip(np.searchsorted(ps["time_s"], te, "right") - 1, 0,
+                                len(ps["time_s"]) - 1))
+                px, py = [float(ps["x_m"][i]) / KM], [float(ps["y_m"][i]) / KM]
+            else:
+                px = py = []
+            colour = SENSOR_COLOURS[j % len(SENSOR_COLOURS)]
+            rgb = tuple(int(colour[k:k + 2], 16) for k in (1, 3, 5))
+            label = f": {name}" if several else ""
+            out.append(go.Scatter(x=_r(fx), y=_r(fy), mode="lines", fill="toself",
+                                  name=f"beam footprint{label}", line=dict(color=colour, width=1),
+                                  fillcolor="rgba(%d,%d,%d,0.18)" % rgb, hoverinfo="skip"))
+            out.append(go.Scatter(x=px, y=py, mode="markers", name=f"platform{label}",
+                                  marker=dict(symbol="triangle-up", size=12, color="black",
+                                              line=dict(color=colour, width=2)),
+                                  hovertemplate=f"platform{label} at t = {te:.1f} s<extra></extra>"))
         # truth at the last sample not after te, with the look outcome of this revisit
         tx = ty = np.zeros(0)
         hover: List[str] = []
@@ -260,8 +313,12 @@ def build_viewer(run_path, out_html, *, max_frames: int = 150, max_labels: int =
             m = fr.det_kind[kind][ds] if n(fr.det) else np.zeros(0, bool)
             dx = fr.det["x_m"][ds][m] / KM if n(fr.det) else np.zeros(0)
             dy = fr.det["y_m"][ds][m] / KM if n(fr.det) else np.zeros(0)
-            txt = [f"{label}<br>det {d}, truth {tid}" for d, tid in
-                   zip(fr.det["det_id"][ds][m].tolist(), fr.det["truth_id"][ds][m].tolist())] \
+            sids = fr.det["sensor_id"][ds][m].tolist() if n(fr.det) and "sensor_id" in fr.det \
+                else [0] * int(m.sum())
+            txt = [f"{label}<br>det {d}, truth {tid}" + (f"<br>sensor {names.get(sd, sd)}"
+                                                         if several else "")
+                   for d, tid, sd in zip(fr.det["det_id"][ds][m].tolist(),
+                                         fr.det["truth_id"][ds][m].tolist(), sids)] \
                 if n(fr.det) else []
             out.append(go.Scatter(x=_r(dx), y=_r(dy), mode="markers", name=label, hovertext=txt,
                                   hoverinfo="text", marker=dict(symbol=symbol, size=8, color=colour,
@@ -294,6 +351,13 @@ def build_viewer(run_path, out_html, *, max_frames: int = 150, max_labels: int =
                                                             color="#762a83", line=dict(width=2))))
         return out, te
 
+    # initial view: the scene (roads and truth), not the far-away orbit; terrain under it
+    pts_x = [a for a in (rx, fr.truth.get("x_m", np.zeros(0)) / KM) if len(a)]
+    pts_y = [a for a in (ry, fr.truth.get("y_m", np.zeros(0)) / KM) if len(a)]
+    view = _initial_view(pts_x, pts_y)
+    relief_trace, relief_note = _relief_trace(run, view)
+    if relief_trace is not None:
+        static.insert(0, relief_trace)
     first, _ = frame_traces(revs[0]) if len(revs) else ([], 0.0)
     n_static = len(static)
     dyn_idx = list(range(n_static, n_static + len(first)))
@@ -305,9 +369,6 @@ def build_viewer(run_path, out_html, *, max_frames: int = 150, max_labels: int =
                           args=[[str(k)], dict(mode="immediate", frame=dict(duration=0, redraw=False),
                                                transition=dict(duration=0))]))
     fig = go.Figure(data=static + first, frames=frames)
-    # initial view: the scene (roads and truth), not the far-away orbit
-    pts_x = [a for a in (rx, fr.truth.get("x_m", np.zeros(0)) / KM) if len(a)]
-    pts_y = [a for a in (ry, fr.truth.get("y_m", np.zeros(0)) / KM) if len(a)]
     layout = dict(
         title=dict(text=f"gmtiflow scene viewer — {run.path}", font=dict(size=14)),
         xaxis=dict(title="east (km)", scaleanchor="y", scaleratio=1, zeroline=False),
@@ -327,24 +388,61 @@ def build_viewer(run_path, out_html, *, max_frames: int = 150, max_labels: int =
                       yanchor="top", currentvalue=dict(prefix="t = ", suffix=" s"),
                       pad=dict(t=0))] if steps else [],
     )
-    if pts_x:
-        allx, ally = np.concatenate(pts_x), np.concatenate(pts_y)
-        allx, ally = allx[np.isfinite(allx)], ally[np.isfinite(ally)]
-        if len(allx):
-            pad = 0.08 * max(np.ptp(allx), np.ptp(ally), 0.5)
-            layout["xaxis"]["range"] = [float(allx.min() - pad), float(allx.max() + pad)]
-            layout["yaxis"]["range"] = [float(ally.min() - pad), float(ally.max() + pad)]
+    if view is not None:
+        layout["xaxis"]["range"], layout["yaxis"]["range"] = view
+    if relief_note:
+        layout["annotations"] = [dict(text=relief_note, xref="paper", yref="paper", x=0, y=1,
+                                      xanchor="left", yanchor="bottom", showarrow=False,
+                                      font=dict(size=10, color="#8c510a"))]
     attribution = str(run.attrs.get("attribution", "") or "")
     if attribution:
-        layout["annotations"] = [dict(text=attribution if "©" in attribution else f"© {attribution}",
+        layout.setdefault("annotations", []).append(dict(
+                                      text=attribution if "©" in attribution else f"© {attribution}",
                                       xref="paper", yref="paper", x=1, y=0, xanchor="right",
-                                      yanchor="bottom", showarrow=False, font=dict(size=10))]
+                                      yanchor="bottom", showarrow=False, font=dict(size=10)))
     fig.update_layout(**layout)
     html = _page(fig, origin, len(frames))
     with atomic_path(out_html, suffix=".partial.html") as tmp:
         Path(tmp).write_text(html, encoding="utf-8")
     log.info("viewer %s: %d frames, %.1f MB", out_html, len(frames), out_html.stat().st_size / 1e6)
     return out_html
+
+
+def _initial_view(pts_x, pts_y):
+    """([x0, x1], [y0, y1]) km around the roads and truth (8 % margin), or None."""
+    if not pts_x:
+        return None
+    allx, ally = np.concatenate(pts_x), np.concatenate(pts_y)
+    allx, ally = allx[np.isfinite(allx)], ally[np.isfinite(ally)]
+    if not len(allx):
+        return None
+    pad = 0.08 * max(np.ptp(allx), np.ptp(ally), 0.5)
+    return ([float(allx.min() - pad), float(allx.max() + pad)],
+            [float(ally.min() - pad), float(ally.max() + pad)])
+
+
+def _relief_trace(run: RunData, view):
+    """(trace, note): the run's terrain (gmtiflow.report.relief) over the initial view as a
+    heatmap of its hill shading — transparent where level or lit, brown where a slope faces
+    away from the light (north-west) — with the ground height on hover; (None, "") for flat
+    ground, (None, why) when the run's DEM cannot be read."""
+    import plotly.graph_objects as go
+
+    from .relief import relief_grid, run_terrain, shadow, terrain_source
+    terrain, note = run_terrain(run.config, run.origin)
+    if terrain is None or view is None:
+        return None, note
+    relief = relief_grid(terrain, np.asarray(view[0]) * KM, np.asarray(view[1]) * KM,
+                         cells=200, source=terrain_source(run.config))
+    if relief is None:
+        return None, note
+    z = np.where(np.isfinite(relief.height_m), shadow(relief), np.nan)
+    return go.Heatmap(x=_r(relief.x_m / KM), y=_r(relief.y_m / KM), z=np.round(z, 3),
+                      customdata=np.round(relief.height_m).astype(np.float32), zmin=0, zmax=1,
+                      showscale=False, zsmooth="best", showlegend=True,
+                      colorscale=[[0, "rgba(255,255,255,0)"], [1, "rgb(140,105,70)"]],
+                      name=f"terrain ({relief.source})",
+                      hovertemplate="ground %{customdata:.0f} m<extra></extra>"), note
 
 
 _HEAD = """<!DOCTYPE html>

@@ -187,3 +187,23 @@ def test_physics_page_shows_false_alarms_against_their_expectation(small_run):
     text = " ".join(t.get_text() for t in fig.texts)
     n_fa = int(np.sum(det["truth_id"] < 0))
     assert f"False alarms: {n_fa} in the run" in text and f"{expected:.4g}" in text
+
+
+def test_title_page_shows_the_command_line_references_and_how_to_read(small_run, tmp_path):
+    import shutil
+
+    from gmtiflow.report.config import ReportConfig
+    from gmtiflow.report.run_report import run_figures
+    run_dir = tmp_path / "job"
+    (run_dir / ".hydra").mkdir(parents=True)
+    shutil.copy(small_run, run_dir / "run.h5")
+    (run_dir / ".hydra" / "overrides.yaml").write_text("- scene.duration_s=30\n- seed=7\n")
+    pages = dict(run_figures(load_run(run_dir / "run.h5"), ReportConfig()))
+    texts = " ".join(t.get_text() for t in pages["title"]().texts)
+    assert "gmtiflow scene.duration_s=30 seed=7" in texts
+    assert "0 = perfect; c = 200 m" in texts                 # OSPA against its cut-off
+    assert "one report's σ: range" in texts                  # position RMSE against σ
+    assert "How to read this report" in texts and "Units:" in texts
+    (run_dir / ".hydra" / "overrides.yaml").unlink()        # a run made from Python
+    texts = " ".join(t.get_text() for t in pages["title"]().texts)
+    assert "not recorded" in texts

@@ -1,5 +1,5 @@
 """Every run-report page stays on the page: for the default scene, an OpenStreetMap scene
-(Bautzen) and a racetrack orbit over wind-farm clutter, each page's tight bounding box (every
+(Bautzen) and a racetrack orbit over wind-farm clutter and hills, each page's tight bounding box (every
 axes, label, legend, title and text) lies within the figure."""
 import os
 from pathlib import Path
@@ -18,7 +18,8 @@ BAUTZEN = DATA / "bautzen.osm"
 
 SCENES = {
     "default": ["scene.duration_s=40"],
-    "racetrack_windfarm": ["scene.duration_s=40", "platform=racetrack", "clutter=windfarm"],
+    "racetrack_windfarm": ["scene.duration_s=40", "platform=racetrack", "clutter=windfarm",
+                           "terrain=hills"],      # and the terrain relief with its legend entry
     "osm_bautzen": ["scene.duration_s=40", "roadmap=osm", f"roadmap.path={BAUTZEN}",
                     "vehicles.random.count=60"],
     "tracker_off": ["scene.duration_s=20", "tracker=none"],

@@ -122,3 +122,31 @@ def test_mean_ci95_and_paired_deltas():
     from matplotlib.patches import Rectangle
     bars = [p for p in fig.axes[0].patches if isinstance(p, Rectangle)]
     assert len(bars) == 2                                    # categories as bars
+
+
+def test_many_swept_keys_split_the_table_and_empty_dirs_are_named_once(tmp_path):
+    from gmtiflow.report.sweep_report import (MAX_TABLE_COLUMNS, Job, RESULTS, skipped_dirs,
+                                              table_figures)
+    keys = [f"sensor.key_{i}" for i in range(8)]
+    jobs = [Job(dir=tmp_path / str(i), label=str(i), status="COMPLETED",
+                overrides={k: str(i * 10 + n) for n, k in enumerate(keys)},
+                values={k: float(i) for k, _, _ in RESULTS}) for i in range(30)]
+    jobs[3].status = "FAILED"
+    assert len(keys) + 2 + len(RESULTS) > MAX_TABLE_COLUMNS
+    figs = table_figures(jobs, keys, [tmp_path], rows_per_page=22, skipped=["5", "9"])
+    assert len(figs) == 4                  # (parameters, results) x 2 pages of rows
+    headers = []
+    for fig in figs:
+        (table,) = [t for ax in fig.axes for t in ax.tables]
+        cells = table.get_celld()
+        ncols = max(c for _, c in cells) + 1
+        headers.append([cells[0, c].get_text().get_text().replace("\n", "") for c in range(ncols)])
+        assert ncols <= MAX_TABLE_COLUMNS
+    assert headers[0][:3] == ["job", "status", "sensor.key_0"] and len(headers[0]) == 10
+    assert headers[2][:2] == ["job", "status"] and "sensor.key_0" not in headers[2]
+    titles = [" ".join(t.get_text() for t in f.texts) for f in figs]
+    assert sum("not jobs (no run.h5 and no .hydra/, left out): 5, 9" in t for t in titles) == 1
+    for name in ("0", "empty"):
+        (tmp_path / name).mkdir()
+    (tmp_path / "0" / ".hydra").mkdir()
+    assert skipped_dirs([tmp_path]) == ["empty"]

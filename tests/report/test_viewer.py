@@ -93,3 +93,30 @@ def test_browser_loads_viewer_without_errors_and_slider_changes_the_map(small_ru
     assert np.std(moved) > 0.02                          # not blank
     changed = np.mean(np.any(np.abs(first - moved) > 0.1, axis=-1))
     assert changed > 0.001, changed                      # the map changed with the slider
+
+
+def test_frames_follow_the_first_sensor_and_take_every_sensor_dwell():
+    # sensor 0 revisits end at 4 s and 8 s; sensor 1's dwells fall into the frame that ends next
+    dwells = {"revisit_id": np.array([0, 0, 1, 1, 0, 0, 1]),
+              "sensor_id": np.array([0, 0, 0, 0, 1, 1, 1]),
+              "time_s": np.array([1.0, 4.0, 5.0, 8.0, 2.0, 4.5, 7.0]), "dwell_id": np.arange(7)}
+    assert V.frame_of_dwells(dwells).tolist() == [0, 0, 1, 1, 0, 1, 1]
+    one = {k: v[:4] for k, v in dwells.items()}
+    assert V.frame_of_dwells(one).tolist() == one["revisit_id"].tolist()   # frame = revisit
+
+
+def test_viewer_of_two_sensors_shows_each_platform_and_footprint_and_the_terrain(tmp_path):
+    from .conftest import make_run
+    run = make_run(tmp_path / "run", ["experiment=two_orbits", "scene.duration_s=20",
+                                      "terrain=hills", "report.enabled=false", "export=none"])
+    html = V.build_viewer(run, tmp_path / "viewer.html", max_frames=5).read_text()
+    names = [t.get("name") for t in _figure_json(html)]
+    sensors = V.sensor_names(load_run(run))
+    assert len(sensors) == 2
+    for name in sensors.values():
+        for layer in ("beam footprint", "platform", "platform track"):
+            assert f"{layer}: {name}" in names, (layer, name, names)
+    assert names[0] == "terrain (hills)"                  # under everything else
+    data = _figure_json(html)
+    plat = [t for t in data if str(t.get("name", "")).startswith("platform: ")]
+    assert all(len(t["x"]["bdata"] if isinstance(t["x"], dict) else t["x"]) for t in plat)

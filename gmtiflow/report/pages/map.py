@@ -16,6 +16,7 @@ from gmtiflow.tables import Table
 
 from ..common import DET_STYLE, RASTER_ABOVE, _col, _scatter, _sub_note, detection_classes, even_subsample, new_figure
 from ..data import n
+from ..relief import hillshade_rgba, relief_grid
 
 
 # ----------------------------------------------------------------------------- page 2: map
@@ -166,8 +167,13 @@ def _track_lines(tracks: Table, max_lines: int, confirmed_only=True):
 def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells: Table,
                detections: Table, tracks: Table, clutter_regions: Sequence[dict], origin: Origin,
                attribution: str = "", *, max_points: int = 20000, max_footprints: int = 12,
-               max_track_lines: int = 200) -> Figure:
+               max_track_lines: int = 200, terrain=None, terrain_name: str = "",
+               terrain_note: str = "") -> Figure:
     """Overview (orbit, footprints) and scene map (roads, truth, clutter, detections, tracks).
+
+    ``terrain`` (a :class:`gmtiflow.scene.terrain.Terrain`, e.g. from
+    :func:`gmtiflow.report.relief.run_terrain`) is drawn as hill-shaded relief under the scene
+    map; ``terrain_note`` says why there is none when the run had a DEM that cannot be read.
 
     The detection layers are the scatter collections labelled ``true detection``, ``merged
     report`` and ``false alarm`` on the scene axes (``fig.axes[1]``).
@@ -254,6 +260,18 @@ def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells
         over.add_patch(Polygon([[allx.min() - pad, ally.min() - pad], [allx.max() + pad, ally.min() - pad],
                                 [allx.max() + pad, ally.max() + pad], [allx.min() - pad, ally.max() + pad]],
                                closed=True, fill=False, edgecolor="r", lw=1.0, label="scene map"))
+    relief = None
+    if terrain is not None:
+        relief = relief_grid(terrain, np.asarray(ax.get_xlim()) * km,
+                             np.asarray(ax.get_ylim()) * km, source=terrain_name)
+    if relief is not None:
+        xlim, ylim = ax.get_xlim(), ax.get_ylim()
+        ax.imshow(hillshade_rgba(relief), extent=np.asarray(relief.extent_m) / km,
+                  origin="lower", interpolation="bilinear", zorder=0)
+        ax.set_xlim(xlim)
+        ax.set_ylim(ylim)
+    if terrain_note:
+        dropped.append(terrain_note)
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("east (km)")
     ax.set_ylabel("north (km)")
@@ -275,6 +293,12 @@ def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells
     handles += [Line2D([], [], ls="", marker=m, color=c, label=lab)
                 for key, (c, m, lab) in DET_STYLE.items() if classes[key].any()]
     handles += [p for p in ax.patches if str(p.get_label()).startswith("clutter")]
+    if relief is not None:
+        z = relief.height_m[np.isfinite(relief.height_m)]
+        handles.append(Patch(facecolor="#c9b99a", edgecolor="none",
+                             label=f"terrain ({relief.source or 'DEM'}, {z.min():.0f}–"
+                                   f"{z.max():.0f} m)"))
+
     if n(platform):
         handles += [Line2D([], [], color="k", lw=1.2, label="platform track (left)"),
                     Line2D([], [], ls="", marker="o", color="k", ms=5, label="platform at t = 0"),

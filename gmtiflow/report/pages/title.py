@@ -2,21 +2,99 @@
 from __future__ import annotations
 
 import math
-from typing import Dict, Tuple
+import textwrap
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from matplotlib.figure import Figure
 
 from gmtiflow.frames import Origin
 
 from ..common import new_figure
-from ..data import n
+
+HOW_TO_READ = [
+    "Map: truth (teal) under detections (blue: true, purple: merged, red ×: false alarm) and",
+    "   confirmed tracks (purple); footprints coloured by time; terrain shading with a DEM.",
+    "Physics sanity: red dots should sit on the black Swerling I curve, histograms on N(0, 1).",
+    "Range rate vs azimuth: misses in the clutter notch lie between the MDV lines.",
+    "Timeline: one row per vehicle; why each look was missed; stops and tunnels as bars.",
+    "Track errors: median and percentile bands over time; the worst tracks by id.",
+    "OSPA / identity: lower is better (0 = perfect, c = everything missed or false);",
+    "   blind gaps (stops, notch, terrain, tunnels) and what the tracker did after each.",
+]
+UNITS = ("Units: distances m (map in km), angles °, speeds and range rates m/s, SNR dB, times s "
+         "from the scene epoch (UTC); P_D and P_FA are probabilities; RMSE = root mean square "
+         "error over associated track rows.")
+
+
+def _shorten(text: str, width: int) -> str:
+    """``text`` cut in the middle to ``width`` characters (paths keep both ends)."""
+    text = str(text)
+    return text if len(text) <= width else text[:width // 2 - 1] + "…" + text[-(width // 2):]
+
+
+def _table(fig, title, rows, x0, y0, key_w, ref_dx, width, header=None) -> None:
+    """Rows of (name, value, reference) as text from (x0, y0) down; values wrap at ``width``
+    characters (at most two lines), so nothing runs off the page."""
+    fig.text(x0, y0, title, fontsize=12, weight="bold")
+    y = y0 - 0.012
+    if header:
+        fig.text(x0 + key_w, y - 0.012, header[1], fontsize=7.5, color="0.4")
+        fig.text(x0 + ref_dx, y - 0.012, header[2], fontsize=7.5, color="0.4")
+        y -= 0.014
+    for name, value, ref in rows:
+        lines = textwrap.wrap(str(value), width)[:2] or [""]
+        y -= 0.024
+        fig.text(x0 + 0.005, y, name, fontsize=8.5, weight="bold", va="top", linespacing=1.25)
+        fig.text(x0 + key_w, y, "\n".join(lines), fontsize=8.5, va="top", linespacing=1.25)
+        if ref:
+            ref_lines = textwrap.wrap(ref, 34)[:3]
+            fig.text(x0 + ref_dx, y, "\n".join(ref_lines), fontsize=7.5, color="0.35",
+                     va="top", linespacing=1.25)
+        else:
+            ref_lines = []
+        y -= 0.0155 * (max(len(lines), len(ref_lines), 1) - 1)
+
+
+def reference_values(config: dict, numbers: Dict[str, float],
+                     detections, expected_false_alarms: Optional[float]) -> Dict[str, str]:
+    """What each result on the title page is to be compared with, by its label: the model's
+    mean P_D, the detector's expected false alarms, the sensor's median measurement σ for
+    the track errors, the OSPA/GOSPA cut-off, the ideal values of the identity metrics."""
+    import numpy as np
+    out = {"P_D achieved": "the looks' mean model P_D (they agree when the detector is right)",
+           "Identity switches": "0 (ideal)", "Fragmentations": "0 (ideal)",
+           "Coverage (mean)": "1 (every vehicle tracked all the time)",
+           "Track purity (mean)": "1 (every track on one vehicle)"}
+    if expected_false_alarms is not None:
+        e = float(expected_false_alarms)
+        out["Detections"] = f"noise false alarms expected {e:.4g} ± {math.sqrt(max(e, 0)):.2g}"
+    cutoff = (config.get("metrics") or {}).get("cutoff_m") if isinstance(config, dict) else None
+    if cutoff is not None:
+        for k in ("OSPA mean", "GOSPA mean"):
+            out[k] = f"0 = perfect; c = {float(cutoff):g} m: all missed or false"
+    if detections is not None and len(detections.get("range_m", ())) and \
+            "sigma_range_m" in detections:
+        true = np.asarray(detections["truth_id"]) >= 0
+        if true.any():
+            sr = float(np.nanmedian(np.asarray(detections["sigma_range_m"])[true]))
+            sx = float(np.nanmedian((np.asarray(detections["range_m"])
+                                     * np.asarray(detections["sigma_azimuth_rad"]))[true]))
+            out["Position RMSE"] = f"one report's σ: range {sr:.3g} m, cross-range {sx:.3g} m"
+            if "sigma_range_rate_mps" in detections:
+                srr = float(np.nanmedian(np.asarray(detections["sigma_range_rate_mps"])[true]))
+                out["Range-rate RMSE"] = f"one report's σ: {srr:.3g} m/s"
+    return out
 
 
 # ----------------------------------------------------------------------------- page 1
 
 def title_figure(attrs: dict, config: dict, numbers: Dict[str, float],
-                 metrics: Dict[str, Tuple[float, str]], run_name: str) -> Figure:
-    """Scene summary and key numbers as text."""
+                 metrics: Dict[str, Tuple[float, str]], run_name: str,
+                 overrides: Optional[Sequence[str]] = None,
+                 references: Optional[Dict[str, str]] = None) -> Figure:
+    """The run's command line (``overrides``; None when not recorded), the scene, the results
+    with what to compare each to (``references``, by result label, e.g. from
+    :func:`reference_values`), units, and how to read the pages that follow."""
     fig = new_figure()
 
     def c(dotted, default="—"):
@@ -89,19 +167,29 @@ def title_figure(attrs: dict, config: dict, numbers: Dict[str, float],
     if not metrics:
         results.append(("Tracker metrics", "none in this run"))
 
-    fig.text(0.05, 0.93, "gmtiflow run report", fontsize=22, weight="bold")
-    fig.text(0.05, 0.885, run_name, fontsize=10, color="0.3", family="monospace")
-    tracker_rows = results[4:]
-    for title, rows, x0, y0, w in (("Scene", scene, 0.05, 0.82, 0.17),
-                                   ("Sensor results", results[:4], 0.05, 0.37, 0.17),
-                                   ("Tracker results", tracker_rows, 0.62, 0.37, 0.17)):
-        fig.text(x0, y0, title, fontsize=14, weight="bold")
-        for i, (k, v) in enumerate(rows):
-            y = y0 - 0.034 * (i + 1)
-            fig.text(x0 + 0.02, y, k, fontsize=10, weight="bold")
-            fig.text(x0 + 0.02 + w, y, v, fontsize=10)
+    refs = references or {}
+    rows = [(k, v, refs.get(k, "")) for k, v in results]
+
+    fig.text(0.04, 0.945, "gmtiflow run report", fontsize=20, weight="bold")
+    fig.text(0.04, 0.91, _shorten(run_name, 130), fontsize=9, color="0.3", family="monospace")
+    command = ("gmtiflow " + " ".join(overrides)) if overrides else (
+        "gmtiflow (no overrides: the packaged defaults)" if overrides is not None
+        else "not recorded (no .hydra/overrides.yaml beside the run file: a run made from Python)")
+    lines = textwrap.wrap(command, 130, break_on_hyphens=False)[:3]
+    fig.text(0.04, 0.885, "Command line:", fontsize=9, weight="bold", va="top")
+    fig.text(0.14, 0.885, "\n".join(lines), fontsize=8.5, family="monospace", va="top",
+             linespacing=1.3)
+    top = 0.885 - 0.025 * len(lines) - 0.02
+    _table(fig, "Scene", [(k, v, "") for k, v in scene], 0.04, top, 0.12, 0.0, 52)
+    _table(fig, "Results", rows, 0.48, top, 0.13, 0.31, 32, header=("", "value", "reference"))
+    fig.text(0.04, 0.215, "How to read this report", fontsize=11, weight="bold")
+    half = (len(HOW_TO_READ) + 1) // 2
+    for col, chunk in enumerate((HOW_TO_READ[:half], HOW_TO_READ[half:])):
+        fig.text(0.05 + 0.47 * col, 0.195, "\n".join(chunk), fontsize=7.5, va="top",
+                 linespacing=1.45)
+    fig.text(0.04, 0.045, UNITS, fontsize=7.5, color="0.25")
     if attrs.get("attribution"):
-        fig.text(0.05, 0.02, f"Map data: {attrs['attribution']}", fontsize=9, color="0.3")
+        fig.text(0.04, 0.02, f"Map data: {attrs['attribution']}", fontsize=8, color="0.3")
     return fig
 
 
