@@ -2,6 +2,7 @@
 
     python benchmarks/report_time.py [--big N]            # simulate, then time the report
     python benchmarks/report_time.py --run RUN_DIR/run.h5  # e.g. issue 18's 1,000-vehicle scene
+    python benchmarks/report_time.py --run RUN_DIR/run.h5 --scaling   # each page linear?
 
 Without ``--run`` it simulates each scene once (not timed) into a temporary dir, then builds
 report.pdf three times and prints the best total and the per-page seconds of the best build;
@@ -64,15 +65,63 @@ def bench_file(run: Path, repeats: int) -> None:
                       f"{p} {s:.2f}" for p, s in build_run_report.last_cpu_seconds.items()))
 
 
+def scaling(run_path: Path, fractions=(0.25, 0.5, 1.0)) -> None:
+    """Is every page linear in its data?  Builds each page on the run's first f of its time
+    (every table with a time_s column cut at f × the last time; maps, vehicles and summary
+    tables whole) and prints each page's CPU seconds and the log-log slope of CPU time against
+    the rows the pages read (1 = linear)."""
+    import io
+    import math
+
+    import numpy as np
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    from gmtiflow.report.data import RunData
+    from gmtiflow.report.run_report import run_figures
+
+    full = load_run(run_path)
+    t_end = max(float(np.max(t["time_s"])) for t in full.tables.values()
+                if "time_s" in t and len(t["time_s"]))
+    rows, cpu = [], []
+    for f in fractions:
+        cut = {}
+        for name, t in full.tables.items():
+            if "time_s" in t and len(t["time_s"]):
+                keep = np.asarray(t["time_s"]) <= f * t_end
+                cut[name] = {k: np.asarray(v)[keep] for k, v in t.items()}
+            else:
+                cut[name] = t
+        run = RunData(full.path, full.attrs, full.config, cut)
+        rows.append(sum(len(next(iter(t.values()), ())) for t in cut.values()))
+        per_page = {}
+        with PdfPages(io.BytesIO()) as pdf:
+            for page, build in run_figures(run, ReportConfig()):
+                c0 = time.process_time()
+                pdf.savefig(build())
+                per_page[page] = time.process_time() - c0
+        cpu.append(per_page)
+        print(f"  first {f:4.0%} of the run: {rows[-1]:>9,} rows; pages (CPU s): "
+              + ", ".join(f"{p} {s:.2f}" for p, s in per_page.items()))
+    span = math.log(rows[-1] / rows[0])
+    print("  log-log slope of CPU time vs rows, first to last: " + ", ".join(
+        f"{p} {math.log(max(cpu[-1][p], 1e-3) / max(cpu[0][p], 1e-3)) / span:.2f}"
+        for p in cpu[-1]) + "  (1 = linear; < 1: fixed costs dominate)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--big", type=int, default=500, help="random vehicles in the big scene (0: skip)")
     ap.add_argument("--run", type=Path, help="time the report of this existing run.h5 only "
                     "(e.g. the issue-18 1,000-vehicle scene: see docs/reports.md)")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--scaling", action="store_true",
+                    help="with --run: each page's CPU time on the first 25/50/100 %% of the run")
     args = ap.parse_args()
     print(f"python {sys.version.split()[0]}, {platform.machine()}, {os.cpu_count()} cpus, "
           f"load {os.getloadavg()[0]:.1f}")
+    if args.run and args.scaling:
+        scaling(args.run)
+        return
     if args.run:
         bench_file(args.run, args.repeat)
         return

@@ -17,8 +17,9 @@ Adapting the tables (docs/exports.md has the user-facing version):
   XML and CSV carry ``range_rate_mps`` with the table's meaning (full ṙ), losslessly.
 * **Platform velocity and heading** (D15–D17, D21) are sent relative to true north *at the
   sensor*, as the standard defines them; the tables hold them in the scene's ENU frame, whose
-  north differs by the meridian convergence (≈0.3° 30 km from the origin).  They are rotated
-  through ECEF (pymap3d).
+  north differs by the meridian convergence (≈0.3° 30 km from the origin), and as map rates
+  (:mod:`gmtiflow.frames`).  They are converted by ``frames.map_to_local_vector`` (the
+  geodetic positions a moment apart, through pymap3d) and back by ``local_to_map_vector``.
 * **Unlocated reports** (NaN ``lat_deg``/``lon_deg``, e.g. folded reports that could not be
   geolocated) are skipped in 4607 (a target report must have a position; NaN would be written
   as 0°, 0°) and in GeoJSON (no geometry to draw), and kept in XML and CSV, which carry every
@@ -218,11 +219,11 @@ def local_frame_dwells(dwells: Table, origin: frames.Origin) -> Table:
     dw = {k: np.asarray(v) for k, v in dwells.items()}
     if not len(dw.get("dwell_id", ())):
         return dw
-    lat, lon = dw["platform_lat_deg"], dw["platform_lon_deg"]
-    ve, vn, vu = scene_to_local_velocity(origin, lat, lon, dw["platform_vx_mps"],
-                                         dw["platform_vy_mps"], dw["platform_vz_mps"])
+    xyz = tuple(np.asarray(dw[f"platform_{c}_m"], float) for c in "xyz")
+    ve, vn, vu = frames.map_to_local_vector(origin, *xyz, dw["platform_vx_mps"],
+                                            dw["platform_vy_mps"], dw["platform_vz_mps"])
     hd = np.asarray(dw["platform_heading_rad"], float)
-    he, hn, _ = scene_to_local_velocity(origin, lat, lon, np.sin(hd), np.cos(hd), 0.0)
+    he, hn, _ = frames.map_to_local_vector(origin, *xyz, np.sin(hd), np.cos(hd), 0.0 * hd)
     heading = frames.heading_rad(he, hn)
     return dict(dw, platform_vx_mps=ve, platform_vy_mps=vn, platform_vz_mps=vu,
                 platform_heading_rad=np.where(np.isfinite(hd), heading, np.nan))
@@ -241,22 +242,15 @@ def _cfg(config: dict, *keys, default=None):
 # Frames and range rates
 # ---------------------------------------------------------------------------------------------
 
-def scene_to_local_velocity(origin: frames.Origin, lat_deg, lon_deg, ve, vn, vu):
-    """Rotate scene-ENU vectors to the local ENU at (lat_deg, lon_deg) (through ECEF)."""
-    import pymap3d
-    u, v, w = pymap3d.enu2uvw(np.asarray(ve, float), np.asarray(vn, float),
-                              np.asarray(vu, float), origin.lat_deg, origin.lon_deg)
-    e, n, up = pymap3d.uvw2enu(u, v, w, np.asarray(lat_deg, float), np.asarray(lon_deg, float))
-    return np.asarray(e, float), np.asarray(n, float), np.asarray(up, float)
-
-
 def ground_range_rate_scene(dwells: Table, detections: Table) -> np.ndarray:
-    """ṙ_MLC = −v_p·ℓ of each report's ground position, in the scene ENU frame (m/s)."""
+    """ṙ_MLC = −v_p·ℓ of each report's ground position, from the scene's map coordinates on
+    the round earth, as the sensor computes it (m/s)."""
     k = _dwell_rows(dwells, detections["dwell_id"])
     platform = tuple(np.asarray(dwells[f"platform_{c}_m"], float)[k] for c in "xyz")
     _, los = geometry.line_of_sight(platform, tuple(np.asarray(detections[f"{c}_m"], float)
                                                     for c in "xyz"))
-    vel = tuple(np.asarray(dwells[f"platform_v{c}_mps"], float)[k] for c in "xyz")
+    vel = geometry.true_velocity(tuple(np.asarray(dwells[f"platform_v{c}_mps"], float)[k]
+                                       for c in "xyz"), platform[2])
     return geometry.clutter_range_rate(vel, los)
 
 
@@ -272,7 +266,9 @@ def ground_range_rate_geodetic(dwells: Table, detections: Table) -> np.ndarray:
     e, n, u = pymap3d.geodetic2enu(np.asarray(detections["lat_deg"], float),
                                    np.asarray(detections["lon_deg"], float),
                                    np.where(np.isfinite(h), h, 0.0), slat, slon, sh)
-    _, los = geometry.line_of_sight((0.0, 0.0, 0.0), (np.asarray(e), np.asarray(n), np.asarray(u)))
+    # (e, n, u) is a Cartesian vector of the sensor's local ENU frame: no earth model
+    _, los = geometry.line_of_sight((0.0, 0.0, 0.0), (np.asarray(e), np.asarray(n), np.asarray(u)),
+                                    None)
     vel = tuple(np.asarray(dwells[f"platform_v{c}_mps"], float)[k] for c in "xyz")
     return geometry.clutter_range_rate(vel, los)
 
@@ -314,7 +310,6 @@ def from_4607_tables(tables: dict, origin: Optional[frames.Origin] = None) -> di
     ``platform_v*_mps`` / ``platform_heading_rad`` on dwells, and detection ``azimuth_rad``
     from the platform in the scene frame (the reader's is relative to true north at the sensor).
     """
-    import pymap3d
     out = {k: v for k, v in tables.items() if k != "attrs"}
     dw = dict(out["dwells"])
     det = dict(out["detections"])
@@ -328,17 +323,14 @@ def from_4607_tables(tables: dict, origin: Optional[frames.Origin] = None) -> di
         px, py, pz = frames.geodetic_to_enu(origin, dw["platform_lat_deg"],
                                             dw["platform_lon_deg"], dw["platform_height_m"])
         dw["platform_x_m"], dw["platform_y_m"], dw["platform_z_m"] = px, py, pz
-        # local ENU at the sensor -> scene ENU: the inverse rotation of scene_to_local_velocity
-        u, v, w = pymap3d.enu2uvw(dw["platform_vx_mps"], dw["platform_vy_mps"],
-                                  dw["platform_vz_mps"], dw["platform_lat_deg"],
-                                  dw["platform_lon_deg"])
-        ve, vn, vu = pymap3d.uvw2enu(u, v, w, origin.lat_deg, origin.lon_deg)
-        dw["platform_vx_mps"], dw["platform_vy_mps"], dw["platform_vz_mps"] = (
-            np.asarray(ve, float), np.asarray(vn, float), np.asarray(vu, float))
+        # local ENU at the sensor -> map rates: the inverse of local_frame_dwells
+        geo = (dw["platform_lat_deg"], dw["platform_lon_deg"], dw["platform_height_m"])
+        ve, vn, vu = frames.local_to_map_vector(origin, *geo, dw["platform_vx_mps"],
+                                                dw["platform_vy_mps"], dw["platform_vz_mps"])
+        dw["platform_vx_mps"], dw["platform_vy_mps"], dw["platform_vz_mps"] = ve, vn, vu
         hd = np.asarray(dw["platform_heading_rad"], float)
-        u, v, w = pymap3d.enu2uvw(np.sin(hd), np.cos(hd), np.zeros_like(hd),
-                                  dw["platform_lat_deg"], dw["platform_lon_deg"])
-        he, hn, _ = pymap3d.uvw2enu(u, v, w, origin.lat_deg, origin.lon_deg)
+        he, hn, _ = frames.local_to_map_vector(origin, *geo, np.sin(hd), np.cos(hd),
+                                               np.zeros_like(hd))
         dw["platform_heading_rad"] = frames.heading_rad(np.asarray(he), np.asarray(hn))
         if len(det.get("det_id", ())):
             k = _dwell_rows(dw, det["dwell_id"])

@@ -45,6 +45,7 @@ from gmtiflow.cache import StageCache, stage_key
 from gmtiflow.config import AppConfig, SensorSlot, sensor_slots
 from gmtiflow.errors import ConfigError
 from gmtiflow.export import planned_files, stream_problem
+from gmtiflow.scene import trajectory
 from gmtiflow.sensor.rcs import RcsModels
 from gmtiflow import stages as sf   # the stage functions
 from gmtiflow.stages import RunState, build_scene
@@ -168,6 +169,7 @@ def run(cfg: AppConfig, out_dir, *, on_prepared: Optional[Callable[[], None]] = 
     """
     config_mod.validate(cfg)
     budget.check(cfg)                  # refuse what cannot fit before touching the directory
+    trajectory.check_scene_coverage(cfg)   # an external log must span the whole scene
     problem = stream_problem(cfg.export, len(sensor_slots(cfg)))
     if problem:
         raise ConfigError(problem)

@@ -34,7 +34,8 @@ def max_filter(terrain, half: tuple, values: np.ndarray) -> np.ndarray:
     return cache[half]
 
 
-def march(terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float) -> np.ndarray:
+def march(terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float,
+          earth_radius_m=None) -> np.ndarray:
     """Blocked flag per ray by vectorised ray sampling (see the module docstring).
 
     Samples sit at distances ``s = s_lo + k*step_m`` from the target end ``p_to``, where
@@ -45,6 +46,11 @@ def march(terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float) -> np.nd
     up to the ray; the samples inside are interpolated between the ends. Skipping a segment is
     exact: no ground under it can block. Rays are grouped into chunks of at most
     ``chunk_samples`` samples (a single longer ray is its own chunk).
+
+    ``earth_radius_m`` (a): the ray is straight on a round earth, so the ground at fraction t
+    of a ray of ground length d is compared with the ray raised by the bulge t(1 − t)·d²/(2a)
+    (equivalently the ray lowered); the screens add the bulge's maximum d²/(8a), so they stay
+    exact.
     """
     n = len(p_from)
     blocked = np.zeros(n, dtype=bool)
@@ -59,7 +65,12 @@ def march(terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float) -> np.nd
     s_hi = np.where(finite, length - skip, -np.inf)
     uz = u[:, 2]
     z_to = np.where(finite, p_to[:, 2], 0.0)
-    room = terrain.z_ceiling_m - z_to  # the ray can be blocked only where its z rise <= room
+    if earth_radius_m is None:
+        bulge = np.zeros(n)
+    else:
+        bulge = np.where(finite, (d[:, 0] ** 2 + d[:, 1] ** 2) / (2.0 * earth_radius_m), 0.0)
+    top = 0.25 * bulge   # the bulge's maximum, at the ray's middle
+    room = terrain.z_ceiling_m + top - z_to  # the ray can be blocked only where its z rise <= room
     lim = np.divide(room, uz, out=np.zeros(n), where=uz != 0)
     s_hi = np.where(uz > 0, np.minimum(s_hi, lim), s_hi)
     s_lo = np.where(uz < 0, np.maximum(s_lo, lim), s_lo)
@@ -96,7 +107,7 @@ def march(terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float) -> np.nd
             kb = ka + 1
             reach = 0.5 * seg_m + step_m
             bound = terrain._ground_bound(0.5 * (ea[ka] + ea[kb]), 0.5 * (eb[ka] + eb[kb]), reach)
-            may = bound > np.minimum(ec[ka], ec[kb]) - sag + clr
+            may = bound + top[g_ray] > np.minimum(ec[ka], ec[kb]) - sag + clr
             g_ray, g_idx, ka, kb = g_ray[may], g_idx[may], ka[may], kb[may]
             if len(g_ray):
                 # fine samples of the kept segments
@@ -114,7 +125,9 @@ def march(terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float) -> np.nd
                 a = ea[a0] + (ea[b0] - ea[a0]) * f
                 b = eb[a0] + (eb[b0] - eb[a0]) * f
                 c = ec[a0] + (ec[b0] - ec[a0]) * f
-                hit = terrain._ground(a, b) > c + clr  # NaN (unknown ground) -> False
+                t = s / length[rid]
+                lift = t * (1.0 - t) * bulge[rid]
+                hit = terrain._ground(a, b) + lift > c + clr  # NaN (unknown ground) -> False
                 blocked[start:end] = np.bincount(rid[hit] - start, minlength=end - start) > 0
         start = end
     blocked[~finite] = True

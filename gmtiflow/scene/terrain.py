@@ -1,26 +1,27 @@
-"""Terrain: ground heights and line-of-sight shadowing in the scene's ENU frame (issue 4).
+"""Terrain: ground heights and line-of-sight shadowing in the scene's map frame (issue 4).
 
 ``build_terrain(cfg, origin)`` turns a :class:`~gmtiflow.scene.terrain_config.TerrainConfig`
-into a :class:`Terrain`:
+into a :class:`Terrain`.  Heights are map ``z`` (:mod:`gmtiflow.frames`): above the round
+earth's surface through the scene origin, so a constant z is a sphere, not a plane.
 
-* ``flat`` -- the plane ``z = flat_height_m`` of the ENU frame. No DEM; ``line_of_sight`` is
-  all True and marches nothing.
-* ``hills`` -- synthetic Gaussian hills and ridges in ENU metres, generated on a grid
+* ``flat`` -- the smooth earth at ``z = flat_height_m``. No DEM; ``line_of_sight`` is
+  all True and marches nothing (the radar horizon is the sensor's own test).
+* ``hills`` -- synthetic Gaussian hills and ridges in map metres, generated on a grid
   (``grid_spacing_m``) that covers them; the base height elsewhere.
-* ``ascii_grid`` -- an ESRI ASCII grid already in scene ENU metres (heights = ENU z).
+* ``ascii_grid`` -- an ESRI ASCII grid already in scene map metres (heights = map z).
 * ``srtm`` -- SRTM ``.hgt`` tiles (stitched), heights above the EGM96 geoid. The scene and STANAG
   4607 use heights above the WGS-84 ellipsoid: ellipsoid height = DEM height + geoid
-  undulation N, given explicitly as ``geoid_offset_m`` (about +50 m at Monaco). ENU z then
-  follows from pymap3d, so the scene origin's height and the Earth's curvature are included.
+  undulation N, given explicitly as ``geoid_offset_m`` (about +50 m at Monaco). Map z is that
+  height minus the origin's.
 
 Heights (``height_at``) are the bilinear interpolant of the grid ("pixel is point"). For a
-geodetic DEM the ground point below ENU (x, y) -- on the ENU z axis through (x, y), which is the
-vertical the scene uses -- is found by a fixed point: z <- z + (h_DEM(lat, lon) + N - h(x, y, z))
-with (lat, lon, h) = enu2geodetic(x, y, z), from z = 0, until it moves < 0.1 mm (3 iterations at
-50 km from the origin). The result lies on the DEM surface to < 1 mm.
+geodetic DEM the ground below map (x, y) is read at the (lat, lon) of that map point
+(:func:`gmtiflow.frames.enu_to_geodetic`): z = h_DEM(lat, lon) + N − h0.
 
 Line of sight (``line_of_sight``) is the ray march of :mod:`gmtiflow.scene.ray_march`:
-straight rays sampled every ``step_m``; a ray is blocked where the ground is more than
+rays sampled every ``step_m``, straight on a round earth of the radius the caller gives (the
+sensor passes k·R, its 4/3-earth refraction model), i.e. lifted by the earth's bulge
+t(1 − t)d²/(2kR) above the map-straight line; a ray is blocked where the ground is more than
 ``clearance_m`` above it.
 
 ``intersect`` (first ground point of a ray) and ``geolocate`` (ground point at a slant range and
@@ -38,7 +39,6 @@ from pathlib import Path
 from typing import Optional
 
 import numpy as np
-import pymap3d
 
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError
@@ -116,12 +116,17 @@ class Terrain:
         return "add the missing tiles or shrink the scene"
 
     # -- line of sight --------------------------------------------------------------------
-    def line_of_sight(self, from_xyz, to_xyz, step_m: Optional[float] = None) -> np.ndarray:
+    def line_of_sight(self, from_xyz, to_xyz, step_m: Optional[float] = None,
+                      earth_radius_m: Optional[float] = None) -> np.ndarray:
         """True where the straight segment from ``from_xyz`` to ``to_xyz`` clears the ground.
 
-        ``from_xyz``, ``to_xyz``: (n, 3) or (3,) ENU metres, broadcast together (one platform
-        position against n targets). ``step_m``: sample spacing along the ray (default: half a
-        grid cell). Zero-length rays are True; rays with a non-finite end are False.
+        ``from_xyz``, ``to_xyz``: (n, 3) or (3,) map metres (:mod:`gmtiflow.frames`), broadcast
+        together (one platform position against n targets). ``step_m``: sample spacing along
+        the ray (default: half a grid cell). ``earth_radius_m``: the ray is straight on a round
+        earth of that (effective) radius a, so at fraction t of its ground length d it lies
+        t(1 − t)·d²/(2a) lower over the ground than the straight line in map coordinates (the
+        earth's bulge; None: map-straight, no bulge). Zero-length rays are True; rays with a
+        non-finite end are False.
         """
         p_from = _as_points(from_xyz, "from_xyz")
         p_to = _as_points(to_xyz, "to_xyz")
@@ -132,7 +137,7 @@ class Terrain:
             step_m = 0.5 * self.cell_m
         if not (math.isfinite(step_m) and step_m > 0):
             raise ValueError(f"step_m must be a finite number > 0, got {step_m!r}")
-        return ~march(self, p_from, p_to, float(step_m))
+        return ~march(self, p_from, p_to, float(step_m), earth_radius_m)
 
     # Hooks of the march. "Terrain coordinates" (a, b, c) are (x, y, z) for ENU grids and
     # (lat, lon, h above the ellipsoid) for geodetic DEMs: c is what the ground is compared with.
@@ -341,8 +346,7 @@ class GeoTerrain(Terrain):
         self.clearance_m = float(clearance_m)
         self.end_skip_m = self.cell_m if end_skip_m is None else float(end_skip_m)
         self.chunk_samples = int(chunk_samples)
-        # ENU z <= h - h0 for any point near the origin (the ellipsoid lies below its tangent
-        # plane); 1 m covers the cos(angle) term for heights below the ellipsoid.
+        # map z = h - h0 (frames): 1 m of margin
         self.z_ceiling_m = float(np.nanmax(grid.values)) + self.geoid_offset_m - origin.height_m + 1.0
 
     def ellipsoid_height_at(self, lat_deg, lon_deg) -> np.ndarray:
@@ -350,31 +354,13 @@ class GeoTerrain(Terrain):
         return self.grid.at(lat_deg, lon_deg) + self.geoid_offset_m
 
     def height_at(self, x_m, y_m) -> np.ndarray:
+        """Map z of the ground: its height above the ellipsoid minus the origin's (frames)."""
         x, y = np.broadcast_arrays(np.asarray(x_m, float), np.asarray(y_m, float))
-        shape = x.shape
-        x = x.ravel()
-        y = y.ravel()
-        z = np.zeros(x.shape)
-        live = np.isfinite(x) & np.isfinite(y)
-        z[~live] = np.nan
-        o = self.origin
-        for _ in range(8):
-            if not live.any():
-                break
-            xl, yl, zl = x[live], y[live], z[live]
-            lat, lon, h = pymap3d.enu2geodetic(xl, yl, zl, o.lat_deg, o.lon_deg, o.height_m)
-            dz = self.ellipsoid_height_at(lat, lon) - np.asarray(h)
-            zl = zl + dz
-            z[live] = zl
-            idx = np.nonzero(live)[0]
-            done = ~(np.abs(dz) > 1e-4)  # converged, or NaN (off the DEM)
-            live[idx[done]] = False
-        return z.reshape(shape)
+        lat, lon, _ = frames.enu_to_geodetic(self.origin, x, y, np.zeros(x.shape))
+        return self.ellipsoid_height_at(lat, lon) - self.origin.height_m
 
     def _above_ground_m(self, pts: np.ndarray) -> np.ndarray:
-        o = self.origin
-        lat, lon, h = pymap3d.enu2geodetic(pts[:, 0], pts[:, 1], pts[:, 2], o.lat_deg, o.lon_deg,
-                                           o.height_m)
+        lat, lon, h = frames.enu_to_geodetic(self.origin, pts[:, 0], pts[:, 1], pts[:, 2])
         return np.asarray(h, float) - self.ellipsoid_height_at(lat, lon)
 
     def _coverage_text(self) -> str:
@@ -383,9 +369,7 @@ class GeoTerrain(Terrain):
                 f"{g.lon_min_deg:g}..{g.lon_max_deg:g} E; add the missing tiles or shrink the scene")
 
     def _coords(self, pts: np.ndarray):
-        o = self.origin
-        lat, lon, h = pymap3d.enu2geodetic(pts[:, 0], pts[:, 1], pts[:, 2], o.lat_deg, o.lon_deg,
-                                           o.height_m)
+        lat, lon, h = frames.enu_to_geodetic(self.origin, pts[:, 0], pts[:, 1], pts[:, 2])
         return np.asarray(lat, float), np.asarray(lon, float), np.asarray(h, float)
 
     def _ground(self, a, b) -> np.ndarray:

@@ -26,7 +26,7 @@ import numpy as np
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError
 from gmtiflow.scene import flight
-from gmtiflow.scene.platform_config import PlatformConfig
+from gmtiflow.scene.platform_config import PlatformConfig, PlatformKind
 from gmtiflow.tables import Table
 
 REQUIRED = ("time_s", "lat_deg", "lon_deg", "height_m")
@@ -105,6 +105,41 @@ def read_trajectory_csv(path) -> Dict[str, np.ndarray]:
                              f"increasing, got {out['time_s'][k]:g} after "
                              f"{out['time_s'][k - 1]:g} (line {lines[k - 1]})")
     return out
+
+
+def coverage_problem(cfg: PlatformConfig, duration_s: float, key: str = "platform"):
+    """Why an external trajectory cannot fly a scene of ``duration_s``, or None.
+
+    The run samples the platform at scene times 0 .. ``duration_s`` and a log is never
+    extrapolated, so a log that starts late or ends early is a config error, found before any
+    work (it used to surface only at the platform stage).  Reads the file (errors in it are
+    InputFileError naming file, line and column, as at the platform stage).
+    """
+    if PlatformKind(cfg.kind) is not PlatformKind.trajectory or not cfg.path:
+        return None
+    path = resolve_path(cfg.path)
+    t = read_trajectory_csv(path)["time_s"]
+    offset = float(cfg.time_offset_s)
+    first, last = float(t[0]) - offset, float(t[-1]) - offset
+    if first <= 0.0 and last >= float(duration_s):
+        return None
+    return (f"{key}.path: {path} covers scene times {first:g} .. {last:g} s (log times "
+            f"{float(t[0]):g} .. {float(t[-1]):g} s, {key}.time_offset_s = {offset:g}) but the "
+            f"scene needs 0 .. {float(duration_s):g} s (scene.duration_s): a trajectory is not "
+            f"extrapolated; extend the log, change {key}.time_offset_s or shorten "
+            f"scene.duration_s")
+
+
+def check_scene_coverage(app_cfg) -> None:
+    """ConfigError if any sensor's external trajectory does not cover the whole scene."""
+    from gmtiflow.config import sensor_slots
+    from gmtiflow.errors import ConfigError
+
+    for slot in sensor_slots(app_cfg):
+        key = "platform" if slot.sensor_id == 0 else f"sensors.{slot.name}.platform"
+        problem = coverage_problem(slot.platform, app_cfg.scene.duration_s, key)
+        if problem:
+            raise ConfigError(f"invalid config: {problem}")
 
 
 class Trajectory:

@@ -69,6 +69,11 @@ class ChunkContext:
     def _local(self, dwell_id) -> np.ndarray:
         return np.asarray(dwell_id, np.int64) - int(self.dwells["dwell_id"][0])
 
+    @property
+    def radius_m(self) -> float:
+        """The round earth's radius (:func:`gmtiflow.frames.sphere_radius_m`)."""
+        return frames.sphere_radius_m(self.origin)
+
     def _platform(self, k):
         return tuple(self.dwells[f"platform_{c}_m"][k] for c in "xyz")
 
@@ -77,7 +82,8 @@ class ChunkContext:
         k = self._local(dwell_id)
         rng_m, los = geometry.line_of_sight(self._platform(k), (np.asarray(x_m, float),
                                                                 np.asarray(y_m, float),
-                                                                np.asarray(z_m, float)))
+                                                                np.asarray(z_m, float)),
+                                            self.radius_m)
         az, el, _, _ = antenna.target_angles(los, antenna.take(self.boresight, k),
                                              antenna.take(self.scan_axis, k),
                                              antenna.take(self.antenna_up, k))
@@ -97,11 +103,12 @@ class ChunkContext:
         k = self._local(dwell_id)
         pts = (np.asarray(x_m, float), np.asarray(y_m, float), np.asarray(z_m, float))
         plat = self._platform(k)
-        ok = visibility.within_horizon(plat, pts, self.cfg.horizon_k_factor)
+        ok = visibility.within_horizon(plat, pts, self.cfg.horizon_k_factor, self.radius_m)
         if not getattr(self.terrain, "flat", False) and np.any(ok):
             i = np.flatnonzero(ok)
             ok[i] = visibility.terrain_clear(self.terrain, antenna.take(plat, i),
-                                             antenna.take(pts, i), self.los_step_m)
+                                             antenna.take(pts, i), self.los_step_m,
+                                             self.cfg.horizon_k_factor * self.radius_m)
         return ok
 
     def dwell_cell_rad(self, dwell_id):
@@ -120,8 +127,10 @@ class ChunkContext:
         k = self._local(dwell_id)
         _, los = geometry.line_of_sight(self._platform(k), (np.asarray(x_m, float),
                                                             np.asarray(y_m, float),
-                                                            np.asarray(z_m, float)))
-        vel = tuple(self.dwells[f"platform_v{c}_mps"][k] for c in "xyz")
+                                                            np.asarray(z_m, float)),
+                                        self.radius_m)
+        vel = geometry.true_velocity(tuple(self.dwells[f"platform_v{c}_mps"][k] for c in "xyz"),
+                                     self._platform(k)[2], self.radius_m)
         return geometry.clutter_range_rate(vel, los)
 
     def geolocate(self, dwell_id, range_m, azimuth_rad):
@@ -129,7 +138,7 @@ class ChunkContext:
         azimuths (as in /detections), on the terrain, as the sensor geolocates."""
         k = self._local(dwell_id)
         return geolocate.geolocate_world_azimuth(self._platform(k), range_m, azimuth_rad,
-                                                 self.terrain)
+                                                 self.terrain, radius_m=self.radius_m)
 
 
 Effect = Callable[[ChunkContext, Table, Table], Tuple[Table, Table]]

@@ -1,36 +1,51 @@
-"""Ground position of a measured (range, azimuth), as a GMTI processor computes it.
+r"""Ground position of a measured (range, azimuth), as a GMTI processor computes it, on the
+round earth of :mod:`gmtiflow.sensor.geometry` (a sphere of radius R; ``radius_m=None``: flat).
 
-The radar measures slant range R and the azimuth (scan angle) in its antenna frame, not the
-elevation.  The reported position is where the cone of that azimuth meets the sphere of radius R
-on the terrain surface z = h(x, y).  With the antenna axes ``b, h, u`` (see
-:mod:`gmtiflow.sensor.antenna`) a point at elevation ε is
-``p = P + R (cos ε (cos az b + sin az h) + sin ε u)``; its height is ``P_z + A cos ε + B sin ε``
-with A = R (cos az b_z + sin az h_z), B = R u_z.  Setting it to the ground height (C = h − P_z)
-gives
+The radar measures slant range R_m and the azimuth (scan angle) in its antenna frame, not the
+elevation.  The reported position is where the cone of that azimuth meets the sphere of radius
+R_m around the platform on the terrain surface, the sphere of radius R + h (h the terrain
+height).  With the antenna axes ``b, h, u`` (see :mod:`gmtiflow.sensor.antenna`, in the
+platform's local ENU frame) a point at elevation ε is
+``o = R_m (cos ε (cos az b + sin az h) + sin ε u)`` from the platform; its up component is
+``A cos ε + B sin ε`` with A = R_m (cos az b_z + sin az h_z), B = R_m u_z.  It lies on the
+surface of height h when that up component is
 
-.. math::  \\varepsilon = \\operatorname{atan2}(B, A) - \\arccos\\big(C / \\sqrt{A^2 + B^2}\\big),
+.. math::  C = \frac{(h - z_P)(2R + h + z_P) - R_m^2}{2 (R + z_P)}
 
-the lower (downward-looking) of the two roots.  Over a DEM the ground height is not known
-beforehand, so it is iterated: start at the height under the platform, intersect, read
-``terrain.height_at`` there, repeat until it moves less than ``tol_m``.  A flat terrain takes a
-single step.  When the range is too short to reach the ground (|C| > √(A²+B²)) the closest
-direction is used and ``reached`` is False (range-folded reports can do that; the ambiguity stage
-flags them implausible).
+(from |o + (0, 0, R + z_P)|² = (R + h)²; flat: C = h − z_P), so
 
-Vectors are 3-tuples of arrays (ENU).
+.. math::  \varepsilon = \operatorname{atan2}(B, A) - \arccos\big(C / \sqrt{A^2 + B^2}\big),
+
+the lower (downward-looking) of the two roots.  The point goes back to map coordinates through
+its central angle from the platform, θ = atan2(|o_horizontal|, R + z_P + o_up): map distance Rθ
+along the azimuth of o's horizontal part.  Over a DEM the ground height is not known beforehand,
+so it is iterated: start at the height under the platform, intersect, read ``terrain.height_at``
+there, repeat until it moves less than ``tol_m``.  A flat terrain takes a single step.  When the
+range is too short to reach the ground (|C| > √(A²+B²)) the closest direction is used and
+``reached`` is False (range-folded reports can do that; the ambiguity stage flags them
+implausible).
+
+Vectors are 3-tuples of arrays (map coordinates, :mod:`gmtiflow.frames`).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from gmtiflow.sensor.geometry import DEFAULT_RADIUS_M
 
 
-def _intersect(platform_xyz, range_m, ca, sa, b, h, u, ground_z):
-    """One intersection with the plane z = ground_z, trig-free in ε:
-    with ρ = √(A²+B²), r = C/ρ, s = √(1 − r²): cos ε = (A r + B s)/ρ, sin ε = (B r − A s)/ρ."""
+def _intersect(platform_xyz, range_m, ca, sa, b, h, u, ground_z, radius_m):
+    """One intersection with the surface of height ``ground_z``, trig-free in ε:
+    with ρ = √(A²+B²), r = C/ρ, s = √(1 − r²): cos ε = (A r + B s)/ρ, sin ε = (B r − A s)/ρ.
+    Returns the map point, cos ε, sin ε and ``reached``."""
     a_coef = range_m * (ca * b[2] + sa * h[2])
     b_coef = range_m * u[2]
-    c = ground_z - platform_xyz[2]
+    zp = np.asarray(platform_xyz[2], float)
+    if radius_m is None:
+        c = ground_z - zp
+    else:
+        c = ((ground_z - zp) * (2.0 * radius_m + ground_z + zp) - range_m * range_m) \
+            / (2.0 * (radius_m + zp))
     rho = np.hypot(a_coef, b_coef)
     ok = rho > 0
     inv_rho = np.divide(1.0, rho, out=np.zeros_like(rho), where=ok)
@@ -41,12 +56,32 @@ def _intersect(platform_xyz, range_m, ca, sa, b, h, u, ground_z):
     ce = np.where(ok, (a_coef * r + b_coef * s) * inv_rho, 0.0)
     se = np.where(ok, (b_coef * r - a_coef * s) * inv_rho, -1.0)
     rc, rs, re = range_m * ce * ca, range_m * ce * sa, range_m * se
-    p = tuple(platform_xyz[k] + rc * b[k] + rs * h[k] + re * u[k] for k in range(3))
-    return p, ce, se, reached
+    o = tuple(rc * b[k] + rs * h[k] + re * u[k] for k in range(3))
+    return to_map(platform_xyz, o, radius_m, np.where(reached, ground_z, np.nan)), ce, se, reached
+
+
+def to_map(platform_xyz, o, radius_m, height_m=None):
+    """Map point of an offset ``o`` (platform's local ENU frame, m) from the platform: central
+    angle θ = atan2(|o_h|, R + z_P + o_up), map distance Rθ along o_h; its height ``height_m``
+    where given (finite), else |o + centre offset| − R."""
+    px, py, pz = (np.asarray(c, float) for c in platform_xyz)
+    if radius_m is None:
+        z = pz + o[2]
+        if height_m is not None:
+            z = np.where(np.isfinite(height_m), height_m, z)
+        return px + o[0], py + o[1], z
+    horiz = np.hypot(o[0], o[1])
+    up = radius_m + pz + o[2]
+    theta = np.arctan2(horiz, up)
+    scale = np.divide(radius_m * theta, horiz, out=np.ones_like(horiz), where=horiz > 0)
+    z = np.hypot(horiz, up) - radius_m
+    if height_m is not None:
+        z = np.where(np.isfinite(height_m), height_m, z)
+    return px + o[0] * scale, py + o[1] * scale, z
 
 
 def geolocate(platform_xyz, range_m, az_rad, b, h, u, terrain, iterations: int = 8,
-              tol_m: float = 0.1):
+              tol_m: float = 0.1, radius_m=DEFAULT_RADIUS_M):
     """Measured ground points ``(x, y, z)``, their antenna elevations and a ``reached`` flag.
 
     ``platform_xyz``, ``b``, ``h``, ``u`` are 3-tuples of arrays; ``range_m`` and ``az_rad``
@@ -59,12 +94,13 @@ def geolocate(platform_xyz, range_m, az_rad, b, h, u, terrain, iterations: int =
     # a terrain without data under the platform (NaN) starts from 0 m
     ground = np.broadcast_to(np.nan_to_num(np.asarray(
         terrain.height_at(platform_xyz[0], platform_xyz[1]), float)), range_m.shape)
-    p, ce, se, reached = _intersect(platform_xyz, range_m, ca, sa, b, h, u, ground)
+    p, ce, se, reached = _intersect(platform_xyz, range_m, ca, sa, b, h, u, ground, radius_m)
     if not getattr(terrain, "flat", False):
         for _ in range(iterations):
             new_ground = np.asarray(terrain.height_at(p[0], p[1]), float)
             new_ground = np.where(np.isfinite(new_ground), new_ground, ground)  # off the DEM
-            p, ce, se, reached = _intersect(platform_xyz, range_m, ca, sa, b, h, u, new_ground)
+            p, ce, se, reached = _intersect(platform_xyz, range_m, ca, sa, b, h, u, new_ground,
+                                            radius_m)
             if np.all(np.abs(new_ground - ground) < tol_m):
                 break
             ground = new_ground
@@ -72,11 +108,13 @@ def geolocate(platform_xyz, range_m, az_rad, b, h, u, terrain, iterations: int =
 
 
 def geolocate_world_azimuth(platform_xyz, range_m, azimuth_rad, terrain, iterations: int = 8,
-                            tol_m: float = 0.1):
-    """Ground points at slant range R and *world* azimuth A (clockwise from north) from the
-    platform: ``p = P + (g sin A, g cos A, h − P_z)``, g = √(R² − (P_z − h)²), iterated on
-    ``terrain.height_at`` like :func:`geolocate`.  The inverse of a detection's reported
-    ``range_m``/``azimuth_rad`` (for re-geolocating merged or range-folded reports).
+                            tol_m: float = 0.1, radius_m=DEFAULT_RADIUS_M):
+    """Ground points at slant range R_m and *world* azimuth A (clockwise from north) from the
+    platform: ``p = P + (g sin A, g cos A, h − P_z)`` with the ground distance g = Rθ,
+    sin²(θ/2) = (R_m² − (a − b)²)/(4ab), a = R + P_z, b = R + h (law of cosines; flat:
+    g = √(R_m² − (P_z − h)²)), iterated on ``terrain.height_at`` like :func:`geolocate`.  The
+    inverse of a detection's reported ``range_m``/``azimuth_rad`` (for re-geolocating merged or
+    range-folded reports).
 
     Returns ``((x, y, z), reached)``; where R is shorter than the height above the ground the
     point is put at nadir and ``reached`` is False.
@@ -90,7 +128,11 @@ def geolocate_world_azimuth(platform_xyz, range_m, azimuth_rad, terrain, iterati
     def step(h):
         dz = pz - h
         g2 = range_m * range_m - dz * dz
-        g = np.sqrt(np.maximum(g2, 0.0))
+        if radius_m is None:
+            g = np.sqrt(np.maximum(g2, 0.0))
+        else:
+            half = g2 / (4.0 * (radius_m + pz) * (radius_m + h))
+            g = 2.0 * radius_m * np.arcsin(np.sqrt(np.clip(half, 0.0, 1.0)))
         return (px + g * sa, py + g * ca, np.broadcast_to(h, range_m.shape).astype(float)), \
             g2 >= 0
 

@@ -1,6 +1,32 @@
-"""Platform-target geometry: slant range, line of sight and range rates (DESIGN §5, step 1).
+r"""Platform-target geometry on a round earth: slant range, line of sight, grazing angle and
+range rates (DESIGN §5, step 1).
 
-Vectors are 3-tuples of arrays ``(east, north, up)`` in the world ENU frame (metres, m/s).
+Points are 3-tuples of arrays ``(x, y, z)`` in the scene's *map* coordinates
+(:mod:`gmtiflow.frames`): (x, y) an azimuthal equidistant map of the earth's surface, z the
+height above it.  The earth is a sphere of radius R (``radius_m``: the mean earth radius plus
+the origin's height, :func:`gmtiflow.frames.sphere_radius_m`).  For a platform P and a target T
+with map separation (Δx, Δy), ground distance d = √(Δx² + Δy²) (taken as the great-circle
+distance), central angle θ = d/R, a = R + z_P, b = R + z_T, the target in the platform's own
+local ENU frame (east, north, up at P) is
+
+.. math::
+    \mathbf{o}_P = \big(b \sin\theta\,\hat u_x,\; b \sin\theta\,\hat u_y,\;
+                   (z_T - z_P) - 2 b \sin^2(\theta/2)\big), \qquad \hat u = (Δx, Δy)/d ,
+
+so the slant range is the law of cosines, R_s² = a² + b² − 2ab cos θ = (a − b)² + 4ab sin²(θ/2),
+and the line of sight ℓ = o_P/R_s (the frame in which the antenna axes, the platform velocity and
+the field of view are expressed).  The same vector seen in the *target's* local frame,
+ℓ_T = −o_T/R_s with o_T the platform from the target (roles swapped, direction −û), is what the
+target's own velocity (horizontal in its own frame) is projected on.  The grazing angle at the
+target is ψ = asin(−ℓ_T,up) (above the target's horizontal); it is 0 at the geometric horizon.
+Velocities are map rates (d/dt of the map coordinates, as the scene's tables give them); the
+range rate uses the true velocities (:func:`true_velocity`), so that ṙ is d/dt of the slant
+range.  ``radius_m=None`` gives the flat local frame (o = T − P), for comparisons only.
+
+Accuracy against WGS-84 ECEF (pymap3d) end to end, map coordinates from
+:func:`gmtiflow.frames.geodetic_to_enu`: slant range within ~1e-5 of itself (millimetres at the
+default 30 km stand-off, ≤ 6 m at the 580 km horizon of 20 km altitude); the flat frame was
+14 m off at the default scene (tests/sensor/test_curved_earth.py).
 
 Sign convention: range rate ṙ = (v_t − v_p)·ℓ with ℓ the unit line of sight from the platform
 to the target, positive when the range grows (receding).  The main-lobe clutter at the target's
@@ -17,14 +43,69 @@ from gmtiflow.sensor.antenna import dot
 MIN_RANGE_M = 1e-3
 
 
-def line_of_sight(platform_xyz, target_xyz):
-    """Slant range (m) and unit LOS from platform to target.
+#: The sphere of the geometry when none is given: the mean earth radius (origin at 0 m).
+DEFAULT_RADIUS_M = 6_371_008.8
+
+
+def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
+    """(o_P, o_T): the target from the platform in the platform's local ENU frame and the
+    platform from the target in the target's local frame (module doc), each a 3-tuple (m)."""
+    dx = np.asarray(target_xyz[0], float) - np.asarray(platform_xyz[0], float)
+    dy = np.asarray(target_xyz[1], float) - np.asarray(platform_xyz[1], float)
+    zp = np.asarray(platform_xyz[2], float)
+    zt = np.asarray(target_xyz[2], float)
+    if radius_m is None:
+        dz = zt - zp
+        return (dx, dy, dz), (-dx, -dy, -dz)
+    d = np.hypot(dx, dy)
+    theta = d / radius_m
+    # b sin θ / d without 0/0: (b/R) sinθ/θ
+    small = theta < 1e-4
+    safe = np.where(small, 1.0, theta)
+    sinc = np.where(small, 1.0 - theta * theta / 6.0, np.sin(safe) / safe)
+    h2 = 2.0 * np.sin(0.5 * theta) ** 2
+    a = radius_m + zp
+    b = radius_m + zt
+    kp = b / radius_m * sinc
+    kt = a / radius_m * sinc
+    o_p = (dx * kp, dy * kp, (zt - zp) - b * h2)
+    o_t = (-dx * kt, -dy * kt, (zp - zt) - a * h2)
+    return o_p, o_t
+
+
+def slant_range(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
+    """Slant range (m) by the law of cosines, √((a − b)² + 4ab sin²(θ/2)) (module doc)."""
+    o_p, _ = offsets(platform_xyz, target_xyz, radius_m)
+    return np.sqrt(o_p[0] * o_p[0] + o_p[1] * o_p[1] + o_p[2] * o_p[2])
+
+
+def grazing_angle_rad(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
+    """ψ: elevation of the platform above the target's local horizontal (rad; < 0 below the
+    geometric horizon).  With ``radius_m`` = k·R (4/3 earth) the refracted grazing angle."""
+    _, o_t = offsets(platform_xyz, target_xyz, radius_m)
+    rng = np.sqrt(o_t[0] * o_t[0] + o_t[1] * o_t[1] + o_t[2] * o_t[2])
+    return np.arcsin(np.clip(o_t[2] / np.maximum(rng, MIN_RANGE_M), -1.0, 1.0))
+
+
+def target_line_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
+    """Unit LOS platform → target expressed in the *target's* local ENU frame (ℓ_T)."""
+    _, o_t = offsets(platform_xyz, target_xyz, radius_m)
+    rng = np.sqrt(o_t[0] * o_t[0] + o_t[1] * o_t[1] + o_t[2] * o_t[2])
+    inv = 1.0 / np.maximum(rng, MIN_RANGE_M)
+    small = rng < MIN_RANGE_M
+    los = (-o_t[0] * inv, -o_t[1] * inv, -o_t[2] * inv)
+    if np.any(small):
+        los = (np.where(small, 0.0, los[0]), np.where(small, 0.0, los[1]),
+               np.where(small, -1.0, los[2]))
+    return los
+
+
+def line_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
+    """Slant range (m) and unit LOS from platform to target in the platform's local frame.
 
     At zero range the LOS is taken straight down (0, 0, −1) so that nothing is NaN.
     """
-    dx = np.asarray(target_xyz[0], float) - platform_xyz[0]
-    dy = np.asarray(target_xyz[1], float) - platform_xyz[1]
-    dz = np.asarray(target_xyz[2], float) - platform_xyz[2]
+    (dx, dy, dz), _ = offsets(platform_xyz, target_xyz, radius_m)
     rng = np.sqrt(dx * dx + dy * dy + dz * dz)
     inv = 1.0 / np.maximum(rng, MIN_RANGE_M)
     los = (dx * inv, dy * inv, dz * inv)
@@ -35,9 +116,21 @@ def line_of_sight(platform_xyz, target_xyz):
     return rng, los
 
 
-def range_rate(target_v, platform_v, los):
-    """ṙ = (v_t − v_p)·ℓ (m/s, + receding)."""
-    return dot(target_v, los) - dot(platform_v, los)
+def true_velocity(v_map, z_m, radius_m=DEFAULT_RADIUS_M):
+    """A velocity in map rates (d/dt of map x, y, z) as a true velocity in the local frame
+    (m/s): the horizontal map rate is the ground-projected one, so at height z it is scaled by
+    (R + z)/R (0.09 % at 6 km); the vertical is unchanged.  ``radius_m=None``: unchanged."""
+    if radius_m is None:
+        return tuple(np.asarray(c, float) for c in v_map)
+    k = 1.0 + np.asarray(z_m, float) / radius_m
+    return (np.asarray(v_map[0], float) * k, np.asarray(v_map[1], float) * k,
+            np.asarray(v_map[2], float))
+
+
+def range_rate(target_v, platform_v, los, target_los=None):
+    """ṙ = v_t·ℓ_T − v_p·ℓ (m/s, + receding): each velocity in its own local frame, projected
+    on the LOS expressed there (``target_los`` None: the same frame, as when flat)."""
+    return dot(target_v, los if target_los is None else target_los) - dot(platform_v, los)
 
 
 def clutter_range_rate(platform_v, los):

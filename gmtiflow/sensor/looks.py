@@ -56,11 +56,12 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     ci = np.flatnonzero(cand)
     p_ci = antenna.take(poses.pos, dl[ci])
     t_ci = tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m"))
-    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor)
+    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor, poses.radius_m)
     if not getattr(terrain, "flat", False):
         cc = np.flatnonzero(clear[ci])
         clear[ci[cc]] = visibility.terrain_clear(terrain, antenna.take(p_ci, cc),
-                                                 antenna.take(t_ci, cc), los_step_m)
+                                                 antenna.take(t_ci, cc), los_step_m,
+                                                 cfg.horizon_k_factor * poses.radius_m)
     outcome[cand & ~clear] = Outcome.TERRAIN
 
     # --- SNR and the Swerling-I draw for the visible pairs -------------------------------
@@ -112,7 +113,7 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     ppd = antenna.take(poses.pos, dd)
     ground, _, _ = geolocate.geolocate(ppd, r_meas, az_meas, antenna.take(poses.b, dd),
                                        antenna.take(poses.h, dd), antenna.take(poses.u, dd),
-                                       terrain)
+                                       terrain, radius_m=poses.radius_m)
     lat, lon, hgt = frames.enu_to_geodetic(origin, *ground)
     detections = {
         "det_id": np.arange(k, dtype=np.int64),

@@ -141,7 +141,8 @@ def draw(ctx, cfg: SensorConfig, seed: int) -> Table:
     ground, el, reached = geolocate.geolocate(plat, range_m, az,
                                               antenna.take(ctx.boresight, batch),
                                               antenna.take(ctx.scan_axis, batch),
-                                              antenna.take(ctx.antenna_up, batch), ctx.terrain)
+                                              antenna.take(ctx.antenna_up, batch), ctx.terrain,
+                                              radius_m=ctx.radius_m)
     ok = np.asarray(reached, bool) & visibility.in_field_of_view(cfg, az, el, range_m)
     i = np.flatnonzero(ok)
     pts = tuple(c[i] for c in ground)

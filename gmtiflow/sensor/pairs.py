@@ -56,11 +56,9 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     v_rep = np.tile(vehicle_ids, n_rev)
     st = fleet.state_at(poses.time_s[d_rep], v_rep)
     active = np.asarray(st["active"], bool)
-    d = []
-    for k, c in enumerate(_xyz(st)):
-        if not np.all(active):
-            c = np.where(active, c, 0.0)
-        d.append(c.reshape(n_rev, n_v) - poses.pos[k][ref][:, None])
+    xyz = [(c if np.all(active) else np.where(active, c, 0.0)).reshape(n_rev, n_v)
+           for c in _xyz(st)]
+    d, _ = geometry.offsets(tuple(c[ref][:, None] for c in poses.pos), xyz, poses.radius_m)
     b = [c[ref][:, None] for c in poses.b]
     h = [c[ref][:, None] for c in poses.h]
     lb = d[0] * b[0] + d[1] * b[1] + d[2] * b[2]
@@ -170,12 +168,16 @@ def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
     if not np.all(active):
         pos_t = tuple(np.where(active, c, 0.0) for c in pos_t)
         vel_t = tuple(np.where(active, c, 0.0) for c in vel_t)
-    rng_m, los = geometry.line_of_sight(antenna.take(poses.pos, dl), pos_t)
+    plat = antenna.take(poses.pos, dl)
+    rng_m, los = geometry.line_of_sight(plat, pos_t, poses.radius_m)
     az, el, sin_az, lb = antenna.target_angles(los, antenna.take(poses.b, dl),
                                                antenna.take(poses.h, dl),
                                                antenna.take(poses.u, dl))
-    own_rr = antenna.dot(vel_t, los)                                  # ṙ − ṙ_MLC
-    rr = own_rr + geometry.clutter_range_rate(antenna.take(poses.vel, dl), los)   # ṙ
+    # ṙ − ṙ_MLC: the target's velocity (its own local frame) on the LOS seen there
+    own_rr = antenna.dot(geometry.true_velocity(vel_t, pos_t[2], poses.radius_m),
+                         geometry.target_line_of_sight(plat, pos_t, poses.radius_m))
+    vel_p = geometry.true_velocity(antenna.take(poses.vel, dl), plat[2], poses.radius_m)
+    rr = own_rr + geometry.clutter_range_rate(vel_p, los)   # ṙ
     return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],
             "az": az, "el": el, "sin_az": sin_az, "lb": lb, "own_rr": own_rr,
             "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2],

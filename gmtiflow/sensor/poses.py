@@ -13,7 +13,7 @@ from typing import Optional
 import numpy as np
 
 from gmtiflow import frames
-from gmtiflow.sensor import antenna, gain, geolocate, scan
+from gmtiflow.sensor import antenna, gain, geolocate, geometry, scan
 from gmtiflow.sensor.context import SensorRun
 from gmtiflow.tables import Table
 
@@ -34,6 +34,7 @@ class Poses:
     u: tuple
     state: Table
     mdv: Optional[np.ndarray] = None   # per dwell: the notch half-width (set with the dwell table)
+    radius_m: float = geometry.DEFAULT_RADIUS_M   # the round earth (frames.sphere_radius_m)
 
 
 def chunk_poses(run: SensorRun, rev_ids: np.ndarray) -> Poses:
@@ -48,8 +49,8 @@ def chunk_poses(run: SensorRun, rev_ids: np.ndarray) -> Poses:
                                    math.radians(cfg.mount_deg))
     pos = tuple(np.asarray(st[k], float) for k in ("x_m", "y_m", "z_m"))
     vel = tuple(np.asarray(st[k], float) for k in ("vx_mps", "vy_mps", "vz_mps"))
-    return Poses(dwell_ids, len(rev_ids), np.asarray(time_s, float), pos, vel, b, h, u,
-                 st)
+    return Poses(dwell_ids, len(rev_ids), np.asarray(time_s, float), pos, vel, b, h, u, st,
+                 radius_m=frames.sphere_radius_m(run.origin))
 
 
 def dwell_table(run: SensorRun, poses: Poses) -> Table:
@@ -68,7 +69,7 @@ def dwell_table(run: SensorRun, poses: Poses) -> Table:
         plat, plon, ph = frames.enu_to_geodetic(origin, *poses.pos)
     r_centre = np.full(n, 0.5 * (cfg.range_min_m + cfg.range_max_m))
     centre, el_centre, _ = geolocate.geolocate(poses.pos, r_centre, beam, poses.b, poses.h,
-                                               poses.u, terrain)
+                                               poses.u, terrain, radius_m=poses.radius_m)
     poses.mdv = _mdv_per_dwell(cfg, poses, beam, el_centre)
     alat, alon, _ = frames.enu_to_geodetic(origin, *centre)
     return {

@@ -13,8 +13,8 @@ import numpy as np
 
 from gmtiflow.sensor.config import SensorConfig
 
-#: Mean earth radius (m) of the radar-horizon model.
-EARTH_RADIUS_M = 6_371_000.0
+#: Mean earth radius (m) of the radar-horizon model when no sphere is given.
+EARTH_RADIUS_M = 6_371_008.8
 
 
 def fov_limits_rad(cfg: SensorConfig):
@@ -33,7 +33,7 @@ def in_field_of_view(cfg: SensorConfig, az_rad, el_rad, range_m):
             & (r >= cfg.range_min_m) & (r <= cfg.range_max_m))
 
 
-def terrain_clear(terrain, platform_xyz, target_xyz, step_m: float):
+def terrain_clear(terrain, platform_xyz, target_xyz, step_m: float, earth_radius_m=None):
     """Line of sight from platform to target not blocked by terrain (all True when flat).
 
     ``platform_xyz`` and ``target_xyz`` are 3-tuples of arrays; the terrain is called with
@@ -42,28 +42,38 @@ def terrain_clear(terrain, platform_xyz, target_xyz, step_m: float):
     n = len(target_xyz[0])
     if getattr(terrain, "flat", False) or n == 0:
         return np.ones(n, bool)
+    if earth_radius_m is None:
+        return np.asarray(terrain.line_of_sight(np.column_stack(platform_xyz),
+                                                np.column_stack(target_xyz), step_m), bool)
     return np.asarray(terrain.line_of_sight(np.column_stack(platform_xyz),
-                                            np.column_stack(target_xyz), step_m), bool)
+                                            np.column_stack(target_xyz), step_m,
+                                            earth_radius_m=earth_radius_m), bool)
 
 
-def horizon_distance_m(height_m, k_factor: float):
-    """Distance to the radar horizon of a point ``height_m`` above a smooth earth of effective
-    radius k·R_E (4/3 for standard refraction): √(2 k R_E h + h²); 0 at or below the surface."""
+def horizon_distance_m(height_m, k_factor: float, radius_m: float = EARTH_RADIUS_M):
+    """Ground (arc) distance to the radar horizon of a point ``height_m`` above a smooth earth
+    of effective radius a = k·R (4/3 for standard refraction): a·acos(a/(a + h)) (≈ √(2ah) for
+    h ≪ a); 0 at or below the surface."""
+    a = k_factor * radius_m
     h = np.maximum(np.asarray(height_m, float), 0.0)
-    return np.sqrt(h * (2.0 * k_factor * EARTH_RADIUS_M + h))
+    # acos(a/(a+h)) = atan(√(2ah + h²)/a), stable for small h
+    return a * np.arctan(np.sqrt(h * (2.0 * a + h)) / a)
 
 
-def within_horizon(platform_xyz, target_xyz, k_factor: float):
+def within_horizon(platform_xyz, target_xyz, k_factor: float, radius_m: float = EARTH_RADIUS_M):
     """True where a point is above the radar horizon of the platform (smooth k-earth).
 
-    Heights are ENU ``z`` (above the scene origin's surface, the smooth earth's tangent point);
-    the point is seen when its horizontal distance from the platform is at most the sum of the
-    two horizon distances, d ≤ √(2kR_E h_p + h_p²) + √(2kR_E h_t + h_t²) (Skolnik, *Introduction
-    to Radar Systems*, 3rd ed., §8.4; the 4/3-earth radar horizon).  At 10 m altitude a ground
-    point is seen out to 13 km, at 6 km altitude out to 319 km.
+    Heights are map ``z`` (above the sphere through the scene origin, :mod:`gmtiflow.frames`);
+    the point is seen when its ground (great-circle) distance d from the platform is at most the
+    sum of the two horizon distances, d ≤ a·acos(a/(a + h_p)) + a·acos(a/(a + h_t)), a = k·R
+    (Skolnik, *Introduction to Radar Systems*, 3rd ed., §8.4; the 4/3-earth radar horizon):
+    exactly where the straight ray in the k-earth grazes the sphere, i.e. where the grazing angle
+    on the k-earth (:func:`gmtiflow.sensor.geometry.grazing_angle_rad` with radius k·R) of a
+    ground point reaches 0.  At 10 m altitude a ground point is seen out to 13 km, at 6 km
+    altitude out to 319 km, at 20 km out to 583 km.
     """
     dx = np.asarray(target_xyz[0], float) - np.asarray(platform_xyz[0], float)
     dy = np.asarray(target_xyz[1], float) - np.asarray(platform_xyz[1], float)
-    reach = (horizon_distance_m(platform_xyz[2], k_factor)
-             + horizon_distance_m(target_xyz[2], k_factor))
+    reach = (horizon_distance_m(platform_xyz[2], k_factor, radius_m)
+             + horizon_distance_m(target_xyz[2], k_factor, radius_m))
     return dx * dx + dy * dy <= reach * reach

@@ -26,6 +26,11 @@ def test_the_docs_polar_snippet_recovers_each_detection_position(tmp_path):
     run = pipeline.run(compose(["scene.duration_s=20", "export=none", "report=none",
                                 "progress=false", "cache.enabled=false"]), tmp_path)
     det, dw = store.read_table(run, "detections"), store.read_table(run, "dwells")
+    import h5py
+    from gmtiflow import frames
+    with h5py.File(run) as f:
+        radius = frames.sphere_radius_m(frames.Origin(*(float(f.attrs[f"origin_{k}"]) for k in (
+            "lat_deg", "lon_deg", "height_m"))))
     ns = {}
     exec(snippet(), ns)
     rows = np.flatnonzero(np.isfinite(det["x_m"]) & ~det["implausible"])
@@ -36,7 +41,10 @@ def test_the_docs_polar_snippet_recovers_each_detection_position(tmp_path):
         k = int(np.flatnonzero(dw["dwell_id"] == det["dwell_id"][i])[0])
         d = {c: det[c][i] for c in det}
         w = {c: dw[c][k] for c in dw}
-        detection = ns["polar_detection"](d, w, now)
+        detection = ns["polar_detection"](d, w, now, radius_m=radius)
+        rough = ns["polar_detection"](d, w, now)        # the default radius: centimetres
+        xy_r = np.ravel(rough.measurement_model.inverse_function(rough)).astype(float)
+        assert np.hypot(xy_r[0] - d["x_m"], xy_r[2] - d["y_m"]) < 0.05
         xy = np.ravel(detection.measurement_model.inverse_function(detection)).astype(float)
         assert np.hypot(xy[0] - d["x_m"], xy[2] - d["y_m"]) < 1e-6
         # the azimuth taken as a bearing with the slant range: far off

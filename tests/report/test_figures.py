@@ -207,3 +207,26 @@ def test_title_page_shows_the_command_line_references_and_how_to_read(small_run,
     (run_dir / ".hydra" / "overrides.yaml").unlink()        # a run made from Python
     texts = " ".join(t.get_text() for t in pages["title"]().texts)
     assert "not recorded" in texts
+
+
+def test_footprints_and_platform_tracks_of_two_sensors_are_never_mixed(tmp_path):
+    from gmtiflow.report.pages.map import revisit_footprints
+
+    from .conftest import make_run
+    run = load_run(make_run(tmp_path, ["experiment=two_orbits", "scene.duration_s=20",
+                                       "report.enabled=false", "export=none", "tracker=none"]))
+    dwells = run.table("dwells")
+    fps = revisit_footprints(dwells, run.origin, 12)
+    sensor_of_x = dict(zip(np.asarray(dwells["platform_x_m"]).tolist(),
+                           np.asarray(dwells["sensor_id"]).tolist()))
+    assert {sensor_of_x[fp["x"]] for fp in fps} == {0, 1}     # both aircraft, each its own
+    for fp in fps:      # one sensor's scan: within its ±45° field of view plus a beam
+        assert fp["az_hi"] - fp["az_lo"] < math.radians(90 + 10)
+    assert [fp["time_s"] for fp in fps] == sorted(fp["time_s"] for fp in fps)
+    fig = F.map_figure(run.table("roads/nodes"), run.table("roads/edges"), run.table("truth"),
+                       run.table("platform"), dwells, run.table("detections"), {}, [],
+                       run.origin)
+    tracks = [ln for ln in fig.axes[0].lines if str(ln.get_color()) == "k" and len(ln.get_xdata()) > 1]
+    assert len(tracks) == 2                                   # one line per aircraft
+    for ln in tracks:                                         # no jump between the aircraft
+        assert np.max(np.hypot(np.diff(ln.get_xdata()), np.diff(ln.get_ydata()))) < 1.0  # km

@@ -87,18 +87,24 @@ def test_height_at_lies_on_the_dem_surface_through_pymap3d(monaco):
     y = rng.uniform(-20e3, 25e3, 300)
     z = monaco.height_at(x, y)
     assert np.all(np.isfinite(z))
-    lat, lon, h = pymap3d.enu2geodetic(x, y, z, ROCHER.lat_deg, ROCHER.lon_deg, ROCHER.height_m)
+    # map z is the height above the ellipsoid minus the origin's, at the map point's lat/lon
+    lat, lon, h = frames.enu_to_geodetic(ROCHER, x, y, z)
     ground = dem.read_hgt(TILE).at(lat, lon) + N_MONACO
     np.testing.assert_allclose(h, ground, atol=1e-3)
-    # curvature: 40 km out, the ENU z of sea level is ~ -d²/2R below the tangent plane
+    # the earth's curvature is in the geometry, not in z: sea level 30 km out is at z = N
     sea = monaco.height_at(np.array([0.0]), np.array([-30e3]))  # over the sea south of Monaco
-    assert sea[0] == pytest.approx(N_MONACO - 30e3 ** 2 / (2 * 6.37e6), abs=1.5)
+    assert sea[0] == pytest.approx(N_MONACO, abs=1e-6)
+    # ... and lies d²/2R below the origin's tangent plane (pymap3d's ENU of that point)
+    _, _, u = pymap3d.geodetic2enu(*frames.enu_to_geodetic(ROCHER, 0.0, -30e3, sea[0]),
+                                   ROCHER.lat_deg, ROCHER.lon_deg, ROCHER.height_m)
+    assert float(u) == pytest.approx(N_MONACO - 30e3 ** 2 / (2 * 6.37e6), abs=1.5)
 
 
 @needs_tile
 def test_height_at_known_point_matches_geodetic2enu(monaco):
     lat, lon = 43.774167, 7.424167  # a Mont Agel sample (1,109 m above the geoid)
-    x, y, z = pymap3d.geodetic2enu(lat, lon, 1109 + N_MONACO, *(ROCHER.lat_deg, ROCHER.lon_deg, 0.0))
+    x, y, z = frames.geodetic_to_enu(ROCHER, lat, lon, 1109 + N_MONACO)
+    assert z == pytest.approx(1109 + N_MONACO)
     assert monaco.height_at(x, y) == pytest.approx(z, abs=0.05)
     higher = frames.Origin(ROCHER.lat_deg, ROCHER.lon_deg, 100.0)
     cfg = T.TerrainConfig(kind=T.TerrainKind.srtm, paths=[str(TILE)], geoid_offset_m=N_MONACO)

@@ -46,10 +46,23 @@ def test_shipped_log_reads_back_its_rows():
     assert np.allclose(np.degrees(st["bank_rad"]), log["roll_deg"], atol=1e-9)
 
 
+def mapped_circle(t, h=1e-3):
+    """The circle the log was written from (in the origin's tangent plane, through pymap3d)
+    in the scene's map coordinates (frames): position and its central-difference rate."""
+    import pymap3d
+    from gmtiflow import frames
+
+    def at(tt):
+        p, _ = circle(tt)
+        return np.stack(frames.geodetic_to_enu(ORIGIN, *pymap3d.enu2geodetic(*p, *(
+            ORIGIN.lat_deg, ORIGIN.lon_deg, ORIGIN.height_m))))
+    return at(t), (at(t + h) - at(t - h)) / (2 * h)
+
+
 def test_position_and_velocity_between_samples_match_the_flown_circle():
     t = RNG.uniform(0.0, 200.0, 2000)
     st = trajectory().state_at(t)
-    pos, vel = circle(t)
+    pos, vel = mapped_circle(t)
     # a cubic spline through 2 s samples of a 25 km circle: error ~ v ω³ Δt⁴ / 384 ≈ 1e-9 m;
     # the log's rounding (1e-9° lat/lon, 0.1 mm heights) leaves ~0.1 mm and ~0.1 mm/s
     for k, key in enumerate(("x_m", "y_m", "z_m")):
@@ -84,12 +97,16 @@ def test_without_attitude_columns_attitude_follows_the_velocity(tmp_path):
     f.write_text("\n".join(",".join(r.split(",")[:4]) for r in rows) + "\n")
     t = RNG.uniform(10.0, 190.0, 500)
     st = trajectory(f).state_at(t)
-    _, vel = circle(t)
+    _, vel = mapped_circle(t)
     heading = np.mod(np.arctan2(vel[0], vel[1]), 2 * np.pi)
     assert np.max(np.abs(np.angle(np.exp(1j * (st["heading_rad"] - heading))))) < 1e-6
-    assert np.allclose(st["pitch_rad"], math.atan2(CLIMB_MPS, V_MPS), atol=1e-6)
+    # pitch of the map rates (the horizontal map rate at 4 km is the ground-projected one:
+    # 0.06 % below the true speed, 1e-5 rad on the pitch)
+    assert np.allclose(st["pitch_rad"], np.arctan2(vel[2], np.hypot(vel[0], vel[1])), atol=1e-6)
+    assert np.allclose(st["pitch_rad"], math.atan2(CLIMB_MPS, V_MPS), atol=2e-5)
     # coordinated turn, paper eq. 3: φ = atan(v² / (R g)), + right (the circle is clockwise)
-    assert np.allclose(st["bank_rad"], math.atan(V_MPS ** 2 / (R_M * G_MPS2)), atol=1e-5)
+    # (from the map rates: speed and radius 0.06 % below the true ones at 4 km, 4e-5 rad)
+    assert np.allclose(st["bank_rad"], math.atan(V_MPS ** 2 / (R_M * G_MPS2)), atol=1e-4)
 
 
 def test_time_offset_shifts_the_log_and_outside_times_are_an_error():
@@ -100,6 +117,36 @@ def test_time_offset_shifts_the_log_and_outside_times_are_an_error():
         with pytest.raises(InputFileError, match=r"platform.path: .*platform_log.csv covers "
                                                  r"scene times -50 \.\. 150 s"):
             p.state_at(bad)
+
+
+@pytest.mark.parametrize("offset_s, duration_s, ok", [
+    (0.0, 200.0, True), (0.0, 200.5, False), (50.0, 150.0, True), (50.0, 151.0, False),
+    (-1.0, 10.0, False)])
+def test_a_log_shorter_than_the_scene_is_a_config_error_naming_file_and_times(
+        offset_s, duration_s, ok):
+    """Checked from the config before any work (it used to surface at the platform stage):
+    the message names the file, the scene times the log covers and the ones the scene needs."""
+    from gmtiflow.scene.trajectory import coverage_problem
+    cfg = PlatformConfig(kind=PlatformKind.trajectory, path=str(LOG), time_offset_s=offset_s)
+    problem = coverage_problem(cfg, duration_s, "sensors.east.platform")
+    if ok:
+        assert problem is None
+        return
+    first, last = 0.0 - offset_s, 200.0 - offset_s
+    assert f"sensors.east.platform.path: {LOG} covers scene times {first:g} .. {last:g} s" \
+        in problem and f"needs 0 .. {duration_s:g} s (scene.duration_s)" in problem \
+        and f"sensors.east.platform.time_offset_s = {offset_s:g}" in problem
+
+
+def test_the_run_refuses_a_short_log_before_touching_the_run_directory(tmp_path):
+    from gmtiflow import pipeline
+    from gmtiflow.compose import compose
+    cfg = compose(["platform=trajectory", f"platform.path={LOG}", "scene.duration_s=250",
+                   "report=none", "export=none", "cache.enabled=false", "progress=false"])
+    with pytest.raises(ConfigError, match=r"platform.path: .* covers scene times 0 \.\. 200 s "
+                                          r".* scene needs 0 \.\. 250 s"):
+        pipeline.run(cfg, tmp_path / "run")
+    assert not (tmp_path / "run").exists()
 
 
 BAD_FILES = {

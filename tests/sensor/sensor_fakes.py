@@ -14,6 +14,7 @@ its right side-looking antenna looks north at the scene around the origin.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,6 +22,28 @@ import numpy as np
 from gmtiflow import frames
 
 ORIGIN = frames.Origin(48.0, 11.0, 500.0)
+#: The round earth of the scenes run with ORIGIN (the model's sphere: its radius is a
+#: parameter of the model, the triangle below is the independent part).
+RADIUS_M = frames.sphere_radius_m(ORIGIN)
+
+
+def ground_angles(height_m, slant_m=None, depression_rad=None, radius_m=RADIUS_M):
+    """Textbook round-earth triangle of a platform at ``height_m`` above a ground point at
+    slant range ``slant_m`` (or at depression ``depression_rad``): (ground arc distance m,
+    depression at the platform rad, slant range m).  Law of cosines / law of sines on the
+    sphere, independent of gmtiflow's implementation."""
+    a = radius_m + height_m
+    if slant_m is not None:
+        cos_t = (a * a + radius_m * radius_m - slant_m * slant_m) / (2.0 * a * radius_m)
+        theta = math.acos(cos_t)
+        # depression: angle below the platform's horizontal, from the law of sines
+        sin_dep = (a * a + slant_m * slant_m - radius_m * radius_m) / (2.0 * a * slant_m)
+        return radius_m * theta, math.asin(sin_dep), slant_m
+    # the ray at depression δ meets the sphere where sin(angle at the centre + δ) ... :
+    # central angle θ = δ − acos(a cos δ / R) (the nearer intersection, sine rule)
+    theta = depression_rad - math.acos(a * math.cos(depression_rad) / radius_m)
+    slant = math.sqrt(a * a + radius_m * radius_m - 2 * a * radius_m * math.cos(theta))
+    return radius_m * theta, depression_rad, slant
 
 
 class LineFleet:
@@ -98,7 +121,7 @@ class FlatTerrain:
     def height_at(self, x_m, y_m):
         return np.zeros(np.broadcast(np.asarray(x_m), np.asarray(y_m)).shape)
 
-    def line_of_sight(self, from_xyz, to_xyz, step_m=30.0):
+    def line_of_sight(self, from_xyz, to_xyz, step_m=30.0, earth_radius_m=None):
         return np.ones(len(to_xyz), bool)
 
 
@@ -114,7 +137,7 @@ class WallTerrain:
     def height_at(self, x_m, y_m):
         return np.zeros(np.broadcast(np.asarray(x_m), np.asarray(y_m)).shape)
 
-    def line_of_sight(self, from_xyz, to_xyz, step_m=30.0):
+    def line_of_sight(self, from_xyz, to_xyz, step_m=30.0, earth_radius_m=None):
         a, b = np.asarray(from_xyz, float), np.asarray(to_xyz, float)
         self.calls.append(len(b))
         dy = b[:, 1] - a[:, 1]

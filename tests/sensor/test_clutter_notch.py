@@ -7,7 +7,7 @@ import pytest
 from gmtiflow.sensor import gain, scan
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.outcome import Outcome
-from sensor_fakes import LevelPlatform, LineFleet, run, still
+from sensor_fakes import LevelPlatform, LineFleet, ground_angles, run, still
 
 
 @pytest.mark.parametrize("speed, aperture", [(200.0, 1.2), (100.0, 1.2), (200.0, 0.6),
@@ -21,7 +21,7 @@ def test_auto_mdv_is_half_the_main_beam_clutter_spread(speed, aperture):
     out = run(cfg, still([[0.0, 0.0]]), platform=plat)
     d = out["dwells"]
     r_mid = 0.5 * (cfg.range_min_m + cfg.range_max_m)
-    cos_el = math.sqrt(1 - (6000.0 / r_mid) ** 2)
+    cos_el = math.cos(ground_angles(6000.0, slant_m=r_mid)[1])     # round earth
     expected = 0.5 * speed * cos_el * cfg.beamwidth_sine
     assert np.allclose(d["mdv_mps"], expected, rtol=1e-6, atol=1e-12)
     if speed == 200.0 and aperture == 1.2:
@@ -60,7 +60,7 @@ def test_no_stap_keeps_main_lobe_clutter():
     cfg = SensorConfig(stap=False, mdv_mps="auto")
     out = run(cfg, still([[0.0, 0.0]] * 20), duration_s=20.0)
     d = out["dwells"]
-    expected = 200.0 * math.sqrt(1 - (6000.0 / 28000.0) ** 2) * cfg.beamwidth_sine
+    expected = 200.0 * math.cos(ground_angles(6000.0, slant_m=28000.0)[1]) * cfg.beamwidth_sine
     assert np.allclose(d["mdv_mps"], expected, rtol=1e-6)
     lk = out["looks"]
     seen = lk["outcome"] != Outcome.OUTSIDE_FOV

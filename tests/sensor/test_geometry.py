@@ -15,7 +15,9 @@ def angles(target, platform=(0.0, -30_000.0, 6_000.0), heading_deg=270.0, bank_d
            mount_deg=90.0, pitch_deg=0.0):
     b, h, u = antenna.antenna_axes(np.radians([heading_deg]), np.radians([pitch_deg]),
                                    np.radians([bank_deg]), math.radians(mount_deg))
-    _, los = geometry.line_of_sight(vec(*platform), vec(*target))
+    # flat frame (radius None): these tests pin the angle conventions; the round earth is
+    # tested in test_curved_earth.py
+    _, los = geometry.line_of_sight(vec(*platform), vec(*target), None)
     az, el, s, lb = antenna.target_angles(los, b, h, u)
     return az[0], el[0], s[0], lb[0]
 
@@ -53,7 +55,7 @@ def test_bank_towards_the_antenna_raises_target_elevation_by_the_bank():
 
 def test_range_rate_of_a_target_moving_straight_away_and_at_right_angles():
     p, t = vec(0.0, -30_000.0, 6_000.0), vec(0.0, 0.0, 0.0)
-    rng_m, los = geometry.line_of_sight(p, t)
+    rng_m, los = geometry.line_of_sight(p, t, None)       # sign conventions, flat frame
     assert rng_m[0] == pytest.approx(math.hypot(30_000, 6_000))
     still = vec(0, 0, 0)
     away = vec(0.0, 10.0, 0.0)            # north, away from the platform

@@ -12,7 +12,7 @@ from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.model import simulate
 from gmtiflow.sensor.outcome import Outcome
 from sensor_fakes import (ORIGIN, FlatTerrain, LevelPlatform, LineFleet, WallTerrain, grid_fleet,
-                          run, still)
+                          ground_angles, run, still)
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "tables.md"
 H = 6_000.0            # platform height; platform at y = -30 km flying west, looking north
@@ -154,11 +154,12 @@ def test_fov_limits_are_inclusive_and_sharp(name):
 
 
 def place(az_deg=0.0, depression_deg=None, slant_m=None):
-    """Ground point seen from the hovering platform at antenna azimuth/elevation or range."""
+    """Ground point seen from the hovering platform at antenna azimuth/elevation or range, on
+    the round earth (arc distance g along the azimuth, textbook triangle)."""
     if depression_deg is not None:
-        g = H / math.tan(math.radians(depression_deg))
+        g = ground_angles(H, depression_rad=math.radians(depression_deg))[0]
     else:
-        g = math.sqrt(slant_m ** 2 - H ** 2)
+        g = ground_angles(H, slant_m=slant_m)[0]
     a = math.radians(az_deg)
     return (g * math.sin(a), g * math.cos(a) - 30_000.0)
 
@@ -417,18 +418,26 @@ def test_effects_post_process_each_chunk_and_ids_are_renumbered():
 
 
 def test_look_range_rates_include_the_platform_motion():
-    """Flying west, a target east of broadside recedes: ṙ = (v_t − v_p)·ℓ > 0."""
+    """Flying west, a target east of broadside recedes: ṙ = (v_t − v_p)·ℓ > 0.  Checked as the
+    time derivative of the slant range between the two positions in WGS-84 ECEF (pymap3d,
+    central difference), i.e. independently of the sensor's round-earth frames."""
+    import pymap3d
+    from gmtiflow import frames
     fleet = LineFleet([(3_000.0, 0.0, 0.0), (-3_000.0, 0.0, 0.0)], (0.0, 5.0, 0.0))
-    out = run(NO_STAP, fleet)
-    lk, d = out["looks"], out["dwells"]
-    k = lk["dwell_id"]
-    st = fleet.state_at(lk["time_s"], lk["vehicle_id"])
-    dx = np.stack([st["x_m"] - d["platform_x_m"][k], st["y_m"] - d["platform_y_m"][k],
-                   st["z_m"] - d["platform_z_m"][k]])
-    los = dx / np.linalg.norm(dx, axis=0)
-    dv = np.stack([st["vx_mps"] - d["platform_vx_mps"][k], st["vy_mps"] - d["platform_vy_mps"][k],
-                   st["vz_mps"] - d["platform_vz_mps"][k]])
-    assert np.allclose(lk["range_rate_mps"], np.sum(dv * los, axis=0), atol=1e-9)
+    plat = LevelPlatform()
+    out = run(NO_STAP, fleet, plat)
+    lk = out["looks"]
+
+    def slant(t):
+        st, ps = fleet.state_at(t, lk["vehicle_id"]), plat.state_at(t)
+        ends = [pymap3d.geodetic2ecef(*frames.enu_to_geodetic(
+            ORIGIN, *(s[f"{c}_m"] for c in "xyz"))) for s in (st, ps)]
+        return np.linalg.norm(np.subtract(ends[0], ends[1]), axis=0)
+
+    h = 1e-2
+    rr = (slant(lk["time_s"] + h) - slant(lk["time_s"] - h)) / (2 * h)
+    # sphere vs ellipsoid and the map's distortion: ~1e-5 of the speeds (200 m/s)
+    assert np.allclose(lk["range_rate_mps"], rr, atol=5e-3)
     assert np.all(lk["range_rate_mps"][lk["vehicle_id"] == 0] > 15.0)
     assert np.all(lk["range_rate_mps"][lk["vehicle_id"] == 1] < -10.0)
 

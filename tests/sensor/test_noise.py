@@ -17,7 +17,8 @@ from gmtiflow.sensor.config import C_MPS, SensorConfig
 from gmtiflow.sensor.effects import FalseAlarms, Merging, NoiseFalseAlarms, build_effects
 from gmtiflow.sensor.model import simulate
 from gmtiflow.sensor.outcome import Outcome
-from sensor_fakes import ORIGIN, FlatTerrain, LevelPlatform, WallTerrain, grid_fleet, still
+from sensor_fakes import (ORIGIN, RADIUS_M, FlatTerrain, LevelPlatform, WallTerrain, grid_fleet,
+                          still)
 
 ALPHA = 1e-3
 
@@ -175,13 +176,14 @@ def test_pri_null_needs_the_integration_gain_and_too_many_false_alarms_are_refus
 
 
 def test_nothing_beyond_the_radar_horizon():
-    """A platform at 100 m sees the ground out to sqrt(2 k R_E h) = 41 km (4/3 earth): with a
-    window from 30 to 60 km nothing beyond that, target or false alarm."""
+    """A platform at 100 m sees the ground out to kR·acos(kR/(kR + h)) ≈ sqrt(2 k R h) = 41 km
+    (4/3 earth): with a window from 30 to 60 km nothing beyond that, target or false alarm."""
     low = LevelPlatform(p0=(0.0, -45_000.0, 100.0))
     cfg = SensorConfig(pfa=1e-5, range_min_m=30_000.0, range_max_m=60_000.0, pri_s=None,
                        integration_gain_db=21.0, el_min_deg=-10.0, el_max_deg=0.0, stap=False,
                        mdv_mps=0.0)
-    horizon = math.sqrt(2 * 4 / 3 * 6_371_000.0 * 100.0 + 100.0 ** 2)
+    a = 4 / 3 * RADIUS_M
+    horizon = a * math.acos(a / (a + 100.0))
     assert 41_000 < horizon < 41_300
     targets = still([[0.0, -45_000.0 + 35_000.0], [0.0, -45_000.0 + 50_000.0]])
     out = _run(cfg, targets, platform=low, duration_s=30.0)

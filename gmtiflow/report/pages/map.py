@@ -82,6 +82,8 @@ def revisit_footprints(dwells: Table, origin: Origin, max_footprints: int) -> Li
     if not n(dwells):
         return []
     rev = _col(dwells, "revisit_id") if "revisit_id" in dwells else _col(dwells, "dwell_id")
+    if "sensor_id" in dwells:       # several sensors: a revisit is one sensor's, never a mix
+        rev = _col(dwells, "sensor_id").astype(np.int64) * (int(rev.max()) + 1) + rev
     revisits = np.unique(rev)
     chosen = revisits[even_subsample(len(revisits), max_footprints)]
     ax_, ay_, az_ = geodetic_to_enu(origin, _col(dwells, "area_lat_deg"),
@@ -101,7 +103,7 @@ def revisit_footprints(dwells: Table, origin: Origin, max_footprints: int) -> Li
         lo, hi = float(np.min(beam - width)), float(np.max(beam + width))
         out.append({"revisit": int(r), "time_s": float(dwells["time_s"][mid]), "x": px, "y": py,
                     "ground_min_m": g[0], "ground_max_m": g[1], "az_lo": lo, "az_hi": hi})
-    return out
+    return sorted(out, key=lambda fp: fp["time_s"])     # colour = time, across sensors
 
 
 def _footprint_patch(fp: dict, scale: float, **kw) -> Wedge:
@@ -187,10 +189,14 @@ def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells
     colours = cm.viridis(np.linspace(0, 1, max(len(fps), 1)))
 
     # Overview: platform orbit, footprints, scene box.
-    if n(platform):
-        over.plot(_col(platform, "x_m") / km, _col(platform, "y_m") / km, color="k", lw=1.2,
-                  label="platform track")
-        over.plot(platform["x_m"][0] / km, platform["y_m"][0] / km, "ko", ms=5, label="platform at t = 0")
+    if n(platform):       # one line per aircraft (several sensors: rows by sensor_id)
+        sid = _col(platform, "sensor_id") if "sensor_id" in platform else np.zeros(n(platform))
+        for i, s_id in enumerate(np.unique(sid)):
+            rows = np.flatnonzero(sid == s_id)
+            over.plot(_col(platform, "x_m", rows) / km, _col(platform, "y_m", rows) / km,
+                      color="k", lw=1.2, label="platform track" if i == 0 else None)
+            over.plot(_col(platform, "x_m", rows[:1]) / km, _col(platform, "y_m", rows[:1]) / km,
+                      "ko", ms=5, label="platform at t = 0" if i == 0 else None)
     for fp, col in zip(fps, colours):
         over.add_patch(_footprint_patch(fp, km, facecolor=col, alpha=0.25, edgecolor=col, lw=0.8))
         over.plot([fp["x"] / km], [fp["y"] / km], "o", color=col, ms=3)
