@@ -27,15 +27,16 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Mapping, Sequence
+from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
-from ._io import iso_utc, n_rows, parse_epoch, read_source, source_name, write_atomic
+from . import _text as _cells
+from ._io import iso_utc, n_rows, parse_epoch, read_source, source_name, write_chunks
 from .csvtable import COLUMNS
 from .errors import FormatError, where
 
-__all__ = ["write_geojson", "encode_geojson", "read_geojson"]
+__all__ = ["write_geojson", "encode_geojson", "iter_geojson", "read_geojson"]
 
 _GEO = ("lat_deg", "lon_deg", "height_m")
 NODE_COLUMNS = {"node_id": "int", "name": "str", "x_m": "float", "y_m": "float", "z_m": "float"}
@@ -63,72 +64,110 @@ def _need(table, cols, what):
                          "geodetic first, e.g. with gmtiflow.frames)")
 
 
-def _json_cells(col: np.ndarray) -> list[str]:
+def _json_field(col: np.ndarray) -> _cells.Field:
+    """JSON text of a column: numbers exact (NaN and inf as null), booleans, quoted strings."""
     col = np.asarray(col)
     if col.dtype.kind == "b":
-        return np.where(col, "true", "false").tolist()
+        return _cells.choice(col, "true", "false")
     if col.dtype.kind in "iu":
-        return [str(v) for v in col.tolist()]
+        return _cells.int_cells(col)
     if col.dtype.kind == "f":
-        return [repr(v) if v - v == 0 else "null" for v in col.tolist()]
-    return [json.dumps(str(v)) for v in col.tolist()]
+        return _cells.float_cells(col, nan="null", inf="null")
+    return _cells.strings(col, quote=json.dumps)
 
 
-def _detection_features(dets: Mapping[str, np.ndarray], epoch) -> list[str]:
+_ROWS = 1 << 14                        # features formatted at a time (bounded memory)
+
+
+def _detection_blocks(dets: Mapping[str, np.ndarray], epoch) -> Iterator[bytes]:
+    """Point features of the detections, a block of rows at a time (features joined by ",\n")."""
     n = n_rows(dets, "detections")
     _need(dets, _GEO[:2], "detections")
-    lon = _json_cells(dets["lon_deg"])
-    lat = _json_cells(dets["lat_deg"])
-    h = _json_cells(dets["height_m"]) if "height_m" in dets else None
     props = [c for c in dets if c not in _GEO]
-    cells = [_json_cells(dets[c]) for c in props]
-    names = [json.dumps(c) + ":" for c in props]
-    tutc = iso_utc(epoch, dets["time_s"]).tolist() if epoch is not None and "time_s" in dets else None
-    out = []
-    for i in range(n):
-        if lon[i] == "null" or lat[i] == "null":
-            geom = "null"          # RFC 7946 §3.2: an unlocated feature has a null geometry
-        else:
-            pos = f"{lon[i]},{lat[i]}" + (f",{h[i]}" if h is not None and h[i] != "null" else "")
-            geom = f'{{"type":"Point","coordinates":[{pos}]}}'
-        p = ",".join(nm + c[i] for nm, c in zip(names, cells))
-        if tutc is not None:
-            p += f',"time_utc":"{tutc[i]}"'
-        out.append(f'{{"type":"Feature","geometry":{geom},"properties":{{"kind":"detection"'
-                   f'{"," + p if p else ""}}}}}')
-    return out
+    names = [f",{json.dumps(c)}:" for c in props]
+    for a, b in _cells.row_chunks(n, _ROWS):
+        m = b - a
+        lon = np.asarray(dets["lon_deg"], np.float64)[a:b]
+        lat = np.asarray(dets["lat_deg"], np.float64)[a:b]
+        located = np.isfinite(lon) & np.isfinite(lat)   # RFC 7946 §3.2: else a null geometry
+        h = np.asarray(dets["height_m"], np.float64)[a:b] if "height_m" in dets else None
+        point = _cells.literal('{"type":"Point","coordinates":[', m)
+        comma = _cells.literal(",", m)
+        pieces: list = ['{"type":"Feature","geometry":',
+                        _cells.literal("null", m).masked(~located), point.masked(located),
+                        _cells.masked(_json_field(lon), located), comma.masked(located),
+                        _cells.masked(_json_field(lat), located)]
+        if h is not None:
+            has_h = located & np.isfinite(h)
+            pieces += [comma.masked(has_h), _cells.masked(_json_field(h), has_h)]
+        pieces += [_cells.literal("]}", m).masked(located),
+                   ',"properties":{"kind":"detection"']
+        for c, nm in zip(props, names):
+            pieces += [nm, _json_field(np.asarray(dets[c])[a:b])]
+        if epoch is not None and "time_s" in dets:
+            pieces += [',"time_utc":"', _cells.ascii_fixed(
+                iso_utc(epoch, np.asarray(dets["time_s"], np.float64)[a:b])), '"']
+        pieces.append("}},\n")
+        yield _cells.join(pieces, m)[:-2]
+
+
+def _truth_blocks(truth: Mapping[str, np.ndarray]) -> Iterator[bytes]:
+    """LineString (or Point) features of the vehicles, a group of vehicles at a time."""
+    _need(truth, ("vehicle_id", "time_s") + _GEO[:2], "truth")
+    vid_all = np.asarray(truth["vehicle_id"])
+    order = np.lexsort((np.asarray(truth["time_s"], float), vid_all))
+    vid = vid_all[order]
+    n = len(vid)
+    starts = np.flatnonzero(np.r_[True, vid[1:] != vid[:-1]]) if n else np.zeros(0, np.int64)
+    ends = np.r_[starts[1:], n].astype(np.int64)
+    per_vertex = [c for c in truth if c not in _GEO + ("vehicle_id", "convoy_id")]
+    # groups of whole vehicles of about _ROWS samples each
+    cut = np.searchsorted(ends, np.arange(_ROWS, n + _ROWS, _ROWS), side="left")
+    bounds = np.unique(np.r_[0, np.minimum(cut + 1, len(starts))])
+    for g0, g1 in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        if g0 == g1:
+            continue
+        a, b = int(starts[g0]), int(ends[g1 - 1])
+        m = b - a
+        sel = order[a:b]
+        v_start = starts[g0:g1] - a
+        v_end = ends[g0:g1] - a
+        last = np.zeros(m, bool)
+        last[v_end - 1] = True
+        sep = _cells.choice(last, "", ",")
+        col = {c: np.asarray(truth[c])[sel] for c in truth}
+        pos = ["[", _json_field(col["lon_deg"].astype(np.float64)), ",",
+               _json_field(col["lat_deg"].astype(np.float64))]
+        if "height_m" in col:
+            hh = col["height_m"].astype(np.float64)
+            fin = np.isfinite(hh)
+            pos += [_cells.literal(",", m).masked(fin), _cells.masked(_json_field(hh), fin)]
+        coords, c_off = _cells.join_rows(pos + ["]", sep], m)
+        lists = {}
+        for c in per_vertex:
+            x = col[c]
+            if x.dtype.kind == "b":           # GDAL reads lists of integers, not of booleans
+                x = x.astype(np.int64)
+            lists[c] = _cells.join_rows([_json_field(x), sep], m)
+        out = []
+        for k in range(g1 - g0):
+            i, j = int(v_start[k]), int(v_end[k])
+            single = j - i == 1
+            geom = (b'{"type":"Point","coordinates":' + coords[c_off[i]:c_off[j]] + b"}" if single
+                    else b'{"type":"LineString","coordinates":[' + coords[c_off[i]:c_off[j]] + b"]}")
+            p = b'{"kind":"truth","vehicle_id":' + str(int(col["vehicle_id"][i])).encode()
+            if "convoy_id" in col:
+                p += b',"convoy_id":' + str(int(col["convoy_id"][i])).encode()
+            for c in per_vertex:
+                blob, off = lists[c]
+                p += b"," + json.dumps(c).encode() + b":[" + blob[off[i]:off[j]] + b"]"
+            out.append(b'{"type":"Feature","geometry":' + geom + b',"properties":' + p + b"}}")
+        yield b",\n".join(out)
 
 
 def _coords(lat, lon, h):
     return [[_num(a), _num(b)] + ([] if c is None or not math.isfinite(c) else [float(c)])
             for a, b, c in zip(lon, lat, h if h is not None else [None] * len(lat))]
-
-
-def _truth_features(truth: Mapping[str, np.ndarray]) -> list[dict]:
-    _need(truth, ("vehicle_id", "time_s") + _GEO[:2], "truth")
-    vid = np.asarray(truth["vehicle_id"])
-    order = np.lexsort((np.asarray(truth["time_s"], float), vid))
-    vid = vid[order]
-    starts = np.flatnonzero(np.r_[True, vid[1:] != vid[:-1]]) if len(vid) else np.zeros(0, int)
-    ends = np.r_[starts[1:], len(vid)]
-    cols = {c: np.asarray(v)[order] for c, v in truth.items()}
-    per_vertex = [c for c in cols if c not in _GEO + ("vehicle_id", "convoy_id")]
-    for c in per_vertex:
-        if cols[c].dtype.kind == "b":
-            cols[c] = cols[c].astype(np.int64)
-    feats = []
-    for a, b in zip(starts.tolist(), ends.tolist()):
-        h = cols["height_m"][a:b].tolist() if "height_m" in cols else None
-        coords = _coords(cols["lat_deg"][a:b].tolist(), cols["lon_deg"][a:b].tolist(), h)
-        geom = ({"type": "LineString", "coordinates": coords} if b - a > 1
-                else {"type": "Point", "coordinates": coords[0]})
-        props = {"kind": "truth", "vehicle_id": int(vid[a])}
-        if "convoy_id" in cols:
-            props["convoy_id"] = int(cols["convoy_id"][a])
-        for c in per_vertex:
-            props[c] = [_num(v) for v in cols[c][a:b]]
-        feats.append({"type": "Feature", "geometry": geom, "properties": props})
-    return feats
 
 
 def _road_features(nodes, edges) -> list[dict]:
@@ -192,9 +231,10 @@ def _clutter_features(regions: Sequence[Mapping]) -> list[dict]:
     return feats
 
 
-def encode_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=None,
-                   clutter_regions=None, epoch_utc: str | None = None) -> bytes:
-    """UTF-8 bytes of a FeatureCollection of whatever is given (see the module docstring)."""
+def iter_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=None,
+                 clutter_regions=None, epoch_utc: str | None = None) -> Iterator[bytes]:
+    """The FeatureCollection of whatever is given, in pieces (bounded memory; see the module
+    docstring).  Truth must come alone (``truth.geojson``): one property name, one type."""
     epoch = parse_epoch(epoch_utc) if epoch_utc is not None else None
     has_truth = truth is not None and n_rows(truth, "truth") > 0
     if has_truth and any(x is not None and (len(x) if not isinstance(x, Mapping) else
@@ -204,25 +244,40 @@ def encode_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=N
                          "per-vertex list properties (time_s, ...) would clash with the scalar "
                          "properties of the same name on detections and roads, which GIS tools "
                          "(GDAL) cannot read as one field")
-    parts: list[str] = []
-    if detections is not None and n_rows(detections, "detections"):
-        parts += _detection_features(detections, epoch)
     dumps = lambda f: json.dumps(f, allow_nan=False, separators=(",", ":"))   # noqa: E731
-    if truth is not None and n_rows(truth, "truth"):
-        parts += [dumps(f) for f in _truth_features(truth)]
-    if road_nodes is not None and n_rows(road_nodes, "road nodes"):
-        parts += [dumps(f) for f in _road_features(road_nodes, road_edges)]
-    if clutter_regions:
-        parts += [dumps(f) for f in _clutter_features(clutter_regions)]
     head = '{"type":"FeatureCollection"'
     if epoch is not None:
         head += f',"scene_epoch_utc":"{epoch.strftime("%Y-%m-%dT%H:%M:%S.%fZ")}"'
-    return (head + ',"features":[\n' + ",\n".join(parts) + "\n]}\n").encode("utf-8")
+    yield (head + ',"features":[\n').encode()
+
+    def blocks():
+        if detections is not None and n_rows(detections, "detections"):
+            yield from _detection_blocks(detections, epoch)
+        if has_truth:
+            yield from _truth_blocks(truth)
+        if road_nodes is not None and n_rows(road_nodes, "road nodes"):
+            yield ",\n".join(dumps(f) for f in _road_features(road_nodes, road_edges)).encode()
+        if clutter_regions:
+            yield ",\n".join(dumps(f) for f in _clutter_features(clutter_regions)).encode()
+
+    first = True
+    for block in blocks():
+        if not block:
+            continue
+        yield block if first else b",\n" + block
+        first = False
+    yield b"\n]}\n"
+
+
+def encode_geojson(**kwargs) -> bytes:
+    """UTF-8 bytes of :func:`iter_geojson`'s FeatureCollection."""
+    return b"".join(iter_geojson(**kwargs))
 
 
 def write_geojson(dest, **kwargs) -> None:
-    """Write :func:`encode_geojson`'s document to a path (atomically) or binary file object."""
-    write_atomic(dest, encode_geojson(**kwargs))
+    """Write :func:`iter_geojson`'s document to a path (atomically) or binary file object, a
+    block of features at a time."""
+    write_chunks(dest, iter_geojson(**kwargs))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -17,7 +17,8 @@ from gmtiflow.sensor.model import simulate
 
 
 BASE = ["scene.duration_s=40", "vehicles=random", "vehicles.random.count=12",
-        "vehicles.random.start_time_max_s=10", "clutter=urban"]
+        "vehicles.random.start_time_max_s=10", "clutter=urban",
+        "report=none", "export=none"]      # the cache is about run.h5
 
 
 def datasets(path):
@@ -85,6 +86,7 @@ def test_cached_runs_are_bit_identical_to_uncached(tmp_path, caplog):
     assert_same_datasets(off, hit)
 
 
+@pytest.mark.slow
 def test_sensor_sweep_computes_truth_once_and_matches_uncached(tmp_path, caplog):
     """A 3 x 2 sweep over sensor settings: one truth miss, five hits, outputs as uncached."""
     caplog.set_level(logging.INFO, logger="gmtiflow")
