@@ -12,6 +12,9 @@ ellipsoid), no ``crs`` member (RFC 7946 §4).  Every feature has ``properties.ki
   and GDAL types a list holding ``null`` as text (gmtiflow's /truth has no NaN).  Truth goes in a file of
   its own (``truth.geojson``): one property name has one type in a file, and ``time_s`` is a
   scalar on detections but a list on truth lines, which GDAL cannot read as one field.
+* ``"track"`` — LineString per track (a Point if it has one update), the same way: properties
+  ``track_id`` and per-vertex lists of the other /tracks columns; positions 2-D.  Tracks go in
+  a file of their own too (``tracks.geojson``).
 * ``"road_node"`` — Point per road node (``node_id``, ``name``, ``x_m y_m z_m``);
   ``"road"`` — LineString per edge between its two nodes (``edge_id from_node to_node length_m
   oneway speed_limit_mps invisible road_class``).
@@ -111,16 +114,22 @@ def _detection_blocks(dets: Mapping[str, np.ndarray], epoch) -> Iterator[bytes]:
         yield _cells.join(pieces, m)[:-2]
 
 
-def _truth_blocks(truth: Mapping[str, np.ndarray]) -> Iterator[bytes]:
-    """LineString (or Point) features of the vehicles, a group of vehicles at a time."""
-    _need(truth, ("vehicle_id", "time_s") + _GEO[:2], "truth")
-    vid_all = np.asarray(truth["vehicle_id"])
+_LINES = {"truth": ("vehicle_id", ("convoy_id",)), "track": ("track_id", ())}
+"""Kinds written as one line per object: (id column, per-object columns)."""
+
+
+def _line_blocks(truth: Mapping[str, np.ndarray], kind: str = "truth") -> Iterator[bytes]:
+    """LineString (or Point) features, one per vehicle (``truth``) or track (``track``), a group
+    of them at a time; the other columns as per-vertex lists."""
+    id_col, static = _LINES[kind]
+    _need(truth, (id_col, "time_s") + _GEO[:2], kind)
+    vid_all = np.asarray(truth[id_col])
     order = np.lexsort((np.asarray(truth["time_s"], float), vid_all))
     vid = vid_all[order]
     n = len(vid)
     starts = np.flatnonzero(np.r_[True, vid[1:] != vid[:-1]]) if n else np.zeros(0, np.int64)
     ends = np.r_[starts[1:], n].astype(np.int64)
-    per_vertex = [c for c in truth if c not in _GEO + ("vehicle_id", "convoy_id")]
+    per_vertex = [c for c in truth if c not in _GEO + (id_col,) + static]
     # groups of whole vehicles of about _ROWS samples each
     cut = np.searchsorted(ends, np.arange(_ROWS, n + _ROWS, _ROWS), side="left")
     bounds = np.unique(np.r_[0, np.minimum(cut + 1, len(starts))])
@@ -155,9 +164,11 @@ def _truth_blocks(truth: Mapping[str, np.ndarray]) -> Iterator[bytes]:
             single = j - i == 1
             geom = (b'{"type":"Point","coordinates":' + coords[c_off[i]:c_off[j]] + b"}" if single
                     else b'{"type":"LineString","coordinates":[' + coords[c_off[i]:c_off[j]] + b"]}")
-            p = b'{"kind":"truth","vehicle_id":' + str(int(col["vehicle_id"][i])).encode()
-            if "convoy_id" in col:
-                p += b',"convoy_id":' + str(int(col["convoy_id"][i])).encode()
+            p = (f'{{"kind":"{kind}","{id_col}":'.encode()
+                 + str(int(col[id_col][i])).encode())
+            for c in static:
+                if c in col:
+                    p += f',"{c}":'.encode() + str(int(col[c][i])).encode()
             for c in per_vertex:
                 blob, off = lists[c]
                 p += b"," + json.dumps(c).encode() + b":[" + blob[off[i]:off[j]] + b"]"
@@ -232,18 +243,22 @@ def _clutter_features(regions: Sequence[Mapping]) -> list[dict]:
 
 
 def iter_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=None,
-                 clutter_regions=None, epoch_utc: str | None = None) -> Iterator[bytes]:
+                 clutter_regions=None, tracks=None,
+                 epoch_utc: str | None = None) -> Iterator[bytes]:
     """The FeatureCollection of whatever is given, in pieces (bounded memory; see the module
-    docstring).  Truth must come alone (``truth.geojson``): one property name, one type."""
+    docstring).  Truth and tracks each come alone (``truth.geojson``, ``tracks.geojson``): one
+    property name, one type."""
     epoch = parse_epoch(epoch_utc) if epoch_utc is not None else None
     has_truth = truth is not None and n_rows(truth, "truth") > 0
-    if has_truth and any(x is not None and (len(x) if not isinstance(x, Mapping) else
-                                            n_rows(x, "table"))
-                         for x in (detections, road_nodes, clutter_regions)):
-        raise ValueError("GeoJSON writer: write truth to a file of its own (truth.geojson): its "
-                         "per-vertex list properties (time_s, ...) would clash with the scalar "
-                         "properties of the same name on detections and roads, which GIS tools "
-                         "(GDAL) cannot read as one field")
+    has_tracks = tracks is not None and n_rows(tracks, "tracks") > 0
+    others = [x is not None and (len(x) if not isinstance(x, Mapping) else n_rows(x, "table"))
+              for x in (detections, road_nodes, clutter_regions)]
+    if (has_truth or has_tracks) and (any(others) or (has_truth and has_tracks)):
+        what = "truth" if has_truth else "tracks"
+        raise ValueError(f"GeoJSON writer: write {what} to a file of its own ({what}.geojson): "
+                         "its per-vertex list properties (time_s, ...) would clash with the "
+                         "scalar properties of the same name on detections and roads, which "
+                         "GIS tools (GDAL) cannot read as one field")
     dumps = lambda f: json.dumps(f, allow_nan=False, separators=(",", ":"))   # noqa: E731
     head = '{"type":"FeatureCollection"'
     if epoch is not None:
@@ -254,7 +269,9 @@ def iter_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=Non
         if detections is not None and n_rows(detections, "detections"):
             yield from _detection_blocks(detections, epoch)
         if has_truth:
-            yield from _truth_blocks(truth)
+            yield from _line_blocks(truth, "truth")
+        if has_tracks:
+            yield from _line_blocks(tracks, "track")
         if road_nodes is not None and n_rows(road_nodes, "road nodes"):
             yield ",\n".join(dumps(f) for f in _road_features(road_nodes, road_edges)).encode()
         if clutter_regions:
@@ -335,9 +352,53 @@ def _position(c, name, i):
     return float(c[1]), float(c[0]), float(c[2]) if len(c) == 3 else np.nan
 
 
+def _lines_table(features: list, kind: str, table: str, name, coords_of) -> dict:
+    """The table of ``truth`` or ``track`` line features: one row per vertex, sorted by time
+    and id (the per-vertex lists give the columns; booleans travel as 0/1)."""
+    id_col, static = _LINES[kind]
+    parts = []
+    for i, g, p in features:
+        _, c = coords_of(i, g, ("Point", "LineString"))
+        if c is None:
+            raise FormatError(f"{where(name)}feature {i}: {kind} without geometry")
+        n = len(c)
+        row = {id_col: [p.get(id_col)] * n}
+        for k in static:
+            if k in p:
+                row[k] = [p[k]] * n
+        for k, v in p.items():
+            if k in ("kind", id_col) + static:
+                continue
+            if not isinstance(v, list) or len(v) != n:
+                raise FormatError(f"{where(name)}feature {i}: {kind} property {k!r} must be a "
+                                  f"list of {n} per-vertex values")
+            row[k] = v
+        arr = np.array(c, dtype=np.float64).reshape(-1, 3)
+        row["lat_deg"], row["lon_deg"] = arr[:, 0].tolist(), arr[:, 1].tolist()
+        if kind == "truth" or np.isfinite(arr[:, 2]).any():
+            row["height_m"] = arr[:, 2].tolist()
+        parts.append(row)
+    if not parts:
+        return {}
+    keys = list(dict.fromkeys(k for r in parts for k in r))
+    merged = [{k: r[k][j] if k in r else None for k in keys}
+              for r in parts for j in range(len(r[id_col]))]
+    for k, kk in COLUMNS[table].items():          # booleans travel as 0/1 per vertex
+        if kk == "bool" and k in keys:
+            for r in merged:
+                if r[k] in (0, 1) and not isinstance(r[k], bool):
+                    r[k] = bool(r[k])
+    out = _props_table(merged, COLUMNS[table], f"{where(name)}{table}")
+    if "time_s" in out:
+        order = np.lexsort((out[id_col], out["time_s"]))
+        out = {k: v[order] for k, v in out.items()}
+    return out
+
+
 def read_geojson(source) -> dict:
     """Read a FeatureCollection written by :func:`write_geojson` (or any with ``kind``-tagged
-    features) back to ``{"detections", "truth", "road_nodes", "road_edges", "clutter_regions"}``.
+    features) back to ``{"detections", "truth", "tracks", "road_nodes", "road_edges",
+    "clutter_regions"}``.
 
     Features without a known ``kind`` are ignored.  Malformed JSON raises FormatError with line
     and column; a malformed feature raises FormatError naming its index.
@@ -357,8 +418,8 @@ def read_geojson(source) -> dict:
             or not isinstance(doc.get("features"), list):
         raise FormatError(f"{where(name)}not a GeoJSON FeatureCollection (expected an object with "
                           "type 'FeatureCollection' and a 'features' list)")
-    groups: dict[str, list] = {"detection": [], "truth": [], "road_node": [], "road": [],
-                               "clutter": []}
+    groups: dict[str, list] = {"detection": [], "truth": [], "track": [], "road_node": [],
+                               "road": [], "clutter": []}
     for i, f in enumerate(doc["features"]):
         if not isinstance(f, dict) or f.get("type") != "Feature":
             raise FormatError(f"{where(name)}feature {i}: not a GeoJSON Feature object")
@@ -402,41 +463,8 @@ def read_geojson(source) -> dict:
         p = np.array(pos, dtype=np.float64).reshape(-1, 3)
         dets["lat_deg"], dets["lon_deg"], dets["height_m"] = p[:, 0], p[:, 1], p[:, 2]
     out["detections"] = dets
-    # truth
-    tparts = []
-    for i, g, p in groups["truth"]:
-        _, c = coords_of(i, g, ("Point", "LineString"))
-        if c is None:
-            raise FormatError(f"{where(name)}feature {i}: truth without geometry")
-        n = len(c)
-        row = {"vehicle_id": [p.get("vehicle_id")] * n}
-        if "convoy_id" in p:
-            row["convoy_id"] = [p["convoy_id"]] * n
-        for k, v in p.items():
-            if k in ("kind", "vehicle_id", "convoy_id"):
-                continue
-            if not isinstance(v, list) or len(v) != n:
-                raise FormatError(f"{where(name)}feature {i}: truth property {k!r} must be a list "
-                                  f"of {n} per-vertex values")
-            row[k] = v
-        arr = np.array(c, dtype=np.float64).reshape(-1, 3)
-        row["lat_deg"], row["lon_deg"], row["height_m"] = arr[:, 0].tolist(), arr[:, 1].tolist(), arr[:, 2].tolist()
-        tparts.append(row)
-    truth = {}
-    if tparts:
-        keys = list(dict.fromkeys(k for r in tparts for k in r))
-        merged = [{k: r[k][j] if k in r else None for k in keys}
-                  for r in tparts for j in range(len(r["vehicle_id"]))]
-        for k, kind in COLUMNS["truth"].items():      # booleans travel as 0/1 per vertex
-            if kind == "bool" and k in keys:
-                for r in merged:
-                    if r[k] in (0, 1) and not isinstance(r[k], bool):
-                        r[k] = bool(r[k])
-        truth = _props_table(merged, COLUMNS["truth"], f"{where(name)}truth")
-        order = np.lexsort((truth["vehicle_id"], truth["time_s"])) if "time_s" in truth else None
-        if order is not None:
-            truth = {k: v[order] for k, v in truth.items()}
-    out["truth"] = truth
+    for kind, table in (("truth", "truth"), ("track", "tracks")):
+        out[table] = _lines_table(groups[kind], kind, table, name, coords_of)
     # roads
     nodes = []
     for i, g, p in groups["road_node"]:
