@@ -111,7 +111,8 @@ def test_streamed_run_equals_whole_tables(tmp_path, monkeypatch):
     """Small truth chunks and many sensor chunks give the tables of one-shot evaluation."""
     import functools
     from gmtiflow.sensor import model
-    monkeypatch.setattr(pipeline, "simulate_chunks",
+    from gmtiflow import stages
+    monkeypatch.setattr(stages, "simulate_chunks",
                         functools.partial(model.simulate_chunks, chunk_pairs=40))
     cfg = compose_app(BASE + ["cache.enabled=false", "chunk_s=7"])
     path = pipeline.run(cfg, tmp_path)
@@ -201,7 +202,8 @@ def test_scale_mode_streams_without_keeping_tables(tmp_path, monkeypatch):
         def __init__(self, *a, **kw):
             super().__init__(*a, **kw)
             kept.append(self.keep)
-    monkeypatch.setattr(pipeline, "TableSink", Spy)
+    from gmtiflow import stages
+    monkeypatch.setattr(stages, "TableSink", Spy)
     full = pipeline.run(compose_app(BASE + ["cache.enabled=false"]), tmp_path / "full")
     assert any(kept)
     kept.clear()
