@@ -72,7 +72,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--table", choices=export_mod.CSV_TABLES, default=None,
                    help="CSV: which table (run.h5 -> csv: default detections; csv -> h5: "
                         "default guessed from the header's id column); GeoJSON: truth writes "
-                        "truth.geojson (the truth trajectories, a file of their own)")
+                        "truth.geojson, tracks tracks.geojson (a file of their own each)")
     p.add_argument("--edition", choices=("30", "41"), default="30",
                    help="4607 edition P1: 30 = STANAG 4607 Ed. 3 (default), 41 = AEDP-4607 Ed. A")
     p.add_argument("--platform-location", action="store_true",
@@ -170,6 +170,8 @@ def read_any(path: Path, fmt: str, *, table: Optional[str] = None,
         raw = formats.read_geojson(path)
         tables = {"detections": raw["detections"], "truth": raw["truth"],
                   "roads/nodes": raw["road_nodes"], "roads/edges": raw["road_edges"]}
+        if raw.get("tracks"):
+            tables["tracks"] = raw["tracks"]
         if raw["clutter_regions"]:
             texts["clutter_regions"] = json.dumps(
                 [{k: (np.asarray(v).tolist() if np.ndim(v) else v) for k, v in r.items()}
@@ -263,8 +265,8 @@ def convert(args) -> Path:
         if args.to == "csv":
             name = args.table or "detections"
             key, default = f"csv:{name}", f"{name}.csv"
-        elif args.to == "geojson" and args.table == "truth":
-            key = "geojson:truth"
+        elif args.to == "geojson" and args.table in ("truth", "tracks"):
+            key = f"geojson:{args.table}"
             default = export_mod.FILE_NAMES[key]
         else:
             key = _FORMAT_OF_TO[args.to]

@@ -231,10 +231,41 @@ def check_dense_clutter(t: RunTables) -> ChallengeCheck:
                            "false_alarms_per_target_plot": per_target})
 
 
+def check_two_sensors(t: RunTables) -> ChallengeCheck:
+    """Each sensor alone has Doppler-blind looks of a vehicle that another sensor detects within
+    one revisit (the fused picture bridges what each radar loses)."""
+    lk, dw = t["looks"], t["dwells"]
+    order = np.argsort(dw["dwell_id"])
+    sensor = np.asarray(dw["sensor_id"])[order][np.searchsorted(
+        np.asarray(dw["dwell_id"])[order], lk["dwell_id"])]
+    vid, time = np.asarray(lk["vehicle_id"]), np.asarray(lk["time_s"], float)
+    outcome = np.asarray(lk["outcome"])
+    revisit = _revisit_s(t)
+    sensors = np.unique(np.asarray(dw["sensor_id"]))
+    bridged = {}
+    for s in sensors:
+        n = 0
+        for i in np.flatnonzero((sensor == s) & (outcome == int(Outcome.DOPPLER_BLIND))):
+            other = (sensor != s) & (vid == vid[i]) & (outcome == int(Outcome.DETECTED))
+            n += bool(np.any(np.abs(time[other] - time[i]) <= revisit))
+        bridged[int(s)] = n
+    ok = len(sensors) >= 2 and min(bridged.values()) >= 2
+    return ChallengeCheck("two_sensors", ok, "Doppler-blind looks another sensor detects within "
+                                             "a revisit, per sensor: " + ", ".join(
+        f"{s}: {n}" for s, n in bridged.items()),
+        {"min_bridged_blind_looks": float(min(bridged.values(), default=0))})
+
+
 def _revisit_s(t: RunTables) -> float:
+    """The revisit time (s): the median time between a sensor's consecutive scans."""
     dw = t["dwells"]
-    first = np.asarray(dw["time_s"])[np.asarray(dw["dwell_index"]) == 0]
-    return float(np.median(np.diff(first))) if first.size > 1 else 0.0
+    first = np.asarray(dw["dwell_index"]) == 0
+    sensor = np.asarray(dw["sensor_id"]) if "sensor_id" in dw else np.zeros(first.size)
+    sensor_first = sensor[first]
+    gaps = [np.diff(np.asarray(dw["time_s"])[first][sensor_first == s])
+            for s in np.unique(sensor_first)]
+    gaps = np.concatenate(gaps) if gaps else np.zeros(0)
+    return float(np.median(gaps)) if gaps.size else 0.0
 
 
 CHECKS: Dict[str, Callable[[RunTables], ChallengeCheck]] = {
@@ -242,6 +273,7 @@ CHECKS: Dict[str, Callable[[RunTables], ChallengeCheck]] = {
     "stop_and_go": check_stop_and_go, "tangential": check_tangential,
     "tunnel": check_tunnel, "terrain_shadow": check_terrain_shadow,
     "offroad": check_offroad, "dense_clutter": check_dense_clutter,
+    "two_sensors": check_two_sensors,
 }
 
 

@@ -66,22 +66,30 @@ def scene_figure(run_file, scenario: str):
         if px:
             ax.plot(np.concatenate(px) / 1e3, np.concatenate(py) / 1e3, "o", mfc="none",
                     mec=colour, ms=7, mew=1.4, zorder=6, label=label)
+    # the view: roads and truth with a margin (false alarms fill the whole footprint)
+    px = np.concatenate([np.asarray(nodes["x_m"], float), np.asarray(t["truth"]["x_m"], float)])
+    py = np.concatenate([np.asarray(nodes["y_m"], float), np.asarray(t["truth"]["y_m"], float)])
+    pad = 0.25 * max(np.ptp(px), np.ptp(py), 500.0)
+    ax.set_xlim((px.min() - pad) / 1e3, (px.max() + pad) / 1e3)
+    ax.set_ylim((py.min() - pad) / 1e3, (py.max() + pad) / 1e3)
     plat = t["platform"]
-    mid = len(plat["time_s"]) // 2
-    if len(plat["time_s"]):
-        xlim, ylim = ax.get_xlim(), ax.get_ylim()
-        cx, cy = np.mean(xlim), np.mean(ylim)
+    sensor = np.asarray(plat["sensor_id"]) if "sensor_id" in plat else np.zeros(len(plat["time_s"]))
+    xlim, ylim = ax.get_xlim(), ax.get_ylim()
+    cx, cy = np.mean(xlim), np.mean(ylim)
+    span = 0.12 * max(xlim[1] - xlim[0], ylim[1] - ylim[0])
+    for k, s_id in enumerate(np.unique(sensor)):     # an arrow towards each radar at mid-scene
+        rows = np.flatnonzero(sensor == s_id)
+        mid = rows[len(rows) // 2]
         d = np.array([plat["x_m"][mid] / 1e3 - cx, plat["y_m"][mid] / 1e3 - cy])
         d /= np.linalg.norm(d)
-        span = 0.12 * max(xlim[1] - xlim[0], ylim[1] - ylim[0])
-        ax.annotate("to radar\n(t = %.0f s)" % plat["time_s"][mid],
-                    xy=(xlim[0] + 0.1 * (xlim[1] - xlim[0]) + d[0] * span,
-                        ylim[0] + 0.88 * (ylim[1] - ylim[0]) + d[1] * span),
-                    xytext=(xlim[0] + 0.1 * (xlim[1] - xlim[0]),
-                            ylim[0] + 0.88 * (ylim[1] - ylim[0])),
+        base = (xlim[0] + (0.1 + 0.25 * k) * (xlim[1] - xlim[0]),
+                ylim[0] + 0.88 * (ylim[1] - ylim[0]))
+        who = f"radar {int(s_id)}" if len(np.unique(sensor)) > 1 else "radar"
+        ax.annotate("to %s\n(t = %.0f s)" % (who, plat["time_s"][mid]),
+                    xy=(base[0] + d[0] * span, base[1] + d[1] * span), xytext=base,
                     arrowprops={"arrowstyle": "->", "lw": 1.5}, fontsize=7, ha="center",
                     va="bottom")
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("east (km)")
     ax.set_ylabel("north (km)")
     ax.grid(alpha=0.3)

@@ -71,6 +71,7 @@ CHALLENGE: Dict[str, tuple] = {
     "terrain_shadow": ("terrain_id_kept_fraction", "terrain_reacq_delay_mean_s"),
     "offroad": ("coverage_mean", "position_rmse_m", "fragmentations"),
     "dense_clutter": ("false_tracks_per_step", "missed_per_step"),
+    "two_sensors": ("coverage_mean", "identity_switches", "position_rmse_m"),
 }
 
 

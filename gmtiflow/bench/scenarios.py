@@ -14,7 +14,7 @@ GROUP = "challenge"
 
 #: The suite, in report order (one GMTI challenge each; docs/benchmark.md).
 SCENARIOS = ("crossing", "overtake", "convoy", "stop_and_go", "tangential", "tunnel",
-             "terrain_shadow", "offroad", "dense_clutter")
+             "terrain_shadow", "offroad", "dense_clutter", "two_sensors")
 
 
 def shipped() -> List[str]:
@@ -38,4 +38,6 @@ CHALLENGE_TEXT = {
     "terrain_shadow": "a truck hidden behind a ridge for about a minute",
     "offroad": "trucks leave the road and cross fields, or join the road from them",
     "dense_clutter": "about 50 false alarms per scan around three trucks in a town",
+    "two_sensors": "two radars 90° apart: each loses one truck in its Doppler notch, the other "
+                   "sees it",
 }

@@ -14,6 +14,15 @@ Events, per vehicle:
   is usually also Doppler blind, so a stop normally shows up as a stop *and* as a
   doppler_blind gap; they are scored separately.
 
+Several sensors (/looks with more than one ``sensor_id``): blind gaps are found in every
+sensor's own looks (``sensor_id`` = that sensor: what that radar alone lost) and in all looks
+together in time order (``sensor_id`` = -1, *fused*: a detection by any sensor ends the gap, so
+it is what a tracker fusing all sensors went without).  Fused gaps are fewer *long* gaps but can
+be more numerous than one sensor's: a sensor's blind stretch that another sensor keeps seeing
+splits into one short fused gap per blind look, each ended by the other sensor's next
+detection.  Stop events and the summary's event metrics use the fused rows; with one sensor every
+row is fused (-1).
+
 Scoring, from the per-step association (:mod:`gmtiflow.evaluate.identity`) on the evaluation grid:
 
 * ``track_before``: the last track id associated with the vehicle at a grid time in
@@ -36,8 +45,10 @@ OUTCOME_DETECTED = 0
 BLIND_OUTCOMES = {2: "invisible_road", 3: "terrain", 4: "doppler_blind"}
 STOPPED = 2
 
-EVENT_COLUMNS = ("vehicle_id", "kind", "start_s", "end_s", "duration_s", "track_before",
-                 "track_after", "id_kept", "reacquired", "reacq_delay_s")
+EVENT_COLUMNS = ("vehicle_id", "kind", "sensor_id", "start_s", "end_s", "duration_s",
+                 "track_before", "track_after", "id_kept", "reacquired", "reacq_delay_s")
+FUSED = -1
+"""``sensor_id`` of stop events and of blind gaps in all sensors' looks together (fused)."""
 
 
 def _runs(flag: np.ndarray, group: np.ndarray):
@@ -126,6 +137,9 @@ def score_events(events: Mapping[str, np.ndarray], assoc_vehicle: np.ndarray,
                 after[i] = ids[j]
                 delay[i] = max(times[j] - t1, 0.0)
     out = {k: np.asarray(events[k]) for k in ("vehicle_id", "kind", "start_s", "end_s")}
+    out["sensor_id"] = (np.asarray(events["sensor_id"], np.int64) if "sensor_id" in events
+                        else np.full(n, FUSED, np.int64))
+    out = {k: out[k] for k in ("vehicle_id", "kind", "sensor_id", "start_s", "end_s")}
     out["duration_s"] = out["end_s"] - out["start_s"]
     out["track_before"] = before
     out["track_after"] = after
@@ -133,3 +147,19 @@ def score_events(events: Mapping[str, np.ndarray], assoc_vehicle: np.ndarray,
     out["reacquired"] = after >= 0
     out["reacq_delay_s"] = delay
     return out
+
+
+def gap_events(looks: Mapping[str, np.ndarray], min_gap_looks: int = 1) -> Table:
+    """Blind-gap events of the fused looks (``sensor_id`` -1) and, with several sensors, of each
+    sensor's looks (``sensor_id`` = that sensor); see the module docstring."""
+    fused = blind_gap_events(looks, min_gap_looks)
+    parts = [{**fused, "sensor_id": np.full(len(fused["vehicle_id"]), FUSED, np.int64)}]
+    sensors = np.asarray(looks["sensor_id"], np.int64) if "sensor_id" in looks else None
+    ids = np.unique(sensors) if sensors is not None else ()
+    if len(ids) > 1:
+        for sid in ids:
+            own = sensors == sid
+            found = blind_gap_events({k: np.asarray(v)[own] for k, v in looks.items()},
+                                     min_gap_looks)
+            parts.append({**found, "sensor_id": np.full(len(found["vehicle_id"]), sid, np.int64)})
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}

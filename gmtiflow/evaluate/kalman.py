@@ -158,3 +158,38 @@ def kalman_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, nu: np.ndarray, S
     P_new = IKH @ P @ np.transpose(IKH, (0, 2, 1)) + K @ R @ np.transpose(K, (0, 2, 1))
     P_new = 0.5 * (P_new + np.transpose(P_new, (0, 2, 1)))
     return x_new, P_new
+
+
+def gated_pairs(x_pos: np.ndarray, HPHt: np.ndarray, z: np.ndarray, R: np.ndarray, h: np.ndarray,
+                rr_half_period, gate: float):
+    """The (track, detection) pairs inside ``gate`` and their innovations, without the dense
+    (nt, nd) matrices of :func:`innovations` (linear in tracks + detections at a fixed density).
+
+    Candidates come from a k-d tree of the detections' positions, searched around each track's
+    predicted position ``x_pos`` (nt, 2) within ``sqrt(gate · (tr HPHᵀ_pos + max tr R_pos))`` (a
+    superset of the exact pre-test of :func:`innovations`); then the same pre-test and the same
+    per-pair arithmetic as :func:`innovations`, so ``d2`` is bit-identical for every pair.
+    Returns ``ti, di`` (sorted by track, then detection), ``nu`` (n, m) and ``d2`` (n,) of the
+    pairs with ``d2 < gate``.
+    """
+    from scipy.spatial import cKDTree
+    nt, nd, m = len(x_pos), len(z), z.shape[1]
+    tr_p = np.trace(HPHt[:, :2, :2], axis1=1, axis2=2)
+    tr_r = np.trace(R[:, :2, :2], axis1=1, axis2=2)
+    radius = np.sqrt(gate * (tr_p + tr_r.max(initial=0.0))) * (1.0 + 1e-9) + 1e-9
+    hits = cKDTree(z[:, :2]).query_ball_point(x_pos, radius)
+    counts = np.fromiter((len(k) for k in hits), np.int64, nt)
+    ti = np.repeat(np.arange(nt, dtype=np.int64), counts)
+    di = (np.concatenate([np.sort(np.asarray(k, np.int64)) for k in hits]) if counts.sum()
+          else np.zeros(0, np.int64))
+    nu = z[di] - h[ti]
+    if rr_half_period is not None and m == 3:
+        nu[:, 2] = wrap_symmetric(nu[:, 2], np.asarray(rr_half_period)[di])
+    keep = (nu[:, :2] ** 2).sum(axis=-1) <= gate * (tr_p[ti] + tr_r[di])
+    ti, di, nu = ti[keep], di[keep], nu[keep]
+    d2 = np.full(len(ti), np.inf)
+    if len(ti):
+        S = HPHt[ti] + R[di]
+        d2 = np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+    inside = d2 < gate
+    return ti[inside], di[inside], nu[inside], d2[inside]

@@ -18,7 +18,7 @@ Returned tables (keys are run-file paths):
                             n_track_ids
 ``metrics/track_purity``    per track: n_associated purity dominant_vehicle_id n_vehicles
 ``metrics/identity_switches`` per switch: time_s vehicle_id from_track_id to_track_id
-``metrics/events``          per stop / blind gap (:mod:`gmtiflow.evaluate.events`)
+``metrics/events``          per stop / blind gap, fused and per sensor (:mod:`gmtiflow.evaluate.events`)
 ``metrics/convoys``         per convoy: n_members n_tracks n_confused_tracks
 """
 from __future__ import annotations
@@ -111,12 +111,14 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
 
     found = []
     if "mode" in truth:
-        found.append(events_mod.stop_events(truth))
+        stops = events_mod.stop_events(truth)
+        found.append({**stops, "sensor_id": np.full(len(stops["vehicle_id"]), events_mod.FUSED,
+                                                    np.int64)})
     if looks is not None and len(looks.get("vehicle_id", ())):
-        found.append(events_mod.blind_gap_events(looks, cfg.min_gap_looks))
-    ev = concat(found, columns=("vehicle_id", "kind", "start_s", "end_s")) or {
+        found.append(events_mod.gap_events(looks, cfg.min_gap_looks))
+    ev = concat(found, columns=("vehicle_id", "kind", "sensor_id", "start_s", "end_s")) or {
         "vehicle_id": np.zeros(0, np.int64), "kind": np.zeros(0, str),
-        "start_s": np.zeros(0), "end_s": np.zeros(0)}
+        "sensor_id": np.zeros(0, np.int64), "start_s": np.zeros(0), "end_s": np.zeros(0)}
     ev = events_mod.score_events(ev, assoc["vehicle_id"], assoc["time_s"], assoc["track_id"],
                                  cfg.event_lookback_s)
 
@@ -149,8 +151,8 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
         "mota": mot["mota"], "motp_m": mot["motp_m"], "idf1": mot["idf1"], "idp": mot["idp"],
         "idr": mot["idr"],
     }
-    for kind in EVENT_KINDS:
-        sel = ev["kind"] == kind
+    for kind in EVENT_KINDS:        # the fused events (all of them with one sensor)
+        sel = (ev["kind"] == kind) & (ev["sensor_id"] == events_mod.FUSED)
         held = sel & (ev["track_before"] >= 0)
         values[f"{kind}_events"] = int(sel.sum())
         values[f"{kind}_events_held"] = int(held.sum())

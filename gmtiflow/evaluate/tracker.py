@@ -48,12 +48,18 @@ import numpy as np
 
 from gmtiflow import frames
 from gmtiflow.evaluate import kalman
-from gmtiflow.evaluate.assignment import gated_assignment
+from gmtiflow.evaluate.assignment import sparse_gated_assignment
 from gmtiflow.evaluate.config import TrackerConfig
 from gmtiflow.evaluate.protocol import (Batch, SceneInfo, _Prepared, load_tracker,
                                         run_tracker)
 from gmtiflow.evaluate.tracks import TRACK_COLUMNS
 from gmtiflow.tables import Table
+
+
+#: Up to this many (covered track, detection) pairs a dwell gates them all at once (dense);
+#: above, candidates come from a k-d tree (:func:`gmtiflow.evaluate.kalman.gated_pairs`).  Both
+#: give the same pairs and values; the threshold only trades fixed cost for scaling.
+DENSE_PAIRS = 4096
 
 
 def empty_tracks() -> Table:
@@ -230,6 +236,11 @@ class NNKalmanTracker:
         else:
             cov = np.ones(n_tr, bool)
         ci = np.flatnonzero(cov)
+        if len(ci) == 0 and len(didx) == 0:     # nothing to predict, gate or start here
+            dead, _ = self._bookkeeping(dw, k, t, ci, ci.astype(bool))
+            if dead.any():
+                tr.keep(~dead)
+            return
         xp, Pp = kalman.cv_predict(tr.x[ci], tr.P[ci], dt[ci], cfg.accel_sigma_mps2,
                                   cfg.process_noise)
         assigned_track = np.full(len(ci), -1, np.int64)       # detection slot per covered track
@@ -238,19 +249,23 @@ class NNKalmanTracker:
             zmeas, R, zdet, wrap = _measurements(det, didx, plat_pos, cfg)
         if len(didx) and len(ci):
             h, H = _model(xp, tr.z[ci], plat_pos, plat_vel, use_rr)
-            nu, HPHt, d2 = kalman.innovations(xp, Pp, H, h, zmeas, R, wrap, gate)
+            if len(ci) * len(didx) <= DENSE_PAIRS:      # small: every pair at once
+                nu_all, HPHt, d2_all = kalman.innovations(xp, Pp, H, h, zmeas, R, wrap, gate)
+                ti, di = np.nonzero(d2_all < gate)
+                nu, d2 = nu_all[ti, di], d2_all[ti, di]
+            else:                                        # large: k-d tree candidates
+                HPHt = H @ Pp @ np.transpose(H, (0, 2, 1))
+                ti, di, nu, d2 = kalman.gated_pairs(xp[:, :2], HPHt, zmeas, R, h, wrap, gate)
             for group in (tr.confirmed[ci], ~tr.confirmed[ci]):
-                rows = np.flatnonzero(group)
-                cols = np.flatnonzero(~det_taken)
-                if len(rows) == 0 or len(cols) == 0:
-                    continue
-                r, c = gated_assignment(d2[np.ix_(rows, cols)], gate)
-                assigned_track[rows[r]] = cols[c]
-                det_taken[cols[c]] = True
+                sel = group[ti] & ~det_taken[di]
+                r, c = sparse_gated_assignment(ti[sel], di[sel], d2[sel], gate)
+                assigned_track[r] = c
+                det_taken[c] = True
             a = np.flatnonzero(assigned_track >= 0)
             if len(a):
                 j = assigned_track[a]
-                xu, Pu = kalman.kalman_update(xp[a], Pp[a], H[a], nu[a, j], HPHt[a] + R[j], R[j])
+                at = np.searchsorted(ti * len(didx) + di, a * len(didx) + j)   # pairs are sorted
+                xu, Pu = kalman.kalman_update(xp[a], Pp[a], H[a], nu[at], HPHt[a] + R[j], R[j])
                 gi = ci[a]
                 tr.x[gi], tr.P[gi], tr.t[gi], tr.z[gi] = xu, Pu, t, zdet[j]
                 xp[a], Pp[a] = xu, Pu
@@ -279,9 +294,34 @@ class NNKalmanTracker:
                       covered=zeros, misses=zeros, confirmed=np.full(nf, cfg.confirm_m <= 1),
                       rev_covered=np.ones(nf, bool), rev_hit=np.ones(nf, bool))
 
-        # Bookkeeping per revisit: a revisit covers a track when one of its dwells does (every
-        # dwell, without footprints) and hits it when one of them updates it; hits, covered
-        # revisits and consecutive misses are counted at the revisit's last dwell.
+        dead, missed_rev = self._bookkeeping(dw, k, t, ci, hit)
+
+        # Rows: covered tracks (updated or coasted) with footprints; without, the updated tracks
+        # and, at a revisit's end, the ones it missed.  New tracks: their first row.
+        if has_fp:
+            row_sel = np.ones(len(ci), bool)
+        else:
+            row_sel = hit | np.isin(ci, missed_rev)
+        row_sel &= ~dead[ci]
+        rows_i = ci[row_sel]
+        if len(rows_i):
+            out.append(_rows(tr.id[rows_i], t, xp[row_sel], Pp[row_sel], tr.z[rows_i], plat_pos,
+                             plat_vel, tr.confirmed[rows_i]))
+        if nf:
+            new = n_tr + np.arange(nf)
+            new = new[~dead[new]]
+            out.append(_rows(tr.id[new], t, tr.x[new], tr.P[new], tr.z[new], plat_pos, plat_vel,
+                             tr.confirmed[new]))
+        if dead.any():
+            tr.keep(~dead)
+
+    def _bookkeeping(self, dw, k: int, t: float, ci: np.ndarray, hit: np.ndarray):
+        """Per revisit: a revisit covers a track when one of its dwells does (every dwell,
+        without footprints) and hits it when one of them updates it; hits, covered revisits and
+        consecutive misses are counted at the revisit's last dwell.  Returns the tracks to delete
+        (a mask; the caller deletes them after writing rows) and those the ending revisit missed
+        (indices)."""
+        cfg, tr = self.cfg, self._tr
         tr.rev_covered[ci] = True
         tr.rev_hit[ci[hit]] = True
         dead = (t - tr.t) > cfg.max_coast_s
@@ -300,24 +340,7 @@ class NNKalmanTracker:
             missed_rev = counted[~got]
             tr.rev_covered[:] = False
             tr.rev_hit[:] = False
-
-        # Rows: covered tracks (updated or coasted) with footprints; without, the updated tracks
-        # and, at a revisit's end, the ones it missed.  New tracks: their first row.
-        if has_fp:
-            row_sel = np.ones(len(ci), bool)
-        else:
-            row_sel = hit | np.isin(ci, missed_rev)
-        row_sel &= ~dead[ci]
-        rows_i = ci[row_sel]
-        if len(rows_i):
-            out.append(_rows(tr.id[rows_i], t, xp[row_sel], Pp[row_sel], tr.z[rows_i], plat_pos,
-                             plat_vel, tr.confirmed[rows_i]))
-        if nf:
-            new = n_tr + np.arange(nf)
-            new = new[~dead[new]]
-            out.append(_rows(tr.id[new], t, tr.x[new], tr.P[new], tr.z[new], plat_pos, plat_vel,
-                             tr.confirmed[new]))
-        tr.keep(~dead)
+        return dead, missed_rev
 
 
 def make_tracker(cfg: TrackerConfig):

@@ -69,7 +69,7 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
                                                        max_tracks=cfg.max_track_lines,
                                                        tracker_enabled=tracker_on)),
         ("ospa", lambda: F.ospa_figure(t("metrics/ospa"), t("metrics/identity_switches"),
-                                       t("metrics/events"),
+                                       _fused(t("metrics/events")),
                                        cutoff_m=float(run.cfg("metrics.cutoff_m", float("nan"))),
                                        tracker_enabled=tracker_on)),
     ]
@@ -80,6 +80,14 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
             for s in (run.cfg("sensors", {}) or {}).values()))
         pages.insert(1, ("sensors", lambda: sensors_figure(sensors, window_s)))
     return pages
+
+
+def _fused(events):
+    """The fused events (``sensor_id`` -1); per-sensor rows would repeat them on the page."""
+    if "sensor_id" not in events:
+        return events
+    keep = np.asarray(events["sensor_id"]) < 0
+    return {k: np.asarray(v)[keep] for k, v in events.items()}
 
 
 def _terrain_args(run: RunData) -> dict:
@@ -122,8 +130,8 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf,
     """Build the PDF report of the finished run file ``run_path`` at ``out_pdf``; returns it.
 
     Reads nothing but ``run_path``; ``extra_pages`` ((name, builder) pairs) follow the title
-    page (``gmtiflow-report --tracks --baseline`` adds its side-by-side page so).  Raises :class:`gmtiflow.errors.StoreError` for a missing or
-    incomplete run file.  With ``cfg.animation`` also writes ``<out_pdf stem>.gif`` beside it.
+    page (``gmtiflow-report --tracks --baseline`` adds its side-by-side page so).  Raises
+    :class:`gmtiflow.errors.StoreError` for a missing or incomplete run file.  With ``cfg.animation`` also writes ``<out_pdf stem>.gif`` beside it.
     """
     out_pdf = Path(out_pdf)
     start, cpu_start = time.perf_counter(), time.process_time()

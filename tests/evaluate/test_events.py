@@ -90,3 +90,32 @@ def test_blind_gap_scored_against_tracks():
                     looks=looks)
     assert summary_value(lost, "doppler_blind_id_kept_fraction") == 0.0
     assert summary_value(lost, "doppler_blind_reacq_delay_mean_s") == pytest.approx(3.0)
+
+
+def test_two_sensors_give_per_sensor_and_fused_gaps():
+    truth = truth_table({0: (T, 10.0 * T, np.zeros_like(T))})
+    # sensor 0 looks at even seconds and is blind for t = 10..18; sensor 1 looks at odd seconds
+    # and sees the vehicle throughout except a P_D miss at t = 13 (no blind look of its own)
+    t0, t1 = np.arange(0.0, 40.0, 2.0), np.arange(1.0, 40.0, 2.0)
+    out0 = np.where((t0 >= 10) & (t0 <= 18), 4, 0)
+    out1 = np.where(t1 == 13, 5, 0)
+    looks = {"vehicle_id": np.zeros(40, np.int64), "time_s": np.r_[t0, t1],
+             "outcome": np.r_[out0, out1].astype(np.uint8), "det_id": np.full(40, -1),
+             "sensor_id": np.r_[np.zeros(20, np.int64), np.ones(20, np.int64)]}
+    out = evaluate(CFG, truth, track_table(rows(1, truth, T)), looks=looks)
+    ev = out["metrics/events"]
+    own = ev["sensor_id"] == 0
+    # sensor 0 alone: one gap, t = 10 to its next detection at 20
+    assert list(zip(ev["start_s"][own], ev["end_s"][own])) == [(10.0, 20.0)]
+    assert not np.any(ev["sensor_id"] == 1)
+    # fused: each blind look of sensor 0 is ended by sensor 1's next detection, except the one at
+    # t = 12, which sensor 1 missed at 13: 10-11, 12-15 (looks 12, 13 (P_D), 14), 16-17, 18-19
+    fused = ev["sensor_id"] == -1
+    assert list(zip(ev["start_s"][fused], ev["end_s"][fused])) == [
+        (10.0, 11.0), (12.0, 15.0), (16.0, 17.0), (18.0, 19.0)]
+    # the summary counts the fused gaps
+    assert summary_value(out, "doppler_blind_events") == 4
+    # with one sensor every row is fused and the summary is what it was
+    one = {k: v[:20] for k, v in looks.items()}
+    ev1 = evaluate(CFG, truth, track_table(rows(1, truth, T)), looks=one)["metrics/events"]
+    assert list(ev1["sensor_id"]) == [-1] and (ev1["start_s"][0], ev1["end_s"][0]) == (10.0, 20.0)

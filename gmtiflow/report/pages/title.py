@@ -21,6 +21,8 @@ HOW_TO_READ = [
     "OSPA / identity: lower is better (0 = perfect, c = everything missed or false);",
     "   blind gaps (stops, notch, terrain, tunnels) and what the tracker did after each.",
 ]
+SCENE_VALUE_CHARS = 52
+"""Characters per line of a scene value (two lines at most) before the Results column."""
 UNITS = ("Units: distances m (map in km), angles °, speeds and range rates m/s, SNR dB, times s "
          "from the scene epoch (UTC); P_D and P_FA are probabilities; RMSE = root mean square "
          "error over associated track rows.")
@@ -180,7 +182,14 @@ def title_figure(attrs: dict, config: dict, numbers: Dict[str, float],
     fig.text(0.14, 0.885, "\n".join(lines), fontsize=8.5, family="monospace", va="top",
              linespacing=1.3)
     top = 0.885 - 0.025 * len(lines) - 0.02
-    _table(fig, "Scene", [(k, v, "") for k, v in scene], 0.04, top, 0.12, 0.0, 52)
+    tracker = dict(scene).get("Tracker", "")
+    if len(tracker) > SCENE_VALUE_CHARS:   # an external track file's path: full width, unbroken
+        fig.text(0.04, top + 0.01, "Tracks:", fontsize=9, weight="bold", va="top")
+        fig.text(0.14, top + 0.01, _shorten(tracker, 130), fontsize=8.5, family="monospace",
+                 va="top")
+        scene = [(k, "the track file named above" if k == "Tracker" else v) for k, v in scene]
+        top -= 0.05
+    _table(fig, "Scene", [(k, v, "") for k, v in scene], 0.04, top, 0.12, 0.0, SCENE_VALUE_CHARS)
     _table(fig, "Results", rows, 0.48, top, 0.13, 0.31, 32, header=("", "value", "reference"))
     fig.text(0.04, 0.215, "How to read this report", fontsize=11, weight="bold")
     half = (len(HOW_TO_READ) + 1) // 2
