@@ -108,7 +108,7 @@ def main(argv=None) -> None:
              for s in args.seeds for p in PRESETS}
     rows = []
     for p in PRESETS:
-        walls, cpus, terr, tmax, st, dpd, ddet, qerr, qmax = [], [], [], [], [], [], [], []
+        walls, cpus, terr, tmax, st, dpd, ddet, qerr, qmax = [], [], [], [], [], [], [], [], []
         for s in args.seeds:
             wall, tab = runs[(p, s)]
             ref = runs[("full", s)][1]
