@@ -7,7 +7,8 @@ Synthetic tables (formats.synthetic) of N detections in M dwells; each figure is
 --repeat runs, in memory (encode_* / read_* on bytes, no disk I/O), timed in CPU time of this
 process (``time.process_time``: on a shared machine the wall clock measures the other jobs too;
 the code is single-threaded, so on an idle core the two agree).  For the text
-formats it also prints *values* per second written: the table cells formatted (rows x columns
+formats it also prints *values* per second written (and, for ``truth-csv`` and ``truth-geo``,
+a /truth table of as many samples as detections: rows/s instead of reports/s): the table cells formatted (rows x columns
 of the detections, plus the dwells' cells for XML), the unit of issue 18's "text exports
 >= 1 M values/s".  Targets on a 2-core machine: STANAG 4607 >= 1,000,000 reports/s written,
 >= 500,000/s read; XML, CSV and GeoJSON >= 1,000,000 values/s written.
@@ -115,11 +116,23 @@ def main(argv=None):
         ("geojson", lambda: geojson.encode_geojson(detections=dets, epoch_utc=meta["epoch_utc"]),
          geojson.read_geojson, geo_cells),
     ]
+    truth = synthetic.truth(max(n // 200, 1), 200, seed=1)          # n samples, 1 per vehicle-time
+    n_truth = len(truth["time_s"])
+    truth_cells = n_truth * len(truth)
+    cases += [
+        ("truth-csv", lambda: csvtable.encode_csv({c: v for c, v in truth.items()
+                                                   if c in csvtable.COLUMNS["truth"]}, "truth",
+                                                  epoch_utc=meta["epoch_utc"]),
+         lambda b: csvtable.read_csv(b, "truth"), truth_cells),
+        ("truth-geo", lambda: geojson.encode_geojson(truth=truth, epoch_utc=meta["epoch_utc"]),
+         geojson.read_geojson, truth_cells),
+    ]
     for name, write, read, cells in cases:
         tw, data = best(write, a.repeat)
         tr, _ = best(lambda: read(data), 1 if cells else a.repeat)
         vals = f"{cells / tw:>12,.0f}" if cells else f"{'':>12}"
-        print(f"{name:<10} {len(data):>12,d} {n / tw:>12,.0f} {vals} {n / tr:>12,.0f}")
+        rows = n_truth if name.startswith("truth") else n
+        print(f"{name:<10} {len(data):>12,d} {rows / tw:>12,.0f} {vals} {rows / tr:>12,.0f}")
     if a.against:
         ab_4607(a.against, dwells, dets, meta, a.ab_runs)
 

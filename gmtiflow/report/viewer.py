@@ -284,13 +284,18 @@ def build_viewer(run_path, out_html, *, max_frames: int = 150, max_labels: int =
                 labels_on = len(ids) <= max_labels
                 tx, ty = fr.truth["x_m"][s] / KM, fr.truth["y_m"][s] / KM
                 spd = fr.truth["speed_mps"][s] if "speed_mps" in fr.truth else np.full(len(ids), np.nan)
-                outcome = {}
+                looks_of: Dict[int, List[str]] = {}     # vehicle -> its looks this frame
                 if n(fr.looks):
                     ls = _Frames.window(fr.looks, "_rev", rev - 0.5, rev + 0.5)
-                    outcome = dict(zip(fr.looks["vehicle_id"][ls].tolist(),
-                                       fr.looks["outcome"][ls].tolist()))
+                    lsid = fr.looks["sensor_id"][ls].tolist() if "sensor_id" in fr.looks \
+                        else [0] * (ls.stop - ls.start)
+                    for v, o, sd in zip(fr.looks["vehicle_id"][ls].tolist(),
+                                        fr.looks["outcome"][ls].tolist(), lsid):
+                        who = f" ({names.get(sd, sd)})" if several else ""
+                        looks_of.setdefault(v, []).append(f"look{who}: {OUTCOME_TEXT.get(o, o)}")
                 hover = [f"vehicle {v} {fr.names.get(v, '') if labels_on else ''}<br>{sp:.1f} m/s"
-                         f"<br>look: {OUTCOME_TEXT.get(outcome.get(v, -1), 'none this revisit')}"
+                         "<br>" + ("<br>".join(looks_of[v]) if v in looks_of
+                                   else "look: none this revisit")
                          for v, sp in zip(ids.tolist(), spd.tolist())]
                 if len(ids) <= max_labels and trail_s > 0:
                     w = _Frames.window(fr.truth, "time_s", tnow - trail_s, tnow)
