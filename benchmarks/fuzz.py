@@ -110,7 +110,14 @@ def _seeds_geojson() -> List[bytes]:
     # scene.geojson and truth.geojson are separate documents (truth's per-vertex list
     # properties would clash with the detections' scalars: one property, one type)
     return [geojson.encode_geojson(detections=dets, epoch_utc=META["epoch_utc"]),
-            geojson.encode_geojson(truth=synthetic.truth(2, 3), epoch_utc=META["epoch_utc"])]
+            geojson.encode_geojson(truth=synthetic.truth(2, 3), epoch_utc=META["epoch_utc"]),
+            geojson.encode_geojson(tracks=_tracks_geodetic(), epoch_utc=META["epoch_utc"])]
+
+
+def _tracks_geodetic() -> dict:
+    """synthetic tracks with the 2-D positions tracks.geojson draws."""
+    t = synthetic.tracks(2, 3)
+    return dict(t, lat_deg=43.7 + t["y_m"] / 111e3, lon_deg=7.4 + t["x_m"] / 80e3)
 
 
 def _on_file(loader: Callable, suffix: str) -> Callable[[bytes], object]:

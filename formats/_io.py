@@ -49,6 +49,18 @@ def write_atomic(dest, data: bytes) -> None:
         tmp.write_bytes(data)
 
 
+def write_chunks(dest, chunks) -> None:
+    """Write an iterable of byte strings to a path (through :func:`atomic_path`, so a failure
+    half-way leaves nothing) or to a binary file object, one chunk at a time."""
+    if hasattr(dest, "write"):
+        for chunk in chunks:
+            dest.write(chunk)
+        return
+    with atomic_path(dest) as tmp, open(tmp, "wb") as f:
+        for chunk in chunks:
+            f.write(chunk)
+
+
 def source_name(source) -> str | None:
     """A name for messages: the path, a file object's name, or None for raw bytes."""
     if isinstance(source, (str, os.PathLike)):

@@ -28,7 +28,9 @@ from typing import Mapping
 
 import numpy as np
 
-from ._io import iso_utc, n_rows, parse_epoch, read_source, source_name, write_atomic
+from . import _text as _cells
+from ._io import (iso_utc, n_rows, parse_epoch, read_source, source_name,
+                  write_chunks)
 from .errors import FormatError, where
 
 __all__ = ["write_csv", "read_csv", "encode_csv", "write_detections_csv", "read_detections_csv",
@@ -88,20 +90,19 @@ def _kind(kind: str) -> dict:
     return COLUMNS[kind]
 
 
-def _cells(col: np.ndarray, kind: str) -> list[str]:
+def _field(col: np.ndarray, kind: str) -> _cells.Field:
     col = np.asarray(col)
     if kind == B:
-        return np.where(col.astype(bool), "True", "False").tolist()
+        return _cells.choice(col.astype(bool), "True", "False")
     if kind in (I, U8):
-        return [str(v) for v in col.astype(np.int64).tolist()]
-    return [repr(v) for v in col.astype(np.float64).tolist()]   # 'nan', 'inf' included
+        return _cells.int_cells(col.astype(np.int64))
+    return _cells.float_cells(col.astype(np.float64))     # 'nan', 'inf', '-inf' as repr writes
 
 
-def encode_csv(table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str) -> bytes:
-    """CSV bytes of a detections / truth / tracks table (columns outside COLUMNS[kind] are
-    refused with ValueError, so nothing is dropped silently)."""
+def _prepare(table: Mapping[str, np.ndarray], kind: str, epoch_utc: str):
+    """(column names, row order, epoch) of a table to write, after the checks."""
     cols = _kind(kind)
-    n = n_rows(table, kind)
+    n_rows(table, kind)
     unknown = [c for c in table if c not in cols]
     if unknown:
         raise ValueError(f"CSV writer ({kind}): columns {unknown} are not part of the {kind} CSV; "
@@ -112,20 +113,36 @@ def encode_csv(table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str) ->
     epoch = parse_epoch(epoch_utc)
     t = np.asarray(table["time_s"], dtype=np.float64)
     order = np.lexsort((np.asarray(table[_ID[kind]]), t))
-    names = [c for c in cols if c in table]
-    columns = [iso_utc(epoch, t[order]).tolist()]
-    columns += [_cells(np.asarray(table[c])[order], cols[c]) for c in names]
-    out = io.StringIO()
-    out.write(",".join([TIME_UTC] + names) + "\n")
-    if n:
-        out.write("\n".join(",".join(r) for r in zip(*columns)))
-        out.write("\n")
-    return out.getvalue().encode("utf-8")
+    return [c for c in cols if c in table], order, epoch
+
+
+def iter_csv(table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str,
+             rows: int = 1 << 15):
+    """The CSV bytes of a table in pieces: the header, then ``rows`` rows at a time (bounded
+    memory; every value formatted column-wise by :mod:`formats._text`)."""
+    names, order, epoch = _prepare(table, kind, epoch_utc)
+    cols = _kind(kind)
+    yield (",".join([TIME_UTC] + names) + "\n").encode()
+    t = np.asarray(table["time_s"], dtype=np.float64)
+    for a, b in _cells.row_chunks(len(order), rows):
+        sel = order[a:b]
+        pieces: list = [_cells.ascii_fixed(iso_utc(epoch, t[sel]))]
+        for c in names:
+            pieces += [",", _field(np.asarray(table[c])[sel], cols[c])]
+        pieces.append("\n")
+        yield _cells.join(pieces, b - a)
+
+
+def encode_csv(table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str) -> bytes:
+    """CSV bytes of a detections / truth / tracks table (columns outside COLUMNS[kind] are
+    refused with ValueError, so nothing is dropped silently)."""
+    return b"".join(iter_csv(table, kind, epoch_utc=epoch_utc))
 
 
 def write_csv(dest, table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str) -> None:
-    """Write a table as CSV to a path (atomically) or a binary file object."""
-    write_atomic(dest, encode_csv(table, kind, epoch_utc=epoch_utc))
+    """Write a table as CSV to a path (atomically) or a binary file object, a chunk of rows at
+    a time."""
+    write_chunks(dest, iter_csv(table, kind, epoch_utc=epoch_utc))
 
 
 def _text(source) -> tuple[str, str | None]:

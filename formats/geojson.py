@@ -12,6 +12,9 @@ ellipsoid), no ``crs`` member (RFC 7946 §4).  Every feature has ``properties.ki
   and GDAL types a list holding ``null`` as text (gmtiflow's /truth has no NaN).  Truth goes in a file of
   its own (``truth.geojson``): one property name has one type in a file, and ``time_s`` is a
   scalar on detections but a list on truth lines, which GDAL cannot read as one field.
+* ``"track"`` — LineString per track (a Point if it has one update), the same way: properties
+  ``track_id`` and per-vertex lists of the other /tracks columns; positions 2-D.  Tracks go in
+  a file of their own too (``tracks.geojson``).
 * ``"road_node"`` — Point per road node (``node_id``, ``name``, ``x_m y_m z_m``);
   ``"road"`` — LineString per edge between its two nodes (``edge_id from_node to_node length_m
   oneway speed_limit_mps invisible road_class``).
@@ -27,15 +30,16 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Mapping, Sequence
+from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
-from ._io import iso_utc, n_rows, parse_epoch, read_source, source_name, write_atomic
+from . import _text as _cells
+from ._io import iso_utc, n_rows, parse_epoch, read_source, source_name, write_chunks
 from .csvtable import COLUMNS
 from .errors import FormatError, where
 
-__all__ = ["write_geojson", "encode_geojson", "read_geojson"]
+__all__ = ["write_geojson", "encode_geojson", "iter_geojson", "read_geojson"]
 
 _GEO = ("lat_deg", "lon_deg", "height_m")
 NODE_COLUMNS = {"node_id": "int", "name": "str", "x_m": "float", "y_m": "float", "z_m": "float"}
@@ -63,40 +67,113 @@ def _need(table, cols, what):
                          "geodetic first, e.g. with gmtiflow.frames)")
 
 
-def _json_cells(col: np.ndarray) -> list[str]:
+def _json_field(col: np.ndarray) -> _cells.Field:
+    """JSON text of a column: numbers exact (NaN and inf as null), booleans, quoted strings."""
     col = np.asarray(col)
     if col.dtype.kind == "b":
-        return np.where(col, "true", "false").tolist()
+        return _cells.choice(col, "true", "false")
     if col.dtype.kind in "iu":
-        return [str(v) for v in col.tolist()]
+        return _cells.int_cells(col)
     if col.dtype.kind == "f":
-        return [repr(v) if v - v == 0 else "null" for v in col.tolist()]
-    return [json.dumps(str(v)) for v in col.tolist()]
+        return _cells.float_cells(col, nan="null", inf="null")
+    return _cells.strings(col, quote=json.dumps)
 
 
-def _detection_features(dets: Mapping[str, np.ndarray], epoch) -> list[str]:
+_ROWS = 1 << 14                        # features formatted at a time (bounded memory)
+
+
+def _detection_blocks(dets: Mapping[str, np.ndarray], epoch) -> Iterator[bytes]:
+    """Point features of the detections, a block of rows at a time (features joined by ",\n")."""
     n = n_rows(dets, "detections")
     _need(dets, _GEO[:2], "detections")
-    lon = _json_cells(dets["lon_deg"])
-    lat = _json_cells(dets["lat_deg"])
-    h = _json_cells(dets["height_m"]) if "height_m" in dets else None
     props = [c for c in dets if c not in _GEO]
-    cells = [_json_cells(dets[c]) for c in props]
-    names = [json.dumps(c) + ":" for c in props]
-    tutc = iso_utc(epoch, dets["time_s"]).tolist() if epoch is not None and "time_s" in dets else None
-    out = []
-    for i in range(n):
-        if lon[i] == "null" or lat[i] == "null":
-            geom = "null"          # RFC 7946 §3.2: an unlocated feature has a null geometry
-        else:
-            pos = f"{lon[i]},{lat[i]}" + (f",{h[i]}" if h is not None and h[i] != "null" else "")
-            geom = f'{{"type":"Point","coordinates":[{pos}]}}'
-        p = ",".join(nm + c[i] for nm, c in zip(names, cells))
-        if tutc is not None:
-            p += f',"time_utc":"{tutc[i]}"'
-        out.append(f'{{"type":"Feature","geometry":{geom},"properties":{{"kind":"detection"'
-                   f'{"," + p if p else ""}}}}}')
-    return out
+    names = [f",{json.dumps(c)}:" for c in props]
+    for a, b in _cells.row_chunks(n, _ROWS):
+        m = b - a
+        lon = np.asarray(dets["lon_deg"], np.float64)[a:b]
+        lat = np.asarray(dets["lat_deg"], np.float64)[a:b]
+        located = np.isfinite(lon) & np.isfinite(lat)   # RFC 7946 §3.2: else a null geometry
+        h = np.asarray(dets["height_m"], np.float64)[a:b] if "height_m" in dets else None
+        point = _cells.literal('{"type":"Point","coordinates":[', m)
+        comma = _cells.literal(",", m)
+        pieces: list = ['{"type":"Feature","geometry":',
+                        _cells.literal("null", m).masked(~located), point.masked(located),
+                        _cells.masked(_json_field(lon), located), comma.masked(located),
+                        _cells.masked(_json_field(lat), located)]
+        if h is not None:
+            has_h = located & np.isfinite(h)
+            pieces += [comma.masked(has_h), _cells.masked(_json_field(h), has_h)]
+        pieces += [_cells.literal("]}", m).masked(located),
+                   ',"properties":{"kind":"detection"']
+        for c, nm in zip(props, names):
+            pieces += [nm, _json_field(np.asarray(dets[c])[a:b])]
+        if epoch is not None and "time_s" in dets:
+            pieces += [',"time_utc":"', _cells.ascii_fixed(
+                iso_utc(epoch, np.asarray(dets["time_s"], np.float64)[a:b])), '"']
+        pieces.append("}},\n")
+        yield _cells.join(pieces, m)[:-2]
+
+
+_LINES = {"truth": ("vehicle_id", ("convoy_id",)), "track": ("track_id", ())}
+"""Kinds written as one line per object: (id column, per-object columns)."""
+
+
+def _line_blocks(truth: Mapping[str, np.ndarray], kind: str = "truth") -> Iterator[bytes]:
+    """LineString (or Point) features, one per vehicle (``truth``) or track (``track``), a group
+    of them at a time; the other columns as per-vertex lists."""
+    id_col, static = _LINES[kind]
+    _need(truth, (id_col, "time_s") + _GEO[:2], kind)
+    vid_all = np.asarray(truth[id_col])
+    order = np.lexsort((np.asarray(truth["time_s"], float), vid_all))
+    vid = vid_all[order]
+    n = len(vid)
+    starts = np.flatnonzero(np.r_[True, vid[1:] != vid[:-1]]) if n else np.zeros(0, np.int64)
+    ends = np.r_[starts[1:], n].astype(np.int64)
+    per_vertex = [c for c in truth if c not in _GEO + (id_col,) + static]
+    # groups of whole vehicles of about _ROWS samples each
+    cut = np.searchsorted(ends, np.arange(_ROWS, n + _ROWS, _ROWS), side="left")
+    bounds = np.unique(np.r_[0, np.minimum(cut + 1, len(starts))])
+    for g0, g1 in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        if g0 == g1:
+            continue
+        a, b = int(starts[g0]), int(ends[g1 - 1])
+        m = b - a
+        sel = order[a:b]
+        v_start = starts[g0:g1] - a
+        v_end = ends[g0:g1] - a
+        last = np.zeros(m, bool)
+        last[v_end - 1] = True
+        sep = _cells.choice(last, "", ",")
+        col = {c: np.asarray(truth[c])[sel] for c in truth}
+        pos = ["[", _json_field(col["lon_deg"].astype(np.float64)), ",",
+               _json_field(col["lat_deg"].astype(np.float64))]
+        if "height_m" in col:
+            hh = col["height_m"].astype(np.float64)
+            fin = np.isfinite(hh)
+            pos += [_cells.literal(",", m).masked(fin), _cells.masked(_json_field(hh), fin)]
+        coords, c_off = _cells.join_rows(pos + ["]", sep], m)
+        lists = {}
+        for c in per_vertex:
+            x = col[c]
+            if x.dtype.kind == "b":           # GDAL reads lists of integers, not of booleans
+                x = x.astype(np.int64)
+            lists[c] = _cells.join_rows([_json_field(x), sep], m)
+        out = []
+        for k in range(g1 - g0):
+            i, j = int(v_start[k]), int(v_end[k])
+            single = j - i == 1
+            geom = (b'{"type":"Point","coordinates":' + coords[c_off[i]:c_off[j]] + b"}" if single
+                    else b'{"type":"LineString","coordinates":[' + coords[c_off[i]:c_off[j]] + b"]}")
+            p = (f'{{"kind":"{kind}","{id_col}":'.encode()
+                 + str(int(col[id_col][i])).encode())
+            for c in static:
+                if c in col:
+                    p += f',"{c}":'.encode() + str(int(col[c][i])).encode()
+            for c in per_vertex:
+                blob, off = lists[c]
+                p += b"," + json.dumps(c).encode() + b":[" + blob[off[i]:off[j]] + b"]"
+            out.append(b'{"type":"Feature","geometry":' + geom + b',"properties":' + p + b"}}")
+        yield b",\n".join(out)
 
 
 def _coords(lat, lon, h):
@@ -104,64 +181,61 @@ def _coords(lat, lon, h):
             for a, b, c in zip(lon, lat, h if h is not None else [None] * len(lat))]
 
 
-def _truth_features(truth: Mapping[str, np.ndarray]) -> list[dict]:
-    _need(truth, ("vehicle_id", "time_s") + _GEO[:2], "truth")
-    vid = np.asarray(truth["vehicle_id"])
-    order = np.lexsort((np.asarray(truth["time_s"], float), vid))
-    vid = vid[order]
-    starts = np.flatnonzero(np.r_[True, vid[1:] != vid[:-1]]) if len(vid) else np.zeros(0, int)
-    ends = np.r_[starts[1:], len(vid)]
-    cols = {c: np.asarray(v)[order] for c, v in truth.items()}
-    per_vertex = [c for c in cols if c not in _GEO + ("vehicle_id", "convoy_id")]
-    for c in per_vertex:
-        if cols[c].dtype.kind == "b":
-            cols[c] = cols[c].astype(np.int64)
-    feats = []
-    for a, b in zip(starts.tolist(), ends.tolist()):
-        h = cols["height_m"][a:b].tolist() if "height_m" in cols else None
-        coords = _coords(cols["lat_deg"][a:b].tolist(), cols["lon_deg"][a:b].tolist(), h)
-        geom = ({"type": "LineString", "coordinates": coords} if b - a > 1
-                else {"type": "Point", "coordinates": coords[0]})
-        props = {"kind": "truth", "vehicle_id": int(vid[a])}
-        if "convoy_id" in cols:
-            props["convoy_id"] = int(cols["convoy_id"][a])
-        for c in per_vertex:
-            props[c] = [_num(v) for v in cols[c][a:b]]
-        feats.append({"type": "Feature", "geometry": geom, "properties": props})
-    return feats
+def _position_field(lat, lon, h, m) -> list:
+    """``lon,lat[,h]`` text of positions (no height where ``h`` is None or NaN)."""
+    out = [_json_field(np.asarray(lon, np.float64)), ",", _json_field(np.asarray(lat, np.float64))]
+    if h is not None:
+        h = np.asarray(h, np.float64)
+        fin = np.isfinite(h)
+        out += [_cells.literal(",", m).masked(fin), _cells.masked(_json_field(h), fin)]
+    return out
 
 
-def _road_features(nodes, edges) -> list[dict]:
+def _props(table, columns, rows) -> list:
+    out: list = []
+    for c in columns:
+        if c in table:
+            out += [f",{json.dumps(c)}:", _json_field(np.asarray(table[c])[rows])]
+    return out
+
+
+def _road_blocks(nodes, edges) -> Iterator[bytes]:
+    """Point features of the road nodes, then LineString features of the edges (from-node to
+    to-node), a block at a time."""
     _need(nodes, ("node_id",) + _GEO[:2], "road nodes")
     nid = np.asarray(nodes["node_id"], dtype=np.int64)
-    index = {int(k): i for i, k in enumerate(nid.tolist())}
     lat = np.asarray(nodes["lat_deg"], float)
     lon = np.asarray(nodes["lon_deg"], float)
     h = np.asarray(nodes["height_m"], float) if "height_m" in nodes else None
-    feats = []
-    for i in range(len(nid)):
-        props = {"kind": "road_node"}
-        props.update({c: _num(np.asarray(nodes[c])[i]) for c in NODE_COLUMNS if c in nodes})
-        feats.append({"type": "Feature", "properties": props, "geometry": {
-            "type": "Point", "coordinates": _coords([lat[i]], [lon[i]], None if h is None else [h[i]])[0]}})
+    for a, b in _cells.row_chunks(len(nid), _ROWS):
+        r = np.arange(a, b)
+        yield _cells.join(['{"type":"Feature","properties":{"kind":"road_node"']
+                          + _props(nodes, NODE_COLUMNS, r)
+                          + ['},"geometry":{"type":"Point","coordinates":[']
+                          + _position_field(lat[r], lon[r], None if h is None else h[r], b - a)
+                          + ["]}},\n"], b - a)[:-2]
     if edges is None:
-        return feats
+        return
     _need(edges, ("edge_id", "from_node", "to_node"), "road edges")
     ne = n_rows(edges, "road edges")
-    for i in range(ne):
-        ends = []
-        for c in ("from_node", "to_node"):
-            k = int(np.asarray(edges[c])[i])
-            if k not in index:
-                raise ValueError(f"GeoJSON writer: road edge {i} refers to unknown node {k}")
-            ends.append(index[k])
-        props = {"kind": "road"}
-        props.update({c: _num(np.asarray(edges[c])[i]) for c in EDGE_COLUMNS if c in edges})
-        feats.append({"type": "Feature", "properties": props, "geometry": {
-            "type": "LineString",
-            "coordinates": _coords(lat[ends].tolist(), lon[ends].tolist(),
-                                   None if h is None else h[ends].tolist())}})
-    return feats
+    sorter = np.argsort(nid, kind="stable")
+    ends = []
+    for c in ("from_node", "to_node"):
+        k = np.asarray(edges[c], np.int64)
+        pos = np.minimum(np.searchsorted(nid[sorter], k), max(len(nid) - 1, 0))
+        bad = (len(nid) == 0) | (nid[sorter][pos] != k) if ne else np.zeros(0, bool)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"GeoJSON writer: road edge {i} refers to unknown node {k[i]}")
+        ends.append(sorter[pos])
+    for a, b in _cells.row_chunks(ne, _ROWS):
+        r, m = np.arange(a, b), b - a
+        f, t = ends[0][a:b], ends[1][a:b]
+        yield _cells.join(['{"type":"Feature","properties":{"kind":"road"'] + _props(
+            edges, EDGE_COLUMNS, r) + ['},"geometry":{"type":"LineString","coordinates":[[']
+            + _position_field(lat[f], lon[f], None if h is None else h[f], m) + ["],["]
+            + _position_field(lat[t], lon[t], None if h is None else h[t], m)
+            + ["]]}},\n"], m)[:-2]
 
 
 def _clutter_features(regions: Sequence[Mapping]) -> list[dict]:
@@ -192,37 +266,59 @@ def _clutter_features(regions: Sequence[Mapping]) -> list[dict]:
     return feats
 
 
-def encode_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=None,
-                   clutter_regions=None, epoch_utc: str | None = None) -> bytes:
-    """UTF-8 bytes of a FeatureCollection of whatever is given (see the module docstring)."""
+def iter_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=None,
+                 clutter_regions=None, tracks=None,
+                 epoch_utc: str | None = None) -> Iterator[bytes]:
+    """The FeatureCollection of whatever is given, in pieces (bounded memory; see the module
+    docstring).  Truth and tracks each come alone (``truth.geojson``, ``tracks.geojson``): one
+    property name, one type."""
     epoch = parse_epoch(epoch_utc) if epoch_utc is not None else None
     has_truth = truth is not None and n_rows(truth, "truth") > 0
-    if has_truth and any(x is not None and (len(x) if not isinstance(x, Mapping) else
-                                            n_rows(x, "table"))
-                         for x in (detections, road_nodes, clutter_regions)):
-        raise ValueError("GeoJSON writer: write truth to a file of its own (truth.geojson): its "
-                         "per-vertex list properties (time_s, ...) would clash with the scalar "
-                         "properties of the same name on detections and roads, which GIS tools "
-                         "(GDAL) cannot read as one field")
-    parts: list[str] = []
-    if detections is not None and n_rows(detections, "detections"):
-        parts += _detection_features(detections, epoch)
+    has_tracks = tracks is not None and n_rows(tracks, "tracks") > 0
+    others = [x is not None and (len(x) if not isinstance(x, Mapping) else n_rows(x, "table"))
+              for x in (detections, road_nodes, clutter_regions)]
+    if (has_truth or has_tracks) and (any(others) or (has_truth and has_tracks)):
+        what = "truth" if has_truth else "tracks"
+        raise ValueError(f"GeoJSON writer: write {what} to a file of its own ({what}.geojson): "
+                         "its per-vertex list properties (time_s, ...) would clash with the "
+                         "scalar properties of the same name on detections and roads, which "
+                         "GIS tools (GDAL) cannot read as one field")
     dumps = lambda f: json.dumps(f, allow_nan=False, separators=(",", ":"))   # noqa: E731
-    if truth is not None and n_rows(truth, "truth"):
-        parts += [dumps(f) for f in _truth_features(truth)]
-    if road_nodes is not None and n_rows(road_nodes, "road nodes"):
-        parts += [dumps(f) for f in _road_features(road_nodes, road_edges)]
-    if clutter_regions:
-        parts += [dumps(f) for f in _clutter_features(clutter_regions)]
     head = '{"type":"FeatureCollection"'
     if epoch is not None:
         head += f',"scene_epoch_utc":"{epoch.strftime("%Y-%m-%dT%H:%M:%S.%fZ")}"'
-    return (head + ',"features":[\n' + ",\n".join(parts) + "\n]}\n").encode("utf-8")
+    yield (head + ',"features":[\n').encode()
+
+    def blocks():
+        if detections is not None and n_rows(detections, "detections"):
+            yield from _detection_blocks(detections, epoch)
+        if has_truth:
+            yield from _line_blocks(truth, "truth")
+        if has_tracks:
+            yield from _line_blocks(tracks, "track")
+        if road_nodes is not None and n_rows(road_nodes, "road nodes"):
+            yield from _road_blocks(road_nodes, road_edges)
+        if clutter_regions:
+            yield ",\n".join(dumps(f) for f in _clutter_features(clutter_regions)).encode()
+
+    first = True
+    for block in blocks():
+        if not block:
+            continue
+        yield block if first else b",\n" + block
+        first = False
+    yield b"\n]}\n"
+
+
+def encode_geojson(**kwargs) -> bytes:
+    """UTF-8 bytes of :func:`iter_geojson`'s FeatureCollection."""
+    return b"".join(iter_geojson(**kwargs))
 
 
 def write_geojson(dest, **kwargs) -> None:
-    """Write :func:`encode_geojson`'s document to a path (atomically) or binary file object."""
-    write_atomic(dest, encode_geojson(**kwargs))
+    """Write :func:`iter_geojson`'s document to a path (atomically) or binary file object, a
+    block of features at a time."""
+    write_chunks(dest, iter_geojson(**kwargs))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -280,9 +376,53 @@ def _position(c, name, i):
     return float(c[1]), float(c[0]), float(c[2]) if len(c) == 3 else np.nan
 
 
+def _lines_table(features: list, kind: str, table: str, name, coords_of) -> dict:
+    """The table of ``truth`` or ``track`` line features: one row per vertex, sorted by time
+    and id (the per-vertex lists give the columns; booleans travel as 0/1)."""
+    id_col, static = _LINES[kind]
+    parts = []
+    for i, g, p in features:
+        _, c = coords_of(i, g, ("Point", "LineString"))
+        if c is None:
+            raise FormatError(f"{where(name)}feature {i}: {kind} without geometry")
+        n = len(c)
+        row = {id_col: [p.get(id_col)] * n}
+        for k in static:
+            if k in p:
+                row[k] = [p[k]] * n
+        for k, v in p.items():
+            if k in ("kind", id_col) + static:
+                continue
+            if not isinstance(v, list) or len(v) != n:
+                raise FormatError(f"{where(name)}feature {i}: {kind} property {k!r} must be a "
+                                  f"list of {n} per-vertex values")
+            row[k] = v
+        arr = np.array(c, dtype=np.float64).reshape(-1, 3)
+        row["lat_deg"], row["lon_deg"] = arr[:, 0].tolist(), arr[:, 1].tolist()
+        if kind == "truth" or np.isfinite(arr[:, 2]).any():
+            row["height_m"] = arr[:, 2].tolist()
+        parts.append(row)
+    if not parts:
+        return {}
+    keys = list(dict.fromkeys(k for r in parts for k in r))
+    merged = [{k: r[k][j] if k in r else None for k in keys}
+              for r in parts for j in range(len(r[id_col]))]
+    for k, kk in COLUMNS[table].items():          # booleans travel as 0/1 per vertex
+        if kk == "bool" and k in keys:
+            for r in merged:
+                if r[k] in (0, 1) and not isinstance(r[k], bool):
+                    r[k] = bool(r[k])
+    out = _props_table(merged, COLUMNS[table], f"{where(name)}{table}")
+    if "time_s" in out:
+        order = np.lexsort((out[id_col], out["time_s"]))
+        out = {k: v[order] for k, v in out.items()}
+    return out
+
+
 def read_geojson(source) -> dict:
     """Read a FeatureCollection written by :func:`write_geojson` (or any with ``kind``-tagged
-    features) back to ``{"detections", "truth", "road_nodes", "road_edges", "clutter_regions"}``.
+    features) back to ``{"detections", "truth", "tracks", "road_nodes", "road_edges",
+    "clutter_regions"}``.
 
     Features without a known ``kind`` are ignored.  Malformed JSON raises FormatError with line
     and column; a malformed feature raises FormatError naming its index.
@@ -302,8 +442,8 @@ def read_geojson(source) -> dict:
             or not isinstance(doc.get("features"), list):
         raise FormatError(f"{where(name)}not a GeoJSON FeatureCollection (expected an object with "
                           "type 'FeatureCollection' and a 'features' list)")
-    groups: dict[str, list] = {"detection": [], "truth": [], "road_node": [], "road": [],
-                               "clutter": []}
+    groups: dict[str, list] = {"detection": [], "truth": [], "track": [], "road_node": [],
+                               "road": [], "clutter": []}
     for i, f in enumerate(doc["features"]):
         if not isinstance(f, dict) or f.get("type") != "Feature":
             raise FormatError(f"{where(name)}feature {i}: not a GeoJSON Feature object")
@@ -347,41 +487,8 @@ def read_geojson(source) -> dict:
         p = np.array(pos, dtype=np.float64).reshape(-1, 3)
         dets["lat_deg"], dets["lon_deg"], dets["height_m"] = p[:, 0], p[:, 1], p[:, 2]
     out["detections"] = dets
-    # truth
-    tparts = []
-    for i, g, p in groups["truth"]:
-        _, c = coords_of(i, g, ("Point", "LineString"))
-        if c is None:
-            raise FormatError(f"{where(name)}feature {i}: truth without geometry")
-        n = len(c)
-        row = {"vehicle_id": [p.get("vehicle_id")] * n}
-        if "convoy_id" in p:
-            row["convoy_id"] = [p["convoy_id"]] * n
-        for k, v in p.items():
-            if k in ("kind", "vehicle_id", "convoy_id"):
-                continue
-            if not isinstance(v, list) or len(v) != n:
-                raise FormatError(f"{where(name)}feature {i}: truth property {k!r} must be a list "
-                                  f"of {n} per-vertex values")
-            row[k] = v
-        arr = np.array(c, dtype=np.float64).reshape(-1, 3)
-        row["lat_deg"], row["lon_deg"], row["height_m"] = arr[:, 0].tolist(), arr[:, 1].tolist(), arr[:, 2].tolist()
-        tparts.append(row)
-    truth = {}
-    if tparts:
-        keys = list(dict.fromkeys(k for r in tparts for k in r))
-        merged = [{k: r[k][j] if k in r else None for k in keys}
-                  for r in tparts for j in range(len(r["vehicle_id"]))]
-        for k, kind in COLUMNS["truth"].items():      # booleans travel as 0/1 per vertex
-            if kind == "bool" and k in keys:
-                for r in merged:
-                    if r[k] in (0, 1) and not isinstance(r[k], bool):
-                        r[k] = bool(r[k])
-        truth = _props_table(merged, COLUMNS["truth"], f"{where(name)}truth")
-        order = np.lexsort((truth["vehicle_id"], truth["time_s"])) if "time_s" in truth else None
-        if order is not None:
-            truth = {k: v[order] for k, v in truth.items()}
-    out["truth"] = truth
+    for kind, table in (("truth", "truth"), ("track", "tracks")):
+        out[table] = _lines_table(groups[kind], kind, table, name, coords_of)
     # roads
     nodes = []
     for i, g, p in groups["road_node"]:

@@ -257,8 +257,12 @@ def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nd
 
     # --- order the dwells by time (stable) and attach every detection to its dwell row -------
     d_time = np.asarray(dwells["time_s"], dtype=np.float64) if nd else np.zeros(0)
-    d_order = np.argsort(d_time, kind="stable")
-    dw = {k: np.asarray(v)[d_order] for k, v in dwells.items()}
+    if _increasing(d_time):                 # already in time order: no copy
+        d_order = np.arange(nd)
+        dw = {k: np.asarray(v) for k, v in dwells.items()}
+    else:
+        d_order = np.argsort(d_time, kind="stable")
+        dw = {k: np.asarray(v)[d_order] for k, v in dwells.items()}
     row, det = _attach(dw, detections, nd, nt)
     sensor = _sensor_ids(dw, nd)
     n_sensors = int(sensor.max()) + 1 if nd else 1
@@ -334,20 +338,37 @@ def _epoch_text_packet(m: dict, edition: str) -> bytes:
 
 
 def _attach(dw: dict, detections: Mapping, nd: int, nt: int):
-    """(dwell row of each detection, detections grouped by dwell row in det_id order)."""
+    """(dwell row of each detection, detections grouped by dwell row in det_id order).
+
+    Run tables come in that order already (dwell ids increasing in time, detections by dwell
+    and det_id): then no search and no copy is made; any other order is sorted here."""
     if not nt:
         return np.zeros(0, np.int64), {k: np.asarray(v)[:0] for k, v in detections.items()}
     d_ids = np.asarray(dw.get("dwell_id", np.zeros(nd)), dtype=np.int64)
-    sorter = np.argsort(d_ids, kind="stable")
     t_dwell = np.asarray(detections["dwell_id"], dtype=np.int64)
-    pos = np.minimum(np.searchsorted(d_ids[sorter], t_dwell), max(nd - 1, 0))
-    if nd == 0 or np.any(d_ids[sorter][pos] != t_dwell):
-        bad = t_dwell[(nd == 0) | (d_ids[sorter][pos] != t_dwell)][0]
-        raise ValueError(f"4607 writer: detection dwell_id {bad} is not in the dwells table")
-    row = sorter[pos]
+    if nd and d_ids[-1] - d_ids[0] == nd - 1 and _increasing(d_ids, strict=True):
+        row = t_dwell - d_ids[0]            # consecutive ids: the row is the id's offset
+        bad = (row < 0) | (row >= nd)
+        if bad.any():
+            raise ValueError(f"4607 writer: detection dwell_id {t_dwell[bad][0]} is not in the "
+                             "dwells table")
+    else:
+        sorter = np.argsort(d_ids, kind="stable")
+        pos = np.minimum(np.searchsorted(d_ids[sorter], t_dwell), max(nd - 1, 0))
+        if nd == 0 or np.any(d_ids[sorter][pos] != t_dwell):
+            bad = t_dwell[(nd == 0) | (d_ids[sorter][pos] != t_dwell)][0]
+            raise ValueError(f"4607 writer: detection dwell_id {bad} is not in the dwells table")
+        row = sorter[pos]
     tie = np.asarray(detections["det_id"]) if "det_id" in detections else np.arange(nt)
+    step = np.diff(row)
+    if np.all(step >= 0) and np.all((step > 0) | (np.diff(tie) > 0)):
+        return row, {k: np.asarray(v) for k, v in detections.items()}
     t_order = np.lexsort((tie, row))
     return row[t_order], {k: np.asarray(v)[t_order] for k, v in detections.items()}
+
+
+def _increasing(x: np.ndarray, strict: bool = False) -> bool:
+    return bool(np.all(x[1:] > x[:-1]) if strict else np.all(x[1:] >= x[:-1]))
 
 
 def platform_location_packets(platform: Mapping[str, np.ndarray], meta: Mapping, *,

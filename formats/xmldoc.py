@@ -30,12 +30,13 @@ import io
 import os
 from functools import lru_cache
 from pathlib import Path
-from typing import Mapping
+from typing import Iterator, Mapping
 
 import numpy as np
 from lxml import etree
 
-from ._io import iso_utc, n_rows, source_name, write_atomic
+from . import _text as _cells
+from ._io import iso_utc, n_rows, source_name, write_chunks
 from .errors import FormatError, where
 from .stanag4607 import resolve_meta
 
@@ -91,21 +92,23 @@ def _fmt(x: float) -> str:
     return repr(float(x))
 
 
-def _attr_strings(name: str, col: np.ndarray, kind: str) -> list[str]:
-    """' name="value"' per row ('' where the value is NaN), built per column."""
+def _attr_field(name: str, col: np.ndarray, kind: str) -> _cells.Field:
+    """' name="value"' per row (nothing where the value is NaN), a column at a time: doubles
+    exact (:mod:`formats._text`), infinities as INF/-INF."""
     col = np.asarray(col)
+    n = len(col)
     if kind == _BOOL:
-        t, f = f' {name}="true"', f' {name}="false"'
-        return [t if v else f for v in col.astype(bool).tolist()]
-    pre = f' {name}="'
+        return _cells.choice(col.astype(bool), f' {name}="true"', f' {name}="false"')
+    pre, end = _cells.literal(f' {name}="', n), _cells.literal('"', n)
     if kind in (_INT, _U8):
         if col.dtype.kind == "f":
-            return [pre + str(int(v)) + '"' if v - v == 0 else "" for v in col.tolist()]
-        return [pre + str(v) + '"' for v in col.astype(np.int64).tolist()]
-    # repr() is the shortest string that round-trips a float64 exactly; NaN is left out
-    return [pre + repr(v) + '"' if v - v == 0 else
-            ("" if v != v else pre + ("INF" if v > 0 else "-INF") + '"')
-            for v in col.astype(np.float64).tolist()]
+            ok = np.isfinite(col)
+            value = _cells.int_cells(np.where(ok, col, 0).astype(np.int64))
+            return _cells.masked([pre] + value + [end], ok)
+        return [pre] + _cells.int_cells(col.astype(np.int64)) + [end]
+    x = col.astype(np.float64)
+    ok = ~np.isnan(x)
+    return _cells.masked([pre] + _cells.float_cells(x, inf="INF") + [end], ok)
 
 
 # Value ranges the XSD restricts (checked before writing so every written file validates).
@@ -129,17 +132,15 @@ def _check_ranges(table, what):
                              f"[{lo}, {hi}] (row {int(np.flatnonzero(bad)[0])})")
 
 
-def _rows(table: Mapping[str, np.ndarray], columns: dict, n: int, skip=()) -> list[str]:
-    cols = [_attr_strings(name, table[name], kind) for name, kind in columns.items()
-            if name in table and name not in skip]
-    if not cols:
-        return [""] * n
-    return ["".join(parts) for parts in zip(*cols)]
+def _attrs(table: Mapping[str, np.ndarray], columns: dict, skip=()) -> list:
+    return [f for name, kind in columns.items() if name in table and name not in skip
+            for f in _attr_field(name, table[name], kind)]
 
 
-def encode_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarray],
-               meta: Mapping, *, edition: str = "30") -> bytes:
-    """The XML document (UTF-8 bytes) for these tables; columns outside
+def iter_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarray],
+             meta: Mapping, *, edition: str = "30", rows: int = 1 << 14) -> Iterator[bytes]:
+    """The XML document (UTF-8) for these tables in pieces: the header, then the dwells and
+    their reports about ``rows`` reports at a time (bounded memory); columns outside
     :data:`DWELL_COLUMNS`/:data:`DETECTION_COLUMNS` are not carried."""
     m = resolve_meta(meta, dwells, detections)
     nd = n_rows(dwells, "dwells")
@@ -172,11 +173,6 @@ def encode_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nda
     t_order = np.lexsort((np.asarray(detections.get("det_id", np.arange(nt))), rank[row])) if nt else row
     counts = np.bincount(rank[row], minlength=nd) if nd else np.zeros(0, np.int64)
 
-    dw_attrs = _rows({k: np.asarray(v)[order] for k, v in dwells.items()}, DWELL_COLUMNS, nd)
-    times = iso_utc(epoch, np.asarray(dwells["time_s"], float)[order]) if nd else []
-    det_attrs = _rows({k: np.asarray(v)[t_order] for k, v in detections.items()},
-                      DETECTION_COLUMNS, nt, skip=("dwell_id",))
-
     out = io.StringIO()
     w = out.write
     w('<?xml version="1.0" encoding="UTF-8"?>\n')
@@ -206,24 +202,52 @@ def encode_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nda
     for lat, lon in m["bounding_area"]:
         w(f'<Point lat_deg="{_fmt(lat)}" lon_deg="{_fmt(lon)}"/>')
     w('</BoundingArea>\n  </JobDefinition>\n')
-    starts = np.concatenate([[0], np.cumsum(counts)]).tolist()
-    det_list = det_attrs
-    for i, (attrs, t) in enumerate(zip(dw_attrs, list(times))):
-        a, b = starts[i], starts[i + 1]
-        tu = f' timeUtc="{t}"' if t else ""
-        if a == b:
-            w(f"  <Dwell{attrs}{tu}/>\n")
+    yield out.getvalue().encode("utf-8")
+
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    # groups of whole dwells of about ``rows`` reports (and at most ``rows`` dwells) each
+    cut = np.unique(np.r_[0, np.searchsorted(starts[1:], np.arange(rows, nt + rows, rows)) + 1,
+                          np.arange(0, nd, rows), nd])
+    cut = cut[(cut >= 0) & (cut <= nd)]
+    dcols = {k: np.asarray(v) for k, v in dwells.items() if k in DWELL_COLUMNS}
+    tcols = {k: np.asarray(v) for k, v in detections.items() if k in DETECTION_COLUMNS}
+    for g0, g1 in zip(cut[:-1].tolist(), cut[1:].tolist()):
+        if g0 == g1:
             continue
-        w(f"  <Dwell{attrs}{tu}>\n")
-        w("".join(f"    <TargetReport{x}/>\n" for x in det_list[a:b]))
-        w("  </Dwell>\n")
-    w("</GmtiDocument>\n")
-    return out.getvalue().encode("utf-8")
+        k = g1 - g0
+        dsel = order[g0:g1]
+        a, b = int(starts[g0]), int(starts[g1])
+        empty = counts[g0:g1] == 0
+        opening, o_off = _cells.join_rows(
+            ["  <Dwell"] + _attrs({c: v[dsel] for c, v in dcols.items()}, DWELL_COLUMNS)
+            + [' timeUtc="', _cells.ascii_fixed(iso_utc(epoch, dcols["time_s"][dsel].astype(float))),
+               '"', _cells.choice(empty, "/>\n", ">\n")], k)
+        tsel = t_order[a:b]
+        reports, r_off = _cells.join_rows(
+            ["    <TargetReport"] + _attrs({c: v[tsel] for c, v in tcols.items()},
+                                           DETECTION_COLUMNS, skip=("dwell_id",)) + ["/>\n"],
+            b - a)
+        parts = []
+        for i in range(k):
+            parts.append(opening[o_off[i]:o_off[i + 1]])
+            if not empty[i]:
+                ra, rb = int(starts[g0 + i]) - a, int(starts[g0 + i + 1]) - a
+                parts.append(reports[r_off[ra]:r_off[rb]])
+                parts.append(b"  </Dwell>\n")
+        yield b"".join(parts)
+    yield b"</GmtiDocument>\n"
+
+
+def encode_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarray],
+               meta: Mapping, *, edition: str = "30") -> bytes:
+    """The XML document (UTF-8 bytes) of :func:`iter_xml`."""
+    return b"".join(iter_xml(dwells, detections, meta, edition=edition))
 
 
 def write_xml(dest, dwells, detections, meta, *, edition: str = "30") -> None:
-    """Write the XML document to a path (atomically) or a binary file object."""
-    write_atomic(dest, encode_xml(dwells, detections, meta, edition=edition))
+    """Write the XML document to a path (atomically) or a binary file object, a block of dwells
+    at a time."""
+    write_chunks(dest, iter_xml(dwells, detections, meta, edition=edition))
 
 
 @lru_cache(maxsize=1)

@@ -52,7 +52,6 @@ from typing import Any, Callable, Iterable, Iterator, List, Optional
 
 from omegaconf import OmegaConf
 
-from gmtiflow import __version__
 from gmtiflow.errors import StoreError
 
 log = logging.getLogger(__name__)
@@ -171,6 +170,7 @@ def to_key_text(**parts: Any) -> str:
 def stage_key(stage: str, *, seed: Optional[int], upstream: Iterable[str] = (), **parts: Any) -> str:
     """The cache key of ``stage`` (hex, 32 chars) for these config parts and upstream keys."""
     h = hashlib.sha256()
+    from gmtiflow import __version__   # not at import: reading the package metadata is slow
     h.update(f"gmtiflow-cache {CACHE_FORMAT} {stage} {__version__} {source_digest()}\n".encode())
     h.update(f"seed {'-' if seed is None else int(seed)}\n".encode())
     for up in upstream:

@@ -29,7 +29,7 @@ from gmtiflow.report.config import ReportConfig
 from gmtiflow.scene.platform_config import PlatformConfig
 from gmtiflow.scene.roadmap_config import RoadmapConfig
 from gmtiflow.scene.terrain_config import TerrainConfig
-from gmtiflow.scene.vehicles import VehiclesConfig
+from gmtiflow.scene.vehicles_config import VehiclesConfig
 from gmtiflow.schema import Problem, positive
 from gmtiflow.sensor.clutter import ClutterConfig
 from gmtiflow.sensor.config import SensorConfig

@@ -72,7 +72,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--table", choices=export_mod.CSV_TABLES, default=None,
                    help="CSV: which table (run.h5 -> csv: default detections; csv -> h5: "
                         "default guessed from the header's id column); GeoJSON: truth writes "
-                        "truth.geojson (the truth trajectories, a file of their own)")
+                        "truth.geojson, tracks tracks.geojson (a file of their own each)")
     p.add_argument("--edition", choices=("30", "41"), default="30",
                    help="4607 edition P1: 30 = STANAG 4607 Ed. 3 (default), 41 = AEDP-4607 Ed. A")
     p.add_argument("--platform-location", action="store_true",
@@ -170,6 +170,8 @@ def read_any(path: Path, fmt: str, *, table: Optional[str] = None,
         raw = formats.read_geojson(path)
         tables = {"detections": raw["detections"], "truth": raw["truth"],
                   "roads/nodes": raw["road_nodes"], "roads/edges": raw["road_edges"]}
+        if raw.get("tracks"):
+            tables["tracks"] = raw["tracks"]
         if raw["clutter_regions"]:
             texts["clutter_regions"] = json.dumps(
                 [{k: (np.asarray(v).tolist() if np.ndim(v) else v) for k, v in r.items()}
@@ -208,11 +210,19 @@ def receive_stream(args) -> Path:
         raise InputFileError(f"{args.input}: a live stream converts to HDF5 tables only (--to h5)")
     if args.output is None:
         raise InputFileError(f"{args.input}: give the output file with -o OUT.h5")
+    import math
+    if not (math.isfinite(args.idle_timeout) and args.idle_timeout > 0):
+        raise InputFileError(f"{args.input}: --idle-timeout must be a finite number of seconds "
+                             f"> 0, got {args.idle_timeout!r}")
+    if args.max_packets is not None and args.max_packets < 1:
+        raise InputFileError(f"{args.input}: --max-packets must be at least 1, got "
+                             f"{args.max_packets}")
     try:
         data = b"".join(live.receive(args.input, max_packets=args.max_packets,
                                      idle_timeout_s=args.idle_timeout))
     except ValueError as exc:
-        raise InputFileError(str(exc)) from None
+        msg = str(exc)       # name the address when the parser's message does not
+        raise InputFileError(msg if args.input in msg else f"{args.input}: {msg}") from None
     except OSError as exc:
         raise InputFileError(f"{args.input}: cannot listen: {exc.strerror or exc}") from None
     if not data:
@@ -255,8 +265,8 @@ def convert(args) -> Path:
         if args.to == "csv":
             name = args.table or "detections"
             key, default = f"csv:{name}", f"{name}.csv"
-        elif args.to == "geojson" and args.table == "truth":
-            key = "geojson:truth"
+        elif args.to == "geojson" and args.table in ("truth", "tracks"):
+            key = f"geojson:{args.table}"
             default = export_mod.FILE_NAMES[key]
         else:
             key = _FORMAT_OF_TO[args.to]

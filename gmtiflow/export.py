@@ -60,7 +60,8 @@ log = logging.getLogger(__name__)
 FORMATS = ("stanag4607", "xml", "csv", "geojson")
 CSV_TABLES = ("detections", "dwells", "truth", "tracks")
 FILE_NAMES = {"stanag4607": "detections.4607", "xml": "detections.xml",
-              "geojson": "scene.geojson", "geojson:truth": "truth.geojson"}
+              "geojson": "scene.geojson", "geojson:truth": "truth.geojson",
+              "geojson:tracks": "tracks.geojson"}
 """Output file of each format (CSV: ``<table>.csv`` per entry of ``csv_tables``)."""
 
 
@@ -96,6 +97,9 @@ class ExportConfig:
     """Truth trajectories in the GeoJSON (a map view) every this many seconds, plus each
     vehicle's first and last sample; 0 = every /truth sample.  Full-rate truth is in run.h5
     and truth.csv (a 1,000-vehicle, 30-min scene at 1 s makes a 150 MB GeoJSON)."""
+    geojson_tracks: bool = True
+    """tracks.geojson: the baseline tracker's tracks, one LineString per track (when the run
+    has /tracks)."""
     geojson_roads: bool = True
     geojson_clutter: bool = True
     stream: StreamConfig = field(default_factory=StreamConfig)
@@ -476,6 +480,12 @@ def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
                                                                    cfg.geojson_truth_step_s),
                                                         run.origin),
                               epoch_utc=run.epoch_utc)
+    elif fmt == "geojson:tracks":
+        if "tracks" not in t:
+            raise InputFileError(f"{run.path}: has no table /tracks to write as GeoJSON")
+        tracks = with_geodetic(t["tracks"], run.origin)
+        tracks.pop("height_m")                     # tracks are 2-D: no height to draw
+        formats.write_geojson(dest, tracks=tracks, epoch_utc=run.epoch_utc)
     elif fmt == "geojson":
         det = t.get("detections")
         if det is not None:
@@ -523,6 +533,8 @@ def planned_files(cfg: ExportConfig) -> list:
             out.append((fmt, FILE_NAMES[fmt]))
             if fmt == "geojson" and cfg.geojson_truth and not cfg.blind:
                 out.append(("geojson:truth", FILE_NAMES["geojson:truth"]))
+            if fmt == "geojson" and cfg.geojson_tracks:
+                out.append(("geojson:tracks", FILE_NAMES["geojson:tracks"]))
     return out
 
 
@@ -575,8 +587,8 @@ def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
     written: List[Path] = []
     try:
         for fmt, name in progress(plan, "export", "file"):   # on a terminal, after 2 s
-            if fmt == "csv:tracks" and "tracks" not in run.tables:
-                log.info("no /tracks in %s: tracks.csv not written", run.path)
+            if fmt in ("csv:tracks", "geojson:tracks") and "tracks" not in run.tables:
+                log.info("no /tracks in %s: %s not written", run.path, name)
                 continue
             if fmt == "geojson:truth" and "truth" not in run.tables:
                 log.info("no /truth in %s: truth.geojson not written", run.path)

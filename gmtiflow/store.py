@@ -69,7 +69,7 @@ def required_columns() -> Dict[str, tuple]:
     from gmtiflow.evaluate.events import EVENT_COLUMNS
     from gmtiflow.evaluate.tracks import TRACK_COLUMNS
     from gmtiflow.formats.geojson import EDGE_COLUMNS, NODE_COLUMNS
-    from gmtiflow.scene.vehicles import TRUTH_COLUMNS
+    from gmtiflow.scene.fleet import TRUTH_COLUMNS
     from gmtiflow.sensor.model import DETECTION_COLUMNS, DWELL_COLUMNS, LOOK_COLUMNS
     return {"dwells": tuple(DWELL_COLUMNS), "detections": tuple(DETECTION_COLUMNS),
             "looks": tuple(LOOK_COLUMNS), "tracks": tuple(TRACK_COLUMNS),

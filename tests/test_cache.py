@@ -17,7 +17,8 @@ from gmtiflow.sensor.model import simulate
 
 
 BASE = ["scene.duration_s=40", "vehicles=random", "vehicles.random.count=12",
-        "vehicles.random.start_time_max_s=10", "clutter=urban"]
+        "vehicles.random.start_time_max_s=10", "clutter=urban",
+        "report=none", "export=none"]      # the cache is about run.h5
 
 
 def datasets(path):
@@ -85,6 +86,7 @@ def test_cached_runs_are_bit_identical_to_uncached(tmp_path, caplog):
     assert_same_datasets(off, hit)
 
 
+@pytest.mark.slow
 def test_sensor_sweep_computes_truth_once_and_matches_uncached(tmp_path, caplog):
     """A 3 x 2 sweep over sensor settings: one truth miss, five hits, outputs as uncached."""
     caplog.set_level(logging.INFO, logger="gmtiflow")
@@ -109,7 +111,8 @@ def test_streamed_run_equals_whole_tables(tmp_path, monkeypatch):
     """Small truth chunks and many sensor chunks give the tables of one-shot evaluation."""
     import functools
     from gmtiflow.sensor import model
-    monkeypatch.setattr(pipeline, "simulate_chunks",
+    from gmtiflow import stages
+    monkeypatch.setattr(stages, "simulate_chunks",
                         functools.partial(model.simulate_chunks, chunk_pairs=40))
     cfg = compose_app(BASE + ["cache.enabled=false", "chunk_s=7"])
     path = pipeline.run(cfg, tmp_path)
@@ -199,7 +202,8 @@ def test_scale_mode_streams_without_keeping_tables(tmp_path, monkeypatch):
         def __init__(self, *a, **kw):
             super().__init__(*a, **kw)
             kept.append(self.keep)
-    monkeypatch.setattr(pipeline, "TableSink", Spy)
+    from gmtiflow import stages
+    monkeypatch.setattr(stages, "TableSink", Spy)
     full = pipeline.run(compose_app(BASE + ["cache.enabled=false"]), tmp_path / "full")
     assert any(kept)
     kept.clear()

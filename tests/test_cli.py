@@ -10,6 +10,7 @@ import pytest
 from gmtiflow import store
 
 ROOT = Path(__file__).resolve().parents[1]
+LEAN = ["report=none", "export=none"]    # for tests that read only run.h5
 
 
 def gmtiflow(tmp_path, *overrides, cwd=None):
@@ -40,7 +41,7 @@ def test_default_scene_writes_truth_and_platform(tmp_path):
 def test_same_config_and_seed_give_identical_datasets(tmp_path):
     runs = []
     for name in ("a", "b"):
-        proc = gmtiflow(tmp_path / name, "scene.duration_s=30", "cache.enabled=false")
+        proc = gmtiflow(tmp_path / name, "scene.duration_s=30", "cache.enabled=false", *LEAN)
         assert proc.returncode == 0, proc.stderr
         runs.append(tmp_path / name / "run" / "run.h5")
     for table in ("truth", "platform", "vehicles", "roads/nodes"):
@@ -48,7 +49,7 @@ def test_same_config_and_seed_give_identical_datasets(tmp_path):
         assert a.keys() == b.keys()
         for col in a:
             assert np.array_equal(a[col], b[col]), (table, col)
-    other = gmtiflow(tmp_path / "c", "scene.duration_s=30", "seed=2")
+    other = gmtiflow(tmp_path / "c", "scene.duration_s=30", "seed=2", *LEAN)
     assert other.returncode == 0
     c = store.read_table(tmp_path / "c" / "run" / "run.h5", "truth")
     a = store.read_table(runs[0], "truth")

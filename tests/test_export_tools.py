@@ -82,6 +82,17 @@ def test_gdal_opens_every_geojson_with_one_type_per_field(scene_run):
     assert len(truth["vehicle_id"]) == len(np.unique(store.read_table(run, "truth")["vehicle_id"]))
     back = formats.read_geojson(run.parent / "scene.geojson")["detections"]
     assert sorted(back["sensor_id"].tolist()) == sorted(det["sensor_id"][ok].tolist())
+    # tracks.geojson: one line per track, its per-vertex times as a RealList; reads back exactly
+    tracks = store.read_table(run, "tracks")
+    lines, ktypes, _ = gdal_read(run.parent / "tracks.geojson")
+    assert ktypes["time_s"] == "OFTRealList" and ktypes["track_id"].startswith("OFTInteger")
+    assert sorted(lines["track_id"].astype(np.int64).tolist()) == \
+        np.unique(tracks["track_id"]).tolist()
+    got = formats.read_geojson(run.parent / "tracks.geojson")["tracks"]
+    o, r = np.lexsort((got["time_s"], got["track_id"])), np.lexsort((tracks["time_s"],
+                                                                     tracks["track_id"]))
+    for c in ("time_s", "x_m", "y_m", "vx_mps"):
+        np.testing.assert_array_equal(got[c][o], np.asarray(tracks[c])[r], err_msg=c)
 
 
 @pytest.mark.parametrize("table", ["detections", "dwells", "truth", "tracks"])

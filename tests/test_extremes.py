@@ -228,7 +228,7 @@ def test_extreme_dt_range_gives_consistent_distance():
 ])
 def test_whole_run_at_extremes_is_finite(tmp_path, overrides, compose_config):
     from gmtiflow import pipeline, store
-    cfg = compose_config(["scene.duration_s=40", "tracker=none", "cache.enabled=false",
+    cfg = compose_config(["scene.duration_s=40", "tracker=none", "cache.enabled=false", "report=none",
                        *overrides])
     with raise_all():
         path = pipeline.run(cfg, tmp_path)

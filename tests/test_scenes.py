@@ -8,7 +8,7 @@ from gmtiflow.sensor.outcome import Outcome
 
 
 def run(compose_config, tmp_path, *overrides):
-    cfg = compose_config(["scene.duration_s=120", *overrides])
+    cfg = compose_config(["scene.duration_s=120", "report=none", "export=none", *overrides])
     path = pipeline.run(cfg, tmp_path)
     with store.open_run(path) as f:
         return {name: store.read_table(f, name) for name in

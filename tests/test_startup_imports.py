@@ -9,8 +9,9 @@ import sys
 import pytest
 
 # What a config error must not pay for: plotting, routing graphs, scipy (interpolation,
-# optimisation, statistics), HDF5, the viewer, and the simulation itself.
-HEAVY = ("matplotlib", "networkx", "scipy", "h5py", "plotly", "PIL",
+# optimisation, statistics), HDF5, the viewer, the package metadata (~0.05 s: read for
+# gmtiflow.__version__ on first use) and the simulation itself.
+HEAVY = ("matplotlib", "networkx", "scipy", "h5py", "plotly", "PIL", "importlib.metadata",
          "gmtiflow.pipeline", "gmtiflow.sensor.model", "gmtiflow.evaluate.tracker",
          "gmtiflow.report.run_report", "gmtiflow.scene.trajectory")
 

@@ -56,8 +56,14 @@ def record_dtype(fields) -> np.dtype:
 
 def sat(x, lo, hi, nan=0):
     """Round to the nearest integer and clip to [lo, hi]; NaN -> ``nan``."""
-    x = np.asarray(x, dtype=np.float64)
-    return np.clip(np.rint(np.where(np.isfinite(x), x, nan)), lo, hi).astype(np.int64)
+    y = np.rint(np.asarray(x, dtype=np.float64))
+    if not y.ndim:                          # a scalar: the plain path
+        return np.clip(np.where(np.isfinite(y), y, nan), lo, hi).astype(np.int64)
+    bad = ~np.isfinite(y)                   # arrays: in place, NaN/inf patched only if any
+    if bad.any():
+        y[bad] = nan
+    np.clip(y, lo, hi, out=y)
+    return y.astype(np.int64)
 
 
 def enc_ba32(deg):

@@ -284,13 +284,18 @@ def build_viewer(run_path, out_html, *, max_frames: int = 150, max_labels: int =
                 labels_on = len(ids) <= max_labels
                 tx, ty = fr.truth["x_m"][s] / KM, fr.truth["y_m"][s] / KM
                 spd = fr.truth["speed_mps"][s] if "speed_mps" in fr.truth else np.full(len(ids), np.nan)
-                outcome = {}
+                looks_of: Dict[int, List[str]] = {}     # vehicle -> its looks this frame
                 if n(fr.looks):
                     ls = _Frames.window(fr.looks, "_rev", rev - 0.5, rev + 0.5)
-                    outcome = dict(zip(fr.looks["vehicle_id"][ls].tolist(),
-                                       fr.looks["outcome"][ls].tolist()))
+                    lsid = fr.looks["sensor_id"][ls].tolist() if "sensor_id" in fr.looks \
+                        else [0] * (ls.stop - ls.start)
+                    for v, o, sd in zip(fr.looks["vehicle_id"][ls].tolist(),
+                                        fr.looks["outcome"][ls].tolist(), lsid):
+                        who = f" ({names.get(sd, sd)})" if several else ""
+                        looks_of.setdefault(v, []).append(f"look{who}: {OUTCOME_TEXT.get(o, o)}")
                 hover = [f"vehicle {v} {fr.names.get(v, '') if labels_on else ''}<br>{sp:.1f} m/s"
-                         f"<br>look: {OUTCOME_TEXT.get(outcome.get(v, -1), 'none this revisit')}"
+                         "<br>" + ("<br>".join(looks_of[v]) if v in looks_of
+                                   else "look: none this revisit")
                          for v, sp in zip(ids.tolist(), spd.tolist())]
                 if len(ids) <= max_labels and trail_s > 0:
                     w = _Frames.window(fr.truth, "time_s", tnow - trail_s, tnow)
@@ -512,10 +517,18 @@ def main(argv: Optional[List[str]] = None) -> int:
     out = Path(args.output) if args.output else run_h5.parent / "viewer.html"
     if args.max_frames < 1 or args.max_labels < 0:
         ap.error("--max-frames must be >= 1 and --max-labels >= 0")
+    from gmtiflow.paths import refuse_same_file
     try:
+        refuse_same_file(out, [run_h5])           # never write the page over its run file
+        if out.is_dir():
+            raise GmtiflowError(f"{out}: is a directory; give the output HTML file")
         print(build_viewer(run_h5, out, max_frames=args.max_frames, max_labels=args.max_labels))
     except GmtiflowError as exc:
         print(f"gmtiflow-view: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:                        # the output cannot be written
+        print(f"gmtiflow-view: error: {out}: cannot write the viewer "
+              f"({exc.strerror or exc})", file=sys.stderr)
         return 1
     return 0
 

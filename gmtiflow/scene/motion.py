@@ -66,18 +66,25 @@ a = dv/dt still hold exactly.  The bridge is applied only where it keeps v ≥ 0
 (min(v_k, v_{k+1}) ≥ (√2 − 1) max |σξ|); elsewhere (accelerating, braking, capped) the step keeps
 its constant acceleration.
 
-Randomness enters only through pre-drawn per-profile arrays (speed normals, stop uniforms, wait
-uniforms), drawn from each vehicle's own stream by the caller, so the kernel is deterministic.
+Randomness enters only through per-profile noise blocks (speed normals, stop uniforms, wait
+uniforms) that the caller draws from each vehicle's own stream on demand (:class:`NoiseSource`),
+so the kernel is deterministic.
+
+Cost follows the trips: a profile is stepped from its start until it is done (past its length)
+or reaches its own horizon (the scene's end), and then leaves the active set, so work and
+memory are the sum of the trips' steps, not vehicles x scene steps (docs/scale.md).  The
+profiles are stored flat, one run of steps per profile (:class:`Profiles`).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Optional
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Tuple
 
 import numpy as np
 
 TRACK, BRAKE_RANDOM, STOPPED, BRAKE_POINT = 0, 1, 2, 4
+MODE_CRUISE, MODE_DECEL, MODE_STOPPED, MODE_ACCEL = 0, 1, 2, 3
 _BRIDGE_GUARD = np.sqrt(2.0) - 1.0     # max of q^{-1/2} - 1 (kappa <= 2)
 
 
@@ -114,7 +121,22 @@ def _bridge(x0, x1, kappa, f):
     integral_n = prim(g) - prim(-0.5) + b * (g * g - 0.25) / (np.sqrt(q) + 1.0)
     integral_l = x0 * f + 0.5 * b * f * f
     return delta, d_delta, integral_n - integral_l
-MODE_CRUISE, MODE_DECEL, MODE_STOPPED, MODE_ACCEL = 0, 1, 2, 3
+
+#: Steps of noise drawn per block for the active profiles (bounded temporaries).
+NOISE_BLOCK_STEPS = 128
+
+#: ``noise(profiles, k0, n) -> (normal, u_stop, u_wait)``, each (n, len(profiles)): the noise of
+#: local steps k0 .. k0 + n - 1 of the given profiles (ids ascending); called with k0 = 0, n,
+#: 2n, … in order, each time for the profiles still active.
+NoiseSource = Callable[[np.ndarray, int, int], Tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+def array_noise(normal: np.ndarray, u_stop: np.ndarray, u_wait: np.ndarray) -> NoiseSource:
+    """A :data:`NoiseSource` reading pre-drawn (K, P) arrays (tests, small fleets)."""
+    def draw(profiles, k0, n):
+        sl = slice(k0, k0 + n)
+        return normal[sl, profiles], u_stop[sl, profiles], u_wait[sl, profiles]
+    return draw
 
 
 @dataclass
@@ -125,6 +147,8 @@ class ProfileInputs:
         ``seg_offset[p]:seg_offset[p+1]``, sorted ascending within the profile.
     seg_target_mps: cruise target of each flat segment.
     stop_m: flat stop-point arc lengths (sorted within a profile), ``stop_offset`` as above.
+    horizon_steps: steps of the profile's own horizon (from its start to the scene's end).
+    noise: draws the speed normals and stop/wait uniforms of the active profiles per block.
     """
 
     length_m: np.ndarray          # (P,) arc length at which the profile is done
@@ -141,63 +165,108 @@ class ProfileInputs:
     p_stop: np.ndarray            # per-step random stop probability
     q_wait: np.ndarray            # per-step release probability of the geometric wait
     max_wait_steps: np.ndarray    # int
-    normal: np.ndarray            # (K, P) standard normals (speed noise)
-    u_stop: np.ndarray            # (K, P) uniforms in (0, 1)
-    u_wait: np.ndarray            # (K, P) uniforms in (0, 1)
+    horizon_steps: np.ndarray     # (P,) int >= 1
+    noise: NoiseSource
 
 
 @dataclass
 class Profiles:
-    """Speed profiles on the grid tau_k = k dt (K steps, P profiles)."""
+    """Speed profiles on the grid tau_k = k dt, stored flat per profile (P profiles).
+
+    Profile p has ``n_steps_p[p]`` steps (until it is done or reaches its horizon): its step
+    values (``a_flat``, ``tau_flat``, ``mode_flat``) are at ``step_offset[p] + k`` and its grid
+    values (``s_flat``, ``v_flat``, ``noise_flat``, one more) at ``step_offset[p] + p + k``;
+    ``bridge_flat`` marks the free-cruise steps that carry the speed bridge (module doc) and
+    ``kappa`` is 2(1 − ρ) per profile.  The dense (K+1, P) / (K, P) views ``s_m``, ``v_mps``,
+    ``noise_mps``, ``a_mps2``, ``tau_s``, ``mode``, ``bridge`` (K = the longest horizon) are for
+    inspection and tests: after its last step a profile holds its end position at rest (a = 0,
+    tau = dt, mode cruise, no noise).
+    """
 
     dt_s: float
-    s_m: np.ndarray        # (K+1, P)
-    v_mps: np.ndarray      # (K+1, P)
-    a_mps2: np.ndarray     # (K, P)
-    tau_s: np.ndarray      # (K, P) duration of a_k within the step
-    mode: np.ndarray       # (K, P) uint8 label of the step
-    noise_mps: Optional[np.ndarray] = None   # (K+1, P) σξ_k at the grid points
-    bridge: Optional[np.ndarray] = None      # (K, P) bool: free-cruise step with the bridge
-    kappa: Optional[np.ndarray] = None       # (P,) 2(1 − ρ) of the speed noise
+    n_steps_p: np.ndarray      # (P,) steps stored
+    horizon_steps: np.ndarray  # (P,) steps of each profile's horizon
+    step_offset: np.ndarray    # (P+1,)
+    s_flat: np.ndarray
+    v_flat: np.ndarray
+    a_flat: np.ndarray
+    tau_flat: np.ndarray
+    mode_flat: np.ndarray
+    noise_flat: np.ndarray     # σξ_k at the grid points
+    bridge_flat: np.ndarray    # bool per step
+    kappa: np.ndarray          # (P,)
+    _dense: dict = field(default_factory=dict, repr=False)
 
     @property
     def n_steps(self) -> int:
-        return self.a_mps2.shape[0]
+        """Steps of the longest horizon (the dense views' K)."""
+        return int(self.horizon_steps.max()) if self.horizon_steps.size else 0
+
+    def _view(self, name: str) -> np.ndarray:
+        if name not in self._dense:
+            P, K = len(self.n_steps_p), self.n_steps
+            p = np.repeat(np.arange(P), self.n_steps_p)
+            k = np.arange(len(p)) - self.step_offset[p]
+            last = self.step_offset[1:] + np.arange(P)      # each profile's last grid value
+            if name in ("s_m", "v_mps", "noise_mps"):
+                flat = {"s_m": self.s_flat, "v_mps": self.v_flat,
+                        "noise_mps": self.noise_flat}[name]
+                out = (np.broadcast_to(flat[last], (K + 1, P)).copy() if name == "s_m"
+                       else np.zeros((K + 1, P)))
+                out[0] = flat[self.step_offset[:-1] + np.arange(P)]
+                out[k + 1, p] = flat[self.step_offset[p] + p + k + 1]
+            else:
+                flat, fill, dtype = {"a_mps2": (self.a_flat, 0.0, float),
+                                     "tau_s": (self.tau_flat, self.dt_s, float),
+                                     "mode": (self.mode_flat, MODE_CRUISE, np.uint8),
+                                     "bridge": (self.bridge_flat, False, bool)}[name]
+                out = np.full((K, P), fill, dtype=dtype)
+                out[k, p] = flat
+            self._dense[name] = out
+        return self._dense[name]
+
+    s_m = property(lambda self: self._view("s_m"))          # (K+1, P)
+    v_mps = property(lambda self: self._view("v_mps"))      # (K+1, P)
+    a_mps2 = property(lambda self: self._view("a_mps2"))    # (K, P)
+    tau_s = property(lambda self: self._view("tau_s"))      # (K, P) duration of a_k in the step
+    mode = property(lambda self: self._view("mode"))        # (K, P) uint8 label of the step
+    noise_mps = property(lambda self: self._view("noise_mps"))  # (K+1, P) σξ_k
+    bridge = property(lambda self: self._view("bridge"))    # (K, P) bool
 
     def evaluate(self, tau_s, p):
         """(s, v, a, mode) of profiles ``p`` at local times ``tau_s`` (broadcast arrays).
 
-        Times are clipped to [0, K dt]; beyond the grid the last step's end state holds.
+        Times are clipped to the profile's stored steps; beyond them its last state holds.
         """
         dt = self.dt_s
-        K = self.n_steps
-        tau = np.clip(np.asarray(tau_s, float), 0.0, K * dt)
-        p = np.asarray(p, dtype=np.int64)
-        k = np.clip(np.floor(tau / dt).astype(np.int64), 0, K - 1)
+        tau, p = np.broadcast_arrays(np.asarray(tau_s, float), np.asarray(p, dtype=np.int64))
+        n = self.n_steps_p[p]
+        tau = np.clip(tau, 0.0, n * dt)
+        k = np.clip(np.floor(tau / dt).astype(np.int64), 0, n - 1)
         u = tau - k * dt
-        s0 = self.s_m[k, p]
-        v0 = self.v_mps[k, p]
-        s1 = self.s_m[k + 1, p]
-        v1 = self.v_mps[k + 1, p]
-        a = self.a_mps2[k, p]
-        tk = self.tau_s[k, p]
+        i = self.step_offset[p] + k
+        g = i + p
+        s0 = self.s_flat[g]
+        v0 = self.v_flat[g]
+        s1 = self.s_flat[g + 1]
+        v1 = self.v_flat[g + 1]
+        a = self.a_flat[i]
+        tk = self.tau_flat[i]
         early = u < tk
         s = np.where(early, s0 + v0 * u + 0.5 * a * u * u, s1 - v1 * (dt - u))
         v = np.where(early, np.maximum(v0 + a * u, 0.0), v1)
         acc = np.where(early, a, 0.0)
-        if self.bridge is not None:
-            br = self.bridge[k, p] & early      # at u = Δt the grid value s_{k+1} holds
-            if np.any(br):
-                i = np.flatnonzero(br)
-                ki, pi = np.broadcast_to(k, br.shape)[br], np.broadcast_to(p, br.shape)[br]
-                d, dd, integral = _bridge(self.noise_mps[ki, pi], self.noise_mps[ki + 1, pi],
-                                          self.kappa[pi], np.broadcast_to(u, br.shape)[br] / dt)
-                s, v, acc = (np.array(x, float, copy=True) for x in
-                             np.broadcast_arrays(s, v, acc))
-                s.flat[i] += integral * dt
-                v.flat[i] += d
-                acc.flat[i] += dd / dt
-        mode = self.mode[k, p]
+        br = self.bridge_flat[i] & early      # at u = Δt the grid value s_{k+1} holds
+        if np.any(br):
+            j = np.flatnonzero(br)
+            gb = g[br]
+            d, dd, integral = _bridge(self.noise_flat[gb], self.noise_flat[gb + 1],
+                                      self.kappa[p[br]], u[br] / dt)
+            s, v, acc = (np.array(x, float, copy=True) for x in np.broadcast_arrays(s, v, acc))
+            s.flat[j] += integral * dt
+            v.flat[j] += d
+            acc.flat[j] += dd / dt
+        mode = self.mode_flat[i]
         mode = np.where((v == 0.0) & (mode == MODE_DECEL) & ~early, MODE_STOPPED, mode)
         return s, v, acc, mode.astype(np.uint8)
 
@@ -205,8 +274,10 @@ class Profiles:
         """Time into bridged step ``k`` at which profile ``p`` reaches ``s_target``: Newton on
         s(u) from u = Δt/2 (s is increasing and smooth there, v > 0), bisection as a fallback."""
         dt = self.dt_s
-        s0, v0, a = float(self.s_m[k, p]), float(self.v_mps[k, p]), float(self.a_mps2[k, p])
-        x0, x1 = float(self.noise_mps[k, p]), float(self.noise_mps[k + 1, p])
+        i = int(self.step_offset[p]) + k
+        g = i + p
+        s0, v0, a = float(self.s_flat[g]), float(self.v_flat[g]), float(self.a_flat[i])
+        x0, x1 = float(self.noise_flat[g]), float(self.noise_flat[g + 1])
         kap = float(self.kappa[p])
 
         def s_v(u):
@@ -230,8 +301,11 @@ class Profiles:
         return u
 
     def time_at(self, p: int, s_target: float) -> float:
-        """First local time at which profile ``p`` reaches arc length ``s_target`` (inf: never)."""
-        col = self.s_m[:, p]
+        """First local time at which profile ``p`` reaches arc length ``s_target`` (inf: never
+        within its stored steps)."""
+        i0 = int(self.step_offset[p])
+        n = int(self.n_steps_p[p])
+        col = self.s_flat[i0 + p:i0 + p + n + 1]
         i = int(np.searchsorted(col, s_target, side="left"))
         if i == 0:
             return 0.0
@@ -239,8 +313,9 @@ class Profiles:
             return float("inf")
         k = i - 1
         dt = self.dt_s
-        s0, v0, a, tk = col[k], self.v_mps[k, p], self.a_mps2[k, p], self.tau_s[k, p]
-        if self.bridge is not None and self.bridge[k, p]:
+        s0, v0 = col[k], self.v_flat[i0 + p + k]
+        a, tk = self.a_flat[i0 + k], self.tau_flat[i0 + k]
+        if self.bridge_flat[i0 + k]:
             return k * dt + self._bridged_time(k, p, s_target)
         s_tau = s0 + v0 * tk + 0.5 * a * tk * tk
         x = s_target - s0
@@ -249,7 +324,7 @@ class Profiles:
             den = v0 + root
             u = 0.0 if den <= 0 else 2.0 * x / den
         else:
-            v1 = self.v_mps[k + 1, p]
+            v1 = self.v_flat[i0 + p + k + 1]
             u = tk + (s_target - s_tau) / v1 if v1 > 0 else dt
         return k * dt + min(max(u, 0.0), dt)
 
@@ -274,47 +349,63 @@ def _bridge_scalar(x0, x1, kappa, f):
     return lin * (rq - 1.0), integral
 
 
-def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
-                      progress: bool = False) -> Profiles:
-    """Run the fleet's speed profiles for ``n_steps`` steps of ``dt_s`` (see module docstring).
+def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.ndarray,
+             rec: list) -> Profiles:
+    """The recorded steps (per step: active ids, a, tau, label, s_end, v_end, bridge, σξ at
+    the step's end) as flat profiles."""
+    ids = np.concatenate([r[0] for r in rec]) if rec else np.zeros(0, np.int64)
+    n_p = np.bincount(ids, minlength=P).astype(np.int64)
+    off = np.concatenate([[0], np.cumsum(n_p)]).astype(np.int64)
+    # record j is local step j of every profile active then (all profiles start at step 0)
+    k = np.concatenate([np.full(len(r[0]), j, np.int64) for j, r in enumerate(rec)]) \
+        if rec else np.zeros(0, np.int64)
+    i = off[ids] + k
+    n = int(off[-1])
+    cat = lambda c, dtype: (np.concatenate([r[c] for r in rec]) if rec  # noqa: E731
+                            else np.zeros(0, dtype))
+    a = np.empty(n)
+    tau = np.empty(n)
+    mode = np.empty(n, np.uint8)
+    bridge = np.empty(n, bool)
+    a[i], tau[i], mode[i], bridge[i] = (cat(1, float), cat(2, float), cat(3, np.uint8),
+                                        cat(6, bool))
+    s = np.empty(n + P)
+    v = np.empty(n + P)
+    w = np.empty(n + P)
+    first = off[:-1] + np.arange(P)
+    s[first] = 0.0
+    v[first] = v0
+    w[first] = 0.0
+    s[i + ids + 1] = cat(4, float)
+    v[i + ids + 1] = cat(5, float)
+    w[i + ids + 1] = cat(7, float)
+    return Profiles(dt_s=dt, n_steps_p=n_p, horizon_steps=horizon, step_offset=off,
+                    s_flat=s, v_flat=v, a_flat=a, tau_flat=tau, mode_flat=mode, noise_flat=w,
+                    bridge_flat=bridge, kappa=kappa)
+
+
+def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -> Profiles:
+    """Run the fleet's speed profiles, each for its own horizon or until done (module docstring).
 
     ``progress`` shows a tqdm bar over the steps (on a terminal only)."""
     P = len(inp.length_m)
-    K = int(n_steps)
     dt = float(dt_s)
-    S = np.empty((K + 1, P))
-    V = np.empty((K + 1, P))
-    A = np.zeros((K, P))
-    TAU = np.full((K, P), dt)
-    M = np.zeros((K, P), dtype=np.uint8)
-    W = np.zeros((K + 1, P))                  # σξ_k at the grid points
-    BR = np.zeros((K, P), dtype=bool)         # free-cruise steps carrying the speed bridge
+    horizon = np.asarray(inp.horizon_steps, dtype=np.int64)
+    K = int(horizon.max()) if P else 0
 
-    amax, dmax = inp.max_accel_mps2, inp.max_decel_mps2
-    sigma = inp.speed_noise_mps
-    rho = inp.noise_rho
-    rho_c = np.sqrt(1.0 - rho * rho)
-    kappa = 2.0 * (1.0 - rho)
-    # ∫_0^1 δ df = (σξ_k + σξ_{k+1})/2 · c1 (_bridge at f = 1, where q = 1 and the B term is 0)
-    c1 = _bridge(np.ones(P), np.ones(P), kappa, 1.0)[2]
-    xi = np.zeros(P)
     # Segment lookup over all profiles at once: key = s + p * span keeps the flat array sorted.
-    span = float(2.0 ** np.ceil(np.log2(max(float(np.max(inp.length_m)), 1.0) * 2.0 + 2.0)))
+    span = float(2.0 ** np.ceil(np.log2(max(float(np.max(inp.length_m, initial=0.0)), 1.0)
+                                        * 2.0 + 2.0)))
     seg_prof = np.repeat(np.arange(P), np.diff(inp.seg_offset))
     seg_key = inp.seg_start_m + seg_prof * span
-    first_seg = inp.seg_offset[:-1]
-    last_seg = inp.seg_offset[1:] - 1
-    prof_base = np.arange(P) * span
     stop_flat = np.concatenate([inp.stop_m, [np.inf]])
-    stop_ptr = inp.stop_offset[:-1].copy()
-    stop_end = inp.stop_offset[1:]
 
     # Anticipation of lower cruise speeds ahead (speed limits, speed-change points): entering
     # segment b at s_b with target T_b allows at most sqrt(T_b^2 + 2 d (s_b - s)) before it.
     # The binding segment ahead of segment j is B(j) = argmin_{b > j} (T_b^2 + 2 d s_b), which
     # does not depend on s, so it is precomputed (the nearest one on ties; d = 0.9 max_decel).
     # The bound is evaluated at the step's look-ahead point and clamped at T_B once past s_B.
-    d_cap = 0.9 * dmax
+    d_cap_all = 0.9 * inp.max_decel_mps2
     cap_t = np.full(len(inp.seg_start_m), np.inf)
     cap_s = np.full(len(inp.seg_start_m), np.inf)
     for p in range(P):
@@ -322,72 +413,93 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
         if a1 - a0 > 1:
             tb = inp.seg_target_mps[a0 + 1:a1]
             sb = inp.seg_start_m[a0 + 1:a1]
-            r = (tb ** 2 + 2.0 * d_cap[p] * sb)[::-1]
+            r = (tb ** 2 + 2.0 * d_cap_all[p] * sb)[::-1]
             acc = np.minimum.accumulate(r)
             pos = np.maximum.accumulate(np.where(r == acc, np.arange(len(r)), -1))
             best = (len(r) - 1 - pos)[::-1]           # index into tb/sb for segments a0..a1-2
             cap_t[a0:a1 - 1] = tb[best]
             cap_s[a0:a1 - 1] = sb[best]
 
-    s = np.zeros(P)
-    v = np.asarray(inp.v0_mps, float).copy()
-    state = np.full(P, TRACK, dtype=np.int64)
-    wait_left = np.zeros(P, dtype=np.int64)
-    done = np.zeros(P, dtype=bool)
-    S[0] = s
-    V[0] = v
-    look_a = 0.5 * amax * dt * dt
-    from tqdm import tqdm
+    # Per-profile state and constants of the active set (compacted as profiles leave it).
+    rho = np.asarray(inp.noise_rho, float)
+    kappa = 2.0 * (1.0 - rho)
+    act = {
+        "pid": np.arange(P, dtype=np.int64),
+        "amax": inp.max_accel_mps2, "dmax": inp.max_decel_mps2, "d_cap": d_cap_all,
+        "sigma": inp.speed_noise_mps, "rho": rho, "rho_c": np.sqrt(1.0 - rho * rho),
+        # ∫_0^1 δ df = (σξ_k + σξ_{k+1})/2 · c1 (_bridge at f = 1: q = 1, the B term is 0)
+        "c1": _bridge(np.ones(P), np.ones(P), kappa, 1.0)[2],
+        "p_stop": inp.p_stop, "q_wait": inp.q_wait, "max_wait": inp.max_wait_steps,
+        "length": inp.length_m, "horizon": horizon,
+        "first_seg": inp.seg_offset[:-1], "last_seg": inp.seg_offset[1:] - 1,
+        "prof_base": np.arange(P) * span, "look_a": 0.5 * inp.max_accel_mps2 * dt * dt,
+        "stop_ptr": inp.stop_offset[:-1].copy(), "stop_end": inp.stop_offset[1:],
+        "s": np.zeros(P), "v": np.asarray(inp.v0_mps, float).copy(),
+        "state": np.full(P, TRACK, dtype=np.int64), "wait_left": np.zeros(P, dtype=np.int64),
+        "xi": np.zeros(P),
+    }
+    points = len(inp.stop_m) > 0      # without stop points their logic is skipped
+    block: Optional[tuple] = None
+    rec = []
+    from tqdm import tqdm     # imported here: start-up time of the CLI
     for k in tqdm(range(K), desc="truth", unit="step", leave=False,
                   disable=None if progress else True, mininterval=0.5):
-        if done.all():
-            S[k + 1:] = s
-            V[k + 1:] = 0.0
-            M[k:] = MODE_CRUISE
+        if act["pid"].size == 0:
             break
+        r = k % NOISE_BLOCK_STEPS
+        if r == 0:
+            block = inp.noise(act["pid"], k, NOISE_BLOCK_STEPS)
+        normal, u_stop, u_wait = (b[r] for b in block)
+        s, v, state, wait_left = act["s"], act["v"], act["state"], act["wait_left"]
+        amax, dmax, stop_ptr, stop_end = act["amax"], act["dmax"], act["stop_ptr"], act["stop_end"]
         # -- target cruise speed of the segment under each vehicle
-        j = np.searchsorted(seg_key, s + prof_base, side="right") - 1
-        j = np.clip(j, first_seg, last_seg)
+        j = np.searchsorted(seg_key, s + act["prof_base"], side="right") - 1
+        j = np.clip(j, act["first_seg"], act["last_seg"])
         target = inp.seg_target_mps[j]
         # -- state transitions at the step start
         stopped = state == STOPPED
         release = stopped & (wait_left <= 0)
         state[release] = TRACK
         wait_left[stopped & ~release] -= 1
-        next_stop = np.where(stop_ptr < stop_end,
-                             stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)], np.inf)
-        dist = next_stop - s
         moving = state != STOPPED
-        rand_stop = moving & (state == TRACK) & (v > 0) & (inp.u_stop[k] < inp.p_stop)
+        rand_stop = moving & (state == TRACK) & (v > 0) & (u_stop < act["p_stop"])
         state[rand_stop] = BRAKE_RANDOM
-        v_up = v + amax * dt
-        reach = s + v * dt + look_a + v_up * v_up / (2.0 * dmax) >= next_stop
-        b_rand = v * v / (2.0 * dmax)
-        to_point = (moving & (state != BRAKE_POINT) & reach & (dist > 0)
-                    & ~((state == BRAKE_RANDOM) & (b_rand < dist)))
-        # At rest within the start-up look-ahead of a stop point (it came to rest just short
-        # of it, e.g. by a random stop): that stop counts as made, it drives on.
-        served = to_point & (v <= 0.0)
-        if served.any():
-            stop_ptr[served] += 1
-            to_point &= ~served
+        if points:
             next_stop = np.where(stop_ptr < stop_end,
                                  stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)], np.inf)
             dist = next_stop - s
-        state[to_point] = BRAKE_POINT
+            v_up = v + amax * dt
+            reach = s + v * dt + act["look_a"] + v_up * v_up / (2.0 * dmax) >= next_stop
+            b_rand = v * v / (2.0 * dmax)
+            to_point = (moving & (state != BRAKE_POINT) & reach & (dist > 0)
+                        & ~((state == BRAKE_RANDOM) & (b_rand < dist)))
+            # At rest within the start-up look-ahead of a stop point (it came to rest just
+            # short of it, e.g. by a random stop): that stop counts as made, it drives on.
+            served = to_point & (v <= 0.0)
+            if served.any():
+                stop_ptr[served] += 1
+                to_point &= ~served
+                next_stop = np.where(stop_ptr < stop_end,
+                                     stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)],
+                                     np.inf)
+                dist = next_stop - s
+            state[to_point] = BRAKE_POINT
         # -- kinematics of the step
-        a = np.zeros(P)
-        tau = np.full(P, dt)
-        label = np.full(P, MODE_STOPPED, dtype=np.uint8)
+        n_act = len(s)
+        a = np.zeros(n_act)
+        tau = np.full(n_act, dt)
+        label = np.full(n_act, MODE_STOPPED, dtype=np.uint8)
         tr = state == TRACK
         with np.errstate(invalid="ignore"):
             ahead = np.maximum(cap_s[j] - (s + v * dt), 0.0)
-        cap = np.sqrt(cap_t[j] ** 2 + 2.0 * d_cap * ahead)
-        xi_prev = xi
+        cap = np.sqrt(cap_t[j] ** 2 + 2.0 * act["d_cap"] * ahead)
+        xi_prev = act["xi"]
         if k == 0:
-            xi = inp.normal[0].copy()
+            xi = normal.copy()
         else:
-            xi = rho * xi + rho_c * inp.normal[k]
+            xi = act["rho"] * xi_prev + act["rho_c"] * normal
+        act["xi"] = xi
+        sigma = act["sigma"]
         noisy = target + sigma * xi
         v_des = np.maximum(np.minimum(noisy, cap), 0.0)
         raw = (v_des - v) / dt
@@ -395,59 +507,61 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, n_steps: int,
         a = np.where(tr, a_tr, a)
         label = np.where(tr, np.where(raw > amax, MODE_ACCEL,
                                       np.where(raw < -dmax, MODE_DECEL, MODE_CRUISE)), label)
-        bp = state == BRAKE_POINT
         br = state == BRAKE_RANDOM
-        with np.errstate(divide="ignore", invalid="ignore"):
-            a_bp = np.where(dist > 0, -v * v / (2.0 * dist), 0.0)
-            t_bp = np.where(v > 0, 2.0 * dist / v, np.inf)
         t_br = v / dmax
-        a = np.where(bp, a_bp, np.where(br, -dmax, a))
-        t_stop = np.where(bp, t_bp, np.where(br, t_br, np.inf))
-        # A stop point reached up to rounding (the last braking step may leave ~1e-13 m/s and
-        # ~1e-12 m) counts as reached in this step.
-        stops = (bp | br) & (t_stop <= dt * (1.0 + 1e-9))
-        stops |= bp & (dist <= 1e-9)
+        if points:
+            bp = state == BRAKE_POINT
+            with np.errstate(divide="ignore", invalid="ignore"):
+                a_bp = np.where(dist > 0, -v * v / (2.0 * dist), 0.0)
+                t_bp = np.where(v > 0, 2.0 * dist / v, np.inf)
+            a = np.where(bp, a_bp, np.where(br, -dmax, a))
+            t_stop = np.where(bp, t_bp, np.where(br, t_br, np.inf))
+            # A stop point reached up to rounding (the last braking step may leave ~1e-13 m/s
+            # and ~1e-12 m) counts as reached in this step.
+            braking = bp | br
+            stops = braking & (t_stop <= dt * (1.0 + 1e-9))
+            stops |= bp & (dist <= 1e-9)
+        else:           # no stop points in the fleet: only random stops brake
+            a = np.where(br, -dmax, a)
+            t_stop = np.where(br, t_br, np.inf)
+            braking = br
+            stops = br & (t_stop <= dt * (1.0 + 1e-9))
         tau = np.where(stops, np.minimum(t_stop, dt), tau)
-        label = np.where(bp | br, MODE_DECEL, label)
+        label = np.where(braking, MODE_DECEL, label)
         v_end = np.where(stops, 0.0, np.maximum(v + a * tau, 0.0))
         s_end = s + v * tau + 0.5 * a * tau * tau + v_end * (dt - tau)
-        s_end = np.where(stops & bp, next_stop, s_end)
+        if points:
+            s_end = np.where(stops & bp, next_stop, s_end)
+        free = np.zeros(n_act, bool)
         if k > 0:
             # free cruise from the free target c + σξ_k to c + σξ_{k+1}: the speed bridge
             x0, x1 = sigma * xi_prev, sigma * xi
-            free = (tr & (label == MODE_CRUISE) & (v_des == noisy) & (sigma > 0) & ~done
+            free = (tr & (label == MODE_CRUISE) & (v_des == noisy) & (sigma > 0)
                     & ~stops & (np.abs(v - (target + x0)) <= 1e-9 * np.maximum(v, 1.0))
                     & (np.minimum(v, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
                                                                           np.abs(x1))))
             if free.any():
-                s_end = np.where(free, s_end + 0.5 * (x0 + x1) * c1 * dt, s_end)
-                BR[k] = free
-        W[k + 1] = sigma * xi
+                s_end = np.where(free, s_end + 0.5 * (x0 + x1) * act["c1"] * dt, s_end)
         still = state == STOPPED
         a = np.where(still, 0.0, a)
         v_end = np.where(still, 0.0, v_end)
         s_end = np.where(still, s, s_end)
         # -- vehicles come to rest: draw the geometric wait, advance past a reached stop point
         if stops.any():
-            q = inp.q_wait[stops]
+            q = act["q_wait"][stops]
             q_safe = np.where(q >= 1.0, 0.5, q)
-            w = np.where(q >= 1.0, 1.0, np.ceil(np.log(inp.u_wait[k][stops]) / np.log1p(-q_safe)))
+            w = np.where(q >= 1.0, 1.0, np.ceil(np.log(u_wait[stops]) / np.log1p(-q_safe)))
             w = np.maximum(w, 1.0)
-            w = np.minimum(w, inp.max_wait_steps[stops]).astype(np.int64)
+            w = np.minimum(w, act["max_wait"][stops]).astype(np.int64)
             wait_left[stops] = w
             state[stops] = STOPPED
-            stop_ptr[stops & bp] += 1
-        # -- finished profiles freeze
-        a = np.where(done, 0.0, a)
-        tau = np.where(done, dt, tau)
-        v_end = np.where(done, 0.0, v_end)
-        s_end = np.where(done, s, s_end)
-        A[k] = a
-        TAU[k] = tau
-        M[k] = label
-        s, v = s_end, v_end
-        S[k + 1] = s
-        V[k + 1] = v
-        done |= s >= inp.length_m
-    return Profiles(dt_s=dt, s_m=S, v_mps=V, a_mps2=A, tau_s=TAU, mode=M, noise_mps=W,
-                    bridge=BR, kappa=kappa)
+            if points:
+                stop_ptr[stops & bp] += 1
+        rec.append((act["pid"], a, tau, label, s_end, v_end, free, sigma * xi))
+        act["s"], act["v"] = s_end, v_end
+        # -- profiles that are done or at their horizon leave the active set
+        keep = (s_end < act["length"]) & (act["horizon"] > k + 1)
+        if not keep.all():
+            act = {name: x[keep] for name, x in act.items()}
+            block = tuple(b[:, keep] for b in block)
+    return _flatten(P, dt, np.asarray(inp.v0_mps, float), horizon, kappa, rec)

@@ -87,17 +87,23 @@ def grazing_angle_rad(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
     return np.arcsin(np.clip(o_t[2] / np.maximum(rng, MIN_RANGE_M), -1.0, 1.0))
 
 
-def target_line_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
-    """Unit LOS platform → target expressed in the *target's* local ENU frame (ℓ_T)."""
-    _, o_t = offsets(platform_xyz, target_xyz, radius_m)
-    rng = np.sqrt(o_t[0] * o_t[0] + o_t[1] * o_t[1] + o_t[2] * o_t[2])
+def _unit(o, sign=1.0):
+    """Length of ``o`` and ``sign``·o/|o| (straight down, (0, 0, −1), below MIN_RANGE_M)."""
+    rng = np.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2])
     inv = 1.0 / np.maximum(rng, MIN_RANGE_M)
     small = rng < MIN_RANGE_M
-    los = (-o_t[0] * inv, -o_t[1] * inv, -o_t[2] * inv)
+    los = ((o[0] * inv, o[1] * inv, o[2] * inv) if sign > 0
+           else (-o[0] * inv, -o[1] * inv, -o[2] * inv))
     if np.any(small):
         los = (np.where(small, 0.0, los[0]), np.where(small, 0.0, los[1]),
                np.where(small, -1.0, los[2]))
-    return los
+    return rng, los
+
+
+def target_line_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
+    """Unit LOS platform → target expressed in the *target's* local ENU frame (ℓ_T)."""
+    _, o_t = offsets(platform_xyz, target_xyz, radius_m)
+    return _unit(o_t, -1.0)[1]
 
 
 def line_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
@@ -105,15 +111,16 @@ def line_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
 
     At zero range the LOS is taken straight down (0, 0, −1) so that nothing is NaN.
     """
-    (dx, dy, dz), _ = offsets(platform_xyz, target_xyz, radius_m)
-    rng = np.sqrt(dx * dx + dy * dy + dz * dz)
-    inv = 1.0 / np.maximum(rng, MIN_RANGE_M)
-    los = (dx * inv, dy * inv, dz * inv)
-    small = rng < MIN_RANGE_M
-    if np.any(small):
-        los = (np.where(small, 0.0, los[0]), np.where(small, 0.0, los[1]),
-               np.where(small, -1.0, los[2]))
-    return rng, los
+    o_p, _ = offsets(platform_xyz, target_xyz, radius_m)
+    return _unit(o_p)
+
+
+def lines_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
+    """:func:`line_of_sight` and :func:`target_line_of_sight` from one :func:`offsets`:
+    ``(range_m, ℓ in the platform's frame, ℓ_T in the target's frame)``."""
+    o_p, o_t = offsets(platform_xyz, target_xyz, radius_m)
+    rng, los = _unit(o_p)
+    return rng, los, _unit(o_t, -1.0)[1]
 
 
 def true_velocity(v_map, z_m, radius_m=DEFAULT_RADIUS_M):

@@ -233,7 +233,7 @@ def test_one_row_per_track_and_time_when_dwells_share_an_instant(tmp_path, compo
     (track, time) so it passes the same validation as an external tracker's table."""
     from gmtiflow.evaluate.tracks import validate_tracks
     from gmtiflow import pipeline, store
-    cfg = compose_config(["fidelity=fast", "scene.duration_s=60"])
+    cfg = compose_config(["fidelity=fast", "scene.duration_s=60", "report=none", "export=none"])
     path = pipeline.run(cfg, tmp_path)
     tracks = store.read_table(path, "tracks")
     key = tracks["track_id"] * 10_000_000 + np.round(tracks["time_s"] * 1000).astype(np.int64)

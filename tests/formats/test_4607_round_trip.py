@@ -10,31 +10,16 @@ import pytest
 
 from gmtiflow.formats import stanag4607 as s4607
 from gmtiflow.formats.errors import FormatError
+from tests.formats.spec4607 import dwell_segment, mission_segment, packet, segment
 
-DWELL_FMT = {2: "H", 3: "H", 4: "B", 5: "H", 6: "I", 7: "i", 8: "I", 9: "i", 10: "i", 11: "I",
-             12: "I", 13: "I", 14: "H", 15: "H", 16: "I", 17: "b", 18: "B", 19: "H", 20: "H",
-             21: "H", 22: "h", 23: "h", 24: "i", 25: "I", 26: "H", 27: "H", 28: "H", 29: "h",
-             30: "h", 31: "B"}
-TARGET_FMT = {1: "H", 2: "i", 3: "I", 4: "h", 5: "h", 6: "h", 7: "h", 8: "H", 9: "b", 10: "B",
-              11: "B", 12: "H", 13: "H", 14: "B", 15: "H", 16: "B", 17: "I", 18: "b"}
 # GUIDE Annex C: "situation awareness" (positions only, reduced resolution) and the AFRL
 # "precision targeting" profile plus RCS (every field but D10/D11 and D32.4/5)
 SA_MASK = 0xFFC71FC260000000
 PT_MASK = 0xFF3FFFFF9FFF0000
 
 
-def packet(segments, job_id=0, platform=b"AFRLPLAT  ", mission_id=42, version=b"30"):
-    body = b"".join(segments)
-    return struct.pack(">2sI2sB2sHB10sII", version, 32 + len(body), b"US", 5, b"  ", 0, 129,
-                       platform, mission_id, job_id) + body
-
-
-def segment(seg_type, body):
-    return struct.pack(">BI", seg_type, 5 + len(body)) + body
-
-
 def mission(plan=b"PLAN 7      ", flight=b"FLIGHT 9    ", config=b"CFG A     "):
-    return segment(1, struct.pack(">12s12sB10sHBB", plan, flight, 20, config, 2016, 7, 28))
+    return mission_segment(plan, flight, config, 2016, 7, 28)
 
 
 def job(job_id=77, model=b"MDL 1 "):
@@ -49,15 +34,7 @@ def free_text(text=b"hello analyst", orig=b"ORIGINATOR", recip=b"ALL       "):
     return segment(6, orig + recip + text)
 
 
-def dwell(mask, values, targets, count=None):
-    dnums = [n for n in range(2, 32) if mask & (1 << (65 - n))]
-    tnums = [k for k in range(1, 19) if mask & (1 << (34 - k))]
-    v = dict(values)
-    v[5] = len(targets) if count is None else count
-    body = struct.pack(">Q", mask) + b"".join(struct.pack(">" + DWELL_FMT[n], v[n]) for n in dnums)
-    for t in targets:
-        body += b"".join(struct.pack(">" + TARGET_FMT[k], t[k]) for k in tnums)
-    return segment(2, body)
+dwell = dwell_segment
 
 
 DWELL_VALUES = {2: 3, 3: 0, 4: 0, 6: 1_000_000, 7: 0x27A00000, 8: 0xFE0A0000, 9: 750_000,

@@ -139,3 +139,16 @@ def test_writer_needs_geodetic_columns():
 def test_malformed_input_raises_format_error(data, match):
     with pytest.raises(FormatError, match=match):
         geojson.read_geojson(data)
+
+
+def test_tracks_file_reads_back_exactly_and_stays_apart_from_detections():
+    t = synthetic.tracks(4, 6, seed=3)
+    t = dict(t, lat_deg=43.7 + t["y_m"] / 111e3, lon_deg=7.4 + t["x_m"] / 80e3)
+    doc = geojson.encode_geojson(tracks=t, epoch_utc=EPOCH)
+    back = geojson.read_geojson(doc)["tracks"]
+    o = np.lexsort((t["track_id"], t["time_s"]))
+    _same({k: np.asarray(v)[o] for k, v in t.items()}, back)
+    assert "height_m" not in back                       # 2-D positions
+    _, dets = synthetic.tables(2, 4)
+    with pytest.raises(ValueError, match="tracks.geojson"):
+        geojson.encode_geojson(tracks=t, detections=dets)

@@ -10,6 +10,8 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from gmtiflow.formats import stanag4607 as s4607, synthetic
 from gmtiflow.formats.errors import FormatError
+from tests.formats import spec4607 as spec
+from tests.formats.spec4607 import DWELL_FMT, TARGET_FMT, segment
 
 BA32_Q = 360.0 / 2**32
 SA32_Q = 180.0 / 2**32
@@ -23,18 +25,13 @@ META = {"epoch_utc": synthetic.EPOCH_UTC}
 # ---------------------------------------------------------------------------------------------
 
 def packet(segments: list[bytes], job_id=7, version=b"30") -> bytes:
-    body = b"".join(segments)
-    return struct.pack(">2sI2sB2sHB10sII", version, 32 + len(body), b"XN", 5, b"XN", 0, 129,
-                       b"TESTPLAT  ", 42, job_id) + body
-
-
-def segment(seg_type: int, body: bytes) -> bytes:
-    return struct.pack(">BI", seg_type, 5 + len(body)) + body
+    return spec.packet(segments, job_id=job_id, version=version, platform=b"TESTPLAT  ",
+                       nationality=b"XN", class_system=b"XN")
 
 
 def mission(year=2024, month=2, day=29) -> bytes:
-    return segment(1, struct.pack(">12s12sB10sHBB", b"PLAN        ", b"FLIGHT      ", 20,
-                                  b"CFG       ", year, month, day))
+    return spec.mission_segment(b"PLAN        ", b"FLIGHT      ", b"CFG       ", year, month,
+                                day)
 
 
 def dmask(dwell_fields, target_fields) -> int:
@@ -44,23 +41,10 @@ def dmask(dwell_fields, target_fields) -> int:
 
 ALL_DWELL = [n for n in range(2, 32) if n not in (10, 11)]
 ALL_TARGET = [k for k in range(1, 19) if k not in (4, 5)]
-DWELL_FMT = {2: "H", 3: "H", 4: "B", 5: "H", 6: "I", 7: "i", 8: "I", 9: "i", 10: "i", 11: "I",
-             12: "I", 13: "I", 14: "H", 15: "H", 16: "I", 17: "b", 18: "B", 19: "H", 20: "H",
-             21: "H", 22: "h", 23: "h", 24: "i", 25: "I", 26: "H", 27: "H", 28: "H", 29: "h",
-             30: "h", 31: "B"}
-TARGET_FMT = {1: "H", 2: "i", 3: "I", 4: "h", 5: "h", 6: "h", 7: "h", 8: "H", 9: "b", 10: "B",
-              11: "B", 12: "H", 13: "H", 14: "B", 15: "H", 16: "B", 17: "I", 18: "b"}
 
 
 def dwell(dvals: dict, targets: list[dict], tfields=ALL_TARGET, count=None) -> bytes:
-    dv = dict(dvals)
-    dv[5] = len(targets) if count is None else count
-    mask = dmask(sorted(dv), tfields)
-    body = struct.pack(">Q", mask)
-    body += b"".join(struct.pack(">" + DWELL_FMT[n], dv[n]) for n in sorted(dv))
-    for t in targets:
-        body += b"".join(struct.pack(">" + TARGET_FMT[k], t[k]) for k in tfields)
-    return segment(2, body)
+    return spec.dwell_segment(dmask(sorted(set(dvals) | {5}), tfields), dvals, targets, count)
 
 
 # Raw values, with the engineering values they must decode to.

@@ -11,7 +11,9 @@ from gmtiflow.compose import compose
 
 
 def make_run(out_dir: Path, overrides) -> Path:
-    return pipeline.run(compose(["progress=false", *overrides]), out_dir)
+    """A run file only: the tests build the report themselves (later overrides win)."""
+    return pipeline.run(compose(["progress=false", "report=none", "export=none", *overrides]),
+                        out_dir)
 
 
 @pytest.fixture(scope="session")

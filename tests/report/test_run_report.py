@@ -32,6 +32,7 @@ def test_missing_run_file_is_a_clear_error_and_leaves_nothing(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.slow
 def test_animation_gif(small_run, tmp_path):
     cfg = ReportConfig(animation=True, animation_max_frames=3)
     out = build_run_report(cfg, small_run, tmp_path / "report.pdf")

@@ -37,6 +37,7 @@ def sweep(tmp_path_factory):
     return sweep_dir
 
 
+@pytest.mark.slow
 def test_multirun_ends_with_a_comparison_pdf_and_timing(sweep, tmp_path):
     pdf = sweep / "sweep_report.pdf"
     assert pdf.is_file()
@@ -53,6 +54,7 @@ def test_multirun_ends_with_a_comparison_pdf_and_timing(sweep, tmp_path):
     assert all(pixel_std(p) > 0.03 for p in pngs)
 
 
+@pytest.mark.slow
 def test_cli_on_run_dirs(sweep, tmp_path, capsys):
     from gmtiflow.report.cli import main
     out = tmp_path / "cmp.pdf"
@@ -63,6 +65,7 @@ def test_cli_on_run_dirs(sweep, tmp_path, capsys):
     assert "no run or job directories" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_cli_on_a_sweep_with_a_failed_job(tmp_path):
     sweep_dir, proc = _sweep(tmp_path, "fail", "scene.duration_s=20,-5")
     assert proc.returncode != 0                           # Hydra: a job failed

@@ -117,6 +117,7 @@ def test_viewer_of_two_sensors_shows_each_platform_and_footprint_and_the_terrain
         for layer in ("beam footprint", "platform", "platform track"):
             assert f"{layer}: {name}" in names, (layer, name, names)
     assert names[0] == "terrain (hills)"                  # under everything else
+    assert re.search(r"look \((%s)\): " % "|".join(sensors.values()), html)  # whose look
     data = _figure_json(html)
     plat = [t for t in data if str(t.get("name", "")).startswith("platform: ")]
     assert all(len(t["x"]["bdata"] if isinstance(t["x"], dict) else t["x"]) for t in plat)

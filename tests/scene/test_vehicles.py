@@ -411,7 +411,7 @@ def test_same_inputs_give_bit_identical_truth(default_map):
 
 def test_changing_one_vehicle_leaves_the_others_bit_identical(default_map):
     cfg = load_vehicles("default")
-    times = np.arange(0.0, 600.0, 0.5)
+    times = np.arange(0.0, 600.5, 0.5)        # up to the scene's last instant, included
     base = build_fleet(cfg, default_map, 42, 600.0, 1.0)
     other = load_vehicles("default")
     truck = next(v for v in other.vehicles if v.name == "truck-1")
@@ -431,6 +431,22 @@ def test_changing_one_vehicle_leaves_the_others_bit_identical(default_map):
             assert not np.array_equal(a["x_m"], b["x_m"], equal_nan=True)
         else:
             assert _equal(a, b), name
+
+
+def test_profiles_are_stepped_and_stored_for_each_trip_only(default_map):
+    """Cost and memory follow the trips: a profile's steps end at its arrival (or at the
+    scene's end, plus the one step that gives the last instant), not at the scene's end for
+    every vehicle."""
+    dur, dt = 3600.0, 0.5
+    rnd = RandomFleetSpec(count=60, start_time_max_s=dur - 300.0, min_route_m=200.0)
+    fl = fleet_of(default_map, random=rnd, duration_s=dur, dt_s=dt)
+    p = fl.profiles
+    t0 = fl.start_time_s                       # no convoys: one profile per vehicle
+    horizon = np.ceil((dur - t0) / dt - 1e-9).astype(int) + 1
+    with np.errstate(invalid="ignore"):      # the step in which it arrives is its last
+        arrival = np.ceil((fl.end_time_s - t0) / dt)
+    assert np.array_equal(p.n_steps_p, np.minimum(arrival, horizon))
+    assert p.n_steps_p.sum() < 0.2 * len(t0) * p.n_steps  # trips, not vehicles x scene steps
 
 
 def test_random_fleet_on_the_largest_component(square_map):

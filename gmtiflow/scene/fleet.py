@@ -1,0 +1,205 @@
+"""The truth of a built fleet: every vehicle's state at any instant, and ``/truth`` tables.
+
+:class:`Fleet` holds the routes, the speed profiles (:mod:`.motion`, stored per trip) and the
+position noise (:mod:`.wander`) that :func:`gmtiflow.scene.vehicles.build_fleet` produced, and
+evaluates them exactly at any instant (``state_at``, vectorised over (time, vehicle) pairs).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from gmtiflow import frames
+from gmtiflow.scene import wander as wander_mod
+from gmtiflow.tables import Table
+
+
+# --------------------------------------------------------------------------------------------
+class Fleet:
+    """All vehicles of a scene; truth at any instant (``state_at``) and ``/truth`` tables."""
+
+    def __init__(self, vehicles, routes, prof, wander, t0, horizon_s, on, off, roadmap):
+        self._veh = vehicles
+        self._routes = routes
+        self.routes = [routes[v.route] for v in vehicles]
+        self.profiles = prof
+        self._w_knots, self._w_off, self._w_t0, self._w_h = wander
+        self.roadmap = roadmap
+        n = len(vehicles)
+        self._profile = np.asarray([v.profile for v in vehicles], dtype=np.int64)
+        self._route = np.asarray([v.route for v in vehicles], dtype=np.int64)
+        self._offset = np.asarray([v.offset_m for v in vehicles], dtype=float)
+        self._t0 = t0[self._profile] if n else np.zeros(0)
+        self._horizon = horizon_s[self._profile] if n else np.zeros(0)
+        self._on, self._off = on, off
+        #: Time each vehicle appears and reaches its end (inf: not within the simulated time).
+        self.start_time_s = self._t0 + on
+        self.end_time_s = self._t0 + off
+        self.vehicles: Table = {
+            "vehicle_id": np.arange(n, dtype=np.int64),
+            "name": np.asarray([v.name for v in vehicles], dtype=str),
+            "convoy_id": np.asarray([v.convoy_id for v in vehicles], dtype=np.int64),
+            "vehicle_type": np.asarray([v.type for v in vehicles], dtype=str),
+            "start_time_s": self.start_time_s.copy(),
+            "route_length_m": np.asarray([routes[v.route].length_m for v in vehicles], float),
+            "off_road": np.asarray([v.off_road for v in vehicles], dtype=bool),
+        }
+        # Flat route arrays for vectorised look-ups: key = s + route * span is sorted.
+        self._span = float(2.0 ** np.ceil(np.log2(max([r.length_m for r in routes] + [1.0])
+                                                  * 2.0 + 2.0)))
+        self._vx_off = np.concatenate([[0], np.cumsum([len(r.s_m) for r in routes],
+                                                      dtype=np.int64)]).astype(np.int64)
+        self._vx_xyz = np.concatenate([r.xyz_m for r in routes]) if routes else np.zeros((0, 3))
+        self._vx_s = np.concatenate([r.s_m for r in routes]) if routes else np.zeros(0)
+        pad = lambda a, fill: np.concatenate([a, [fill]])  # noqa: E731
+        self._seg_edge = (np.concatenate([pad(r.edge_id, -1) for r in routes])
+                          if routes else np.zeros(0, np.int64))
+        self._seg_inv = (np.concatenate([pad(r.invisible, False) for r in routes])
+                         if routes else np.zeros(0, bool))
+        route_of_vx = np.repeat(np.arange(len(routes)), np.diff(self._vx_off))
+        self._vx_key = self._vx_s + route_of_vx * self._span
+        # Road-frame heading per segment (indexed by its first vertex) and the corner blend
+        # (half-width, turn) per vertex, for the wander's smoothly turning frame.
+        psi, blend, turn = [], [], []
+        for r in routes:
+            h = wander_mod.segment_headings(r.xyz_m)
+            b, t = wander_mod.corner_blends(r.s_m, h)
+            psi.append(pad(h, h[-1] if len(h) else 0.0))
+            blend.append(b)
+            turn.append(t)
+        self._seg_psi = np.concatenate(psi) if routes else np.zeros(0)
+        self._vx_blend = np.concatenate(blend) if routes else np.zeros(0)
+        self._vx_turn = np.concatenate(turn) if routes else np.zeros(0)
+
+    @property
+    def n_vehicles(self) -> int:
+        return len(self._veh)
+
+    def state_at(self, time_s, vehicle_id) -> Table:
+        """Truth of ``vehicle_id[i]`` at ``time_s[i]`` (broadcast): /truth columns + ``active``.
+
+        ``active`` is False before the vehicle appears, from its arrival on, and after the
+        simulated horizon (the profile grid covers at least ``duration_s``); inactive rows hold
+        NaN, -1 ids, mode 255 and invisible False.
+        """
+        t, vid = np.broadcast_arrays(np.asarray(time_s, dtype=float),
+                                     np.asarray(vehicle_id, dtype=np.int64))
+        shape = t.shape
+        t = t.ravel()
+        vid = vid.ravel()
+        n = t.size
+        valid = (vid >= 0) & (vid < self.n_vehicles)
+        vs = np.where(valid, vid, 0)
+        out = _empty_truth(n)
+        out["time_s"] = t.copy()
+        out["vehicle_id"] = vid.copy()
+        if self.n_vehicles == 0:
+            out["active"] = np.zeros(n, bool)
+            return {k: c.reshape(shape) for k, c in out.items()}
+        tau = t - self._t0[vs]
+        active = (valid & (tau >= self._on[vs]) & (tau < self._off[vs])
+                  & (tau <= self._horizon[vs])
+                  & np.isfinite(t))
+        idx = np.flatnonzero(active)
+        out["active"] = active
+        out["convoy_id"] = np.where(valid, self.vehicles["convoy_id"][vs], -1)
+        if idx.size:
+            v_ids = vs[idx]
+            p = self._profile[v_ids]
+            s_p, speed, acc, mode = self.profiles.evaluate(tau[idx], p)
+            r = self._route[v_ids]
+            length = self._vx_s[self._vx_off[r + 1] - 1]
+            s = np.clip(s_p - self._offset[v_ids], 0.0, length)
+            # Segment under s; one correction step on each side absorbs rounding of the key.
+            j = np.searchsorted(self._vx_key, s + r * self._span, side="right") - 1
+            lo = self._vx_off[r]
+            hi = self._vx_off[r + 1] - 2
+            j = np.clip(j, lo, hi)
+            j = np.where((s < self._vx_s[j]) & (j > lo), j - 1, j)
+            j = np.where((s >= self._vx_s[j + 1]) & (j < hi), j + 1, j)
+            p0 = self._vx_xyz[j]
+            d = self._vx_xyz[j + 1] - p0
+            seg_len = self._vx_s[j + 1] - self._vx_s[j]
+            safe = np.where(seg_len > 0, seg_len, 1.0)
+            f = np.where(seg_len > 0, (s - self._vx_s[j]) / safe, 0.0)
+            unit = d / safe[:, None]
+            pos = p0 + f[:, None] * d
+            vel = speed[:, None] * unit
+            accel = acc[:, None] * unit
+            # Wander: a smooth process in continuous time, in a frame that turns smoothly
+            # through corners; its rates are added, so velocity = d/dt position exactly.
+            moving = np.flatnonzero(self._w_off[v_ids + 1] > self._w_off[v_ids])
+            if moving.size:
+                m_ids = v_ids[moving]
+                n, nd, ndd = wander_mod.evaluate(t[idx][moving], m_ids, self._w_knots,
+                                                 self._w_off, self._w_t0, self._w_h)
+                jm = j[moving]
+                psi, dpsi, d2psi = wander_mod.corner_heading(
+                    s[moving], self._vx_s[jm], self._vx_s[jm + 1], self._seg_psi[jm],
+                    self._vx_blend[jm], self._vx_turn[jm], self._vx_blend[jm + 1],
+                    self._vx_turn[jm + 1])
+                off, v_off, a_off = wander_mod.world_offset(n, nd, ndd, psi, dpsi, d2psi,
+                                                            speed[moving], acc[moving])
+                pos[moving] += off
+                vel[moving] += v_off
+                accel[moving] += a_off
+            out["x_m"][idx], out["y_m"][idx], out["z_m"][idx] = pos.T
+            out["vx_mps"][idx], out["vy_mps"][idx], out["vz_mps"][idx] = vel.T
+            out["ax_mps2"][idx], out["ay_mps2"][idx], out["az_mps2"][idx] = accel.T
+            out["speed_mps"][idx] = speed
+            out["heading_rad"][idx] = frames.heading_rad(unit[:, 0], unit[:, 1])
+            out["route_s_m"][idx] = s
+            out["edge_id"][idx] = self._seg_edge[j]
+            out["mode"][idx] = mode
+            out["invisible"][idx] = self._seg_inv[j]
+        return {k: c.reshape(shape) for k, c in out.items()}
+
+    def truth_table(self, times_s, chunk_rows: int = 500_000) -> Table:
+        """``/truth`` rows of the active vehicles at ``times_s``, sorted by time then vehicle.
+
+        Only the (time, vehicle) pairs within each vehicle's trip (one sample of margin on each
+        side, then the exact ``active`` test) are evaluated, so the cost is the rows written,
+        not vehicles x times."""
+        times = np.sort(np.asarray(times_s, dtype=float).ravel(), kind="stable")
+        n = self.n_vehicles
+        if n and len(times):
+            end = np.minimum(self.end_time_s, self._t0 + self._horizon)
+            i0 = np.maximum(np.searchsorted(times, self.start_time_s, side="left") - 1, 0)
+            i1 = np.minimum(np.searchsorted(times, end, side="right") + 1, len(times))
+            count = np.maximum(i1 - i0, 0)
+        else:
+            count = np.zeros(n, np.int64)
+        vid = np.repeat(np.arange(n, dtype=np.int64), count)
+        first = np.cumsum(count) - count
+        ti = np.arange(len(vid), dtype=np.int64) - np.repeat(first - i0[:n], count) \
+            if len(vid) else np.zeros(0, np.int64)
+        order = np.argsort(ti * max(n, 1) + vid, kind="stable")
+        vid, ti = vid[order], ti[order]
+        parts = []
+        for a in range(0, len(vid), chunk_rows):
+            st = self.state_at(times[ti[a:a + chunk_rows]], vid[a:a + chunk_rows])
+            mask = st.pop("active")
+            parts.append({k: c[mask] for k, c in st.items()})
+        if not parts:
+            st = self.state_at(np.zeros(0), np.zeros(0, np.int64))
+            st.pop("active")
+            return st
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+TRUTH_COLUMNS = ("time_s", "vehicle_id", "convoy_id", "x_m", "y_m", "z_m", "vx_mps", "vy_mps",
+                 "vz_mps", "ax_mps2", "ay_mps2", "az_mps2", "speed_mps", "heading_rad",
+                 "route_s_m", "edge_id", "mode", "invisible")
+
+
+def _empty_truth(n: int) -> Table:
+    out: Table = {}
+    for c in TRUTH_COLUMNS:
+        if c in ("vehicle_id", "convoy_id", "edge_id"):
+            out[c] = np.full(n, -1, dtype=np.int64)
+        elif c == "mode":
+            out[c] = np.full(n, 255, dtype=np.uint8)
+        elif c == "invisible":
+            out[c] = np.zeros(n, dtype=bool)
+        else:
+            out[c] = np.full(n, np.nan)
+    return out

@@ -1,0 +1,144 @@
+"""Steps 3-4 of a sensor chunk: visibility, SNR, the detection draw and the measurements.
+
+:func:`evaluate_block` takes the pairs of :func:`.pairs.select_pairs` for some vehicles over a
+chunk's revisits and returns their ``/detections`` and ``/looks`` rows (chunk-local det ids).
+Visibility in this order (the first failing test names the outcome): footprint and field of
+view (azimuth sector, elevation, slant range), invisible road, terrain line of sight (skipped
+entirely for a flat terrain); then SNR (:mod:`.gain`, :mod:`.snr`, :mod:`.rcs`), the Swerling-I
+detection draw (:mod:`.detect`), measurement errors (:mod:`.measurement`) and geolocation
+(:mod:`.geolocate`).  Draws are counter-based on (dwell_id, vehicle_id).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from gmtiflow import frames, rng
+from gmtiflow.sensor import (antenna, detect, gain, geolocate, measurement, scan, snr,
+                             visibility)
+from gmtiflow.sensor.context import SensorRun
+from gmtiflow.sensor.outcome import Outcome
+from gmtiflow.sensor.pairs import select_pairs
+from gmtiflow.sensor.poses import Poses
+
+
+def _azimuth(east, north):
+    """World azimuth clockwise from north in [0, 2π) (as frames.heading_rad, without np.mod)."""
+    a = np.arctan2(east, north)
+    a[a < 0] += 2.0 * np.pi
+    return a
+
+
+def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
+    """Detections and looks of some vehicles over the chunk's revisits (chunk-local det ids),
+    and the number of (dwell, target) pairs evaluated."""
+    cfg, sched, terrain, seed, origin = run.cfg, run.sched, run.terrain, run.seed, run.origin
+    rcs_models, type_codes, los_step_m = run.rcs_models, run.type_codes, run.los_step_m
+    dwell_ids = poses.dwell_ids
+    n_d = sched.n_dwells
+    instant = sched.instant
+    dl, veh, geo, n_eval = select_pairs(run, poses, vehicle_ids)
+    n = len(dl)
+    veh = veh.astype(np.int64)
+    rng_m, az, el, rr = (geo[k] for k in ("range_m", "az", "el", "rr"))
+    beam = sched.beam_scan_rad[dl % n_d]
+    dwell_id = dwell_ids[dl]
+    time_s = poses.time_s[dl]
+    true_az_world = _azimuth(geo["los_e"], geo["los_n"])
+    in_fp = geo["in_fp"]
+
+    # --- visibility: field of view, invisible road, terrain -------------------------------
+    outcome = np.full(n, Outcome.OUTSIDE_FOV, np.uint8)
+    fov = in_fp & visibility.in_field_of_view(cfg, az, el, rng_m)
+    invisible = geo["invisible"]
+    outcome[fov & invisible] = Outcome.INVISIBLE_ROAD
+    cand = fov & ~invisible
+    clear = np.zeros(n, bool)
+    ci = np.flatnonzero(cand)
+    p_ci = antenna.take(poses.pos, dl[ci])
+    t_ci = tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m"))
+    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor, poses.radius_m)
+    if not getattr(terrain, "flat", False):
+        cc = np.flatnonzero(clear[ci])
+        clear[ci[cc]] = visibility.terrain_clear(terrain, antenna.take(p_ci, cc),
+                                                 antenna.take(t_ci, cc), los_step_m,
+                                                 cfg.horizon_k_factor * poses.radius_m)
+    outcome[cand & ~clear] = Outcome.TERRAIN
+
+    # --- SNR and the Swerling-I draw for the visible pairs -------------------------------
+    vis = np.flatnonzero(cand & clear)
+    snr_db_col = np.full(n, np.nan)
+    pd_col = np.zeros(n)
+    det_local = np.full(n, -1, np.int64)
+    scan_angle = az[vis] if instant else beam[vis]
+    f_mis = 1.0 if instant else gain.mismatch(geo.at("sin_az", vis), np.sin(beam[vis]),
+                                              cfg.beamwidth_sine)
+    g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis)
+    mdv = poses.mdv[dl[vis]]
+    if cfg.stap:
+        own_rr = geo.at("own_rr", vis)                                 # ṙ − ṙ_MLC at the target
+    else:   # no STAP: the Doppler filter rejects the main-lobe clutter around the beam centre's
+        dv = dl[vis]
+        l_bc = antenna.direction(scan_angle, el[vis], antenna.take(poses.b, dv),
+                                 antenna.take(poses.h, dv), antenna.take(poses.u, dv))
+        own_rr = rr[vis] + antenna.dot(antenna.take(poses.vel, dv), l_bc)
+    if cfg.stap:
+        g_r = g_t * gain.stap_notch(own_rr, mdv, cfg.blind_speed_mps)
+    else:
+        g_r = g_t * gain.clutter_band_gain(own_rr, mdv, cfg.blind_speed_mps)
+    rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo.at("heading_rad", vis),
+                                geo.at("los_e", vis), geo.at("los_n", vis))
+    s_db = snr.snr_db(cfg, rng_m[vis], g_t, g_r, rcs_v)
+    s_lin = snr.db_to_linear(s_db)
+    lpd = detect.log_pd(s_lin, cfg.pfa)
+    uni = rng.pair_uniform(rng.counter_key(seed, "sensor", "pd"), dwell_id[vis], veh[vis])
+    hit = np.log(uni) < lpd
+    snr_db_col[vis] = s_db
+    pd_col[vis] = np.exp(lpd)
+    miss = vis[~hit]
+    blind = np.abs(gain.blind_offset(own_rr[~hit], cfg.blind_speed_mps)) < mdv[~hit]
+    outcome[miss] = np.where(blind, Outcome.DOPPLER_BLIND, Outcome.PD_MISS)
+
+    # --- detections: reported SNR, errors, geolocation ----------------------------------
+    d = vis[hit]
+    k = d.size
+    outcome[d] = Outcome.DETECTED
+    det_local[d] = np.arange(k)
+    snr_rep = detect.reported_snr(uni[hit], s_lin[hit])
+    bw_rad = scan.broadened_beamwidth_rad(cfg, scan_angle[hit])
+    s_r, s_az, s_rr = measurement.sigmas(cfg, snr_rep, bw_rad)
+    e_r, e_az, e_rr = measurement.draw_errors(seed, dwell_id[d], veh[d], s_r, s_az, s_rr)
+    r_meas = np.maximum(rng_m[d] + e_r, 0.0)
+    az_meas = az[d] + e_az
+    dd = dl[d]
+    ppd = antenna.take(poses.pos, dd)
+    ground, _, _ = geolocate.geolocate(ppd, r_meas, az_meas, antenna.take(poses.b, dd),
+                                       antenna.take(poses.h, dd), antenna.take(poses.u, dd),
+                                       terrain, radius_m=poses.radius_m)
+    lat, lon, hgt = frames.enu_to_geodetic(origin, *ground)
+    detections = {
+        "det_id": np.arange(k, dtype=np.int64),
+        "dwell_id": dwell_id[d],
+        "time_s": time_s[d],
+        "range_m": r_meas,
+        "azimuth_rad": _azimuth(ground[0] - ppd[0], ground[1] - ppd[1]),
+        "range_rate_mps": rr[d] + e_rr,
+        "true_range_m": rng_m[d],
+        "true_azimuth_rad": true_az_world[d],
+        "true_range_rate_mps": rr[d],
+        "snr_db": 10.0 * np.log10(snr_rep),
+        "sigma_range_m": s_r, "sigma_azimuth_rad": s_az, "sigma_range_rate_mps": s_rr,
+        "x_m": ground[0], "y_m": ground[1], "z_m": ground[2],
+        "lat_deg": np.atleast_1d(lat), "lon_deg": np.atleast_1d(lon),
+        "height_m": np.atleast_1d(hgt),
+        "truth_id": veh[d],
+        "merged": np.zeros(k, bool), "range_folded": np.zeros(k, bool),
+        "doppler_wrapped": np.zeros(k, bool), "implausible": np.zeros(k, bool),
+        "rcs_dbsm": rcs_v[hit],
+        "wrap_velocity_mps": np.full(k, cfg.wrap_velocity_mps),
+    }
+    looks = {
+        "dwell_id": dwell_id, "vehicle_id": veh, "time_s": time_s,
+        "outcome": outcome, "snr_db": snr_db_col, "pd": pd_col, "range_m": rng_m,
+        "azimuth_rad": true_az_world, "range_rate_mps": rr, "det_id": det_local,
+    }
+    return detections, looks, n_eval

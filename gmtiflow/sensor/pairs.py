@@ -1,0 +1,281 @@
+"""Step 2 of a sensor chunk: which (dwell, target) pairs to evaluate, and their geometry.
+
+``dwell_resolved``: each active vehicle is paired with the dwells of its revisit whose beam
+centre is within ``footprint_beamwidths`` beamwidths of it in sine space (|sin az_t − sin az_b|
+≤ footprint · kλ/d_a, target in front of the antenna), its truth evaluated at each dwell's own
+time.  Candidate dwells come from every vehicle's position at the scan's middle dwell, widened
+by the most it can move in sine space during the scan; the exact test then runs at each
+candidate dwell's time.  A vehicle in no footprint gets one look row against the nearest dwell
+(smallest sine-space distance).  ``instant_scan``: one pair per active vehicle and revisit, at
+the scan's middle instant, booked against the nearest dwell.  :func:`select_pairs` returns the
+looks of a chunk ordered by (dwell, vehicle) with their geometry (:class:`Rows`).
+"""
+from __future__ import annotations
+
+from typing import Dict
+
+import numpy as np
+
+from gmtiflow.sensor import antenna, geometry
+from gmtiflow.sensor.context import SensorRun
+from gmtiflow.sensor.poses import Poses
+from gmtiflow.tables import Table
+
+
+def _xyz(state: Table):
+    return tuple(np.asarray(state[k], float) for k in ("x_m", "y_m", "z_m"))
+
+
+def _vel(state: Table):
+    return tuple(np.asarray(state[k], float) for k in ("vx_mps", "vy_mps", "vz_mps"))
+
+
+def _nearest_beam(u_beam, s):
+    """Index of the beam centre nearest to sine coordinates ``s`` (ties to the lower index)."""
+    n = len(u_beam)
+    if n == 1:
+        return np.zeros(len(s), np.int64)
+    right = np.clip(np.searchsorted(u_beam, s), 1, n - 1)
+    left_closer = np.abs(u_beam[right - 1] - s) <= np.abs(u_beam[right] - s)
+    return np.where(left_closer, right - 1, right)
+
+
+def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
+    """Every vehicle at one reference dwell per revisit: the middle one (its time, its pose).
+
+    Returns the vehicles' state there, the reference dwells (chunk-local), the vehicle ids,
+    activity, slant range and sine coordinate per (revisit, vehicle), revisit-major.  Only
+    what the candidate search needs is computed, broadcasting each revisit's pose over its
+    vehicles instead of gathering it.
+    """
+    sched, fleet, n_rev = run.sched, run.fleet, poses.n_rev
+    n_d = sched.n_dwells
+    n_v = len(vehicle_ids)
+    ref = np.arange(n_rev) * n_d + n_d // 2
+    d_rep = np.repeat(ref, n_v)
+    v_rep = np.tile(vehicle_ids, n_rev)
+    st = fleet.state_at(poses.time_s[d_rep], v_rep)
+    active = np.asarray(st["active"], bool)
+    xyz = [(c if np.all(active) else np.where(active, c, 0.0)).reshape(n_rev, n_v)
+           for c in _xyz(st)]
+    d, _ = geometry.offsets(tuple(c[ref][:, None] for c in poses.pos), xyz, poses.radius_m)
+    b = [c[ref][:, None] for c in poses.b]
+    h = [c[ref][:, None] for c in poses.h]
+    lb = d[0] * b[0] + d[1] * b[1] + d[2] * b[2]
+    lh = d[0] * h[0] + d[1] * h[1] + d[2] * h[2]
+    rng_m = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).ravel()
+    horiz = np.hypot(lb, lh)
+    sin_az = np.divide(lh, horiz, out=np.zeros_like(lh), where=horiz > 0)
+    # behind the antenna: beyond every beam, on the side it is turned to
+    s = np.where(lb > 0, sin_az, np.where(lh >= 0, 2.0, -2.0)).ravel()
+    return st, d_rep, v_rep, active, rng_m, s
+
+
+def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
+    """Candidate (chunk-local dwell, vehicle) pairs, grouped by (revisit, vehicle), dwells
+    ascending within a group.  Returns ``(dwell_local, vehicle_id, group)``.
+
+    A vehicle's sine coordinate is taken at the scan's middle dwell; over the scan it moves by
+    at most (|v_p| + |v_t|)·Δt / R plus the antenna's rotation (turns), which widens the
+    window of candidate beams.  The exact footprint test runs later at each dwell's time.
+
+    Also returns, per group, whether the vehicle is active at the middle dwell (``mid_active``)
+    and that dwell (``mid_dwell``), so a vehicle that leaves or appears mid-scan and is inactive
+    at all its candidate dwells still gets its one look row (at the middle dwell).
+    """
+    cfg, sched, n_rev = run.cfg, run.sched, poses.n_rev
+    n_d = sched.n_dwells
+    n_v = len(vehicle_ids)
+    u_beam = np.sin(sched.beam_scan_rad)
+    bw = cfg.beamwidth_sine
+    st, d_ref, v_rep, active, rng_m, s = _coarse(run, poses, vehicle_ids)
+    # motion margin
+    dt = float(np.max(np.abs(sched.time_offset_s - sched.time_offset_s[n_d // 2])))
+    vp = np.sqrt(antenna.dot(poses.vel, poses.vel))
+    bx, by, bz = (c.reshape(n_rev, n_d) for c in poses.b)
+    mid = n_d // 2
+    cosang = bx * bx[:, mid:mid + 1] + by * by[:, mid:mid + 1] + bz * bz[:, mid:mid + 1]
+    rot = np.arccos(np.clip(cosang, -1.0, 1.0)).max(axis=1)          # per revisit
+    vt = np.hypot(np.hypot(np.nan_to_num(np.asarray(st["vx_mps"], float)),
+                           np.nan_to_num(np.asarray(st["vy_mps"], float))),
+                  np.nan_to_num(np.asarray(st["vz_mps"], float)))
+    move = (vp[d_ref] + vt) * dt
+    margin = move / np.maximum(rng_m - move, 1.0) + np.repeat(rot, n_v) + 0.02 * bw
+    w = cfg.footprint_beamwidths * bw + margin
+    rev = np.repeat(np.arange(n_rev), n_v)
+    mid_active = active
+    if not np.all(active):
+        # a vehicle inactive at the middle may still be active at one end of the scan
+        keep = active | _active_at_ends(run, poses, v_rep, rev)
+        s, w, rev, v_rep = s[keep], w[keep], rev[keep], v_rep[keep]
+        s = np.where(active[keep], s, 0.0)
+        w = np.where(active[keep], w, 2.0)     # unknown position: try every beam
+        mid_active = active[keep]
+    # beams are uniform in sine space, u_i = u_0 + i Δ: index arithmetic instead of a search
+    # (a candidate window one beam too wide costs nothing: the exact test follows)
+    if n_d > 1:
+        step = u_beam[1] - u_beam[0]
+        lo = np.clip(np.ceil((s - w - u_beam[0]) / step - 1e-9), 0, n_d).astype(np.int64)
+        hi = np.clip(np.floor((s + w - u_beam[0]) / step + 1e-9) + 1, 0, n_d).astype(np.int64)
+    else:
+        lo = np.where(np.abs(s - u_beam[0]) <= w, 0, 1)
+        hi = np.ones_like(lo)
+    none = np.flatnonzero(hi <= lo)
+    lo[none] = _nearest_beam(u_beam, s[none])
+    count = hi - lo
+    count[none] = 1
+    total = int(count.sum())
+    group = np.repeat(np.arange(len(lo)), count)
+    starts = np.cumsum(count) - count
+    within = np.arange(total) - starts[group]
+    dwell_local = rev[group] * n_d + lo[group] + within
+    return dwell_local, v_rep[group], group, mid_active, rev * n_d + n_d // 2
+
+
+def _active_at_ends(run: SensorRun, poses: Poses, v_rep, rev):
+    n_d, fleet = run.sched.n_dwells, run.fleet
+    out = np.zeros(len(v_rep), bool)
+    for k in (0, n_d - 1):
+        st = fleet.state_at(poses.time_s[rev * n_d + k], v_rep)
+        out |= np.asarray(st["active"], bool)
+    return out
+
+
+def _first_in_group(group, mask):
+    """Mask of the first True of ``mask`` in each (sorted, contiguous) group."""
+    idx = np.flatnonzero(mask)
+    out = np.zeros(len(mask), bool)
+    if idx.size == 0:
+        return out
+    g = group[idx]
+    first = np.ones(idx.size, bool)
+    first[1:] = g[1:] != g[:-1]
+    out[idx[first]] = True
+    return out
+
+
+
+_STATE = ("active", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "heading_rad",
+          "invisible")   # the truth columns the sensor reads
+
+
+def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
+    """Geometry of (dwell, target) pairs: the pose of chunk-local dwell ``dl`` and the target
+    state ``st`` (inactive targets get a harmless position, never NaN)."""
+    active = np.asarray(st["active"], bool)
+    pos_t = _xyz(st)
+    vel_t = _vel(st)
+    if not np.all(active):
+        pos_t = tuple(np.where(active, c, 0.0) for c in pos_t)
+        vel_t = tuple(np.where(active, c, 0.0) for c in vel_t)
+    plat = antenna.take(poses.pos, dl)
+    rng_m, los, los_t = geometry.lines_of_sight(plat, pos_t, poses.radius_m)
+    az, el, sin_az, lb = antenna.target_angles(los, antenna.take(poses.b, dl),
+                                               antenna.take(poses.h, dl),
+                                               antenna.take(poses.u, dl))
+    # ṙ − ṙ_MLC: the target's velocity (its own local frame) on the LOS seen there
+    own_rr = antenna.dot(geometry.true_velocity(vel_t, pos_t[2], poses.radius_m), los_t)
+    vel_p = geometry.true_velocity(antenna.take(poses.vel, dl), plat[2], poses.radius_m)
+    rr = own_rr + geometry.clutter_range_rate(vel_p, los)   # ṙ
+    return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],
+            "az": az, "el": el, "sin_az": sin_az, "lb": lb, "own_rr": own_rr,
+            "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2],
+            "heading_rad": np.asarray(st["heading_rad"], float),
+            "invisible": np.asarray(st["invisible"], bool)}
+
+
+def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
+    """The looks of a chunk ordered by (dwell, vehicle): ``(dwell_local, vehicle, geometry)``,
+    and the number of (dwell, target) pairs evaluated."""
+    cfg, sched, fleet = run.cfg, run.sched, run.fleet
+    n_d = sched.n_dwells
+    u_beam_all = np.sin(sched.beam_scan_rad)
+    if sched.instant:
+        st, d_ref, veh, active, _, s = _coarse(run, poses, vehicle_ids)
+        dl = d_ref - n_d // 2 + _nearest_beam(u_beam_all, s)
+        sel = np.flatnonzero(active)
+        n_eval = len(sel)
+        # all dwells of an instant scan share one time and pose: the reference's geometry holds
+        geo = _pair_geometry(poses, d_ref[sel], {k: np.asarray(st[k])[sel] for k in _STATE})
+        geo["in_fp"] = geo["lb"] > 0        # the beam is on the target, if it is in front
+        dl, veh = dl[sel], veh[sel]
+        sel = np.arange(len(dl))
+    else:
+        dl, veh, group, mid_active, mid_dwell = _candidate_pairs(run, poses,
+                                                                 vehicle_ids)
+        n_eval = len(dl)
+        geo = _pair_geometry(poses, dl, fleet.state_at(poses.time_s[dl], veh))
+        active = geo["active"]
+        sel = np.zeros(0, np.int64)
+        extra = False
+        if group.size:
+            # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps
+            # one row: its first candidate of least sine-space distance (the nearest dwell)
+            starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+            gidx = np.cumsum(np.r_[False, group[1:] != group[:-1]])
+            g_active = np.logical_or.reduceat(active, starts)
+            # active at the middle dwell but at none of its candidate dwells (it left or
+            # appeared mid-scan): one more candidate, the middle dwell itself
+            lost = np.flatnonzero(~g_active & mid_active[group[starts]])
+            if lost.size:
+                extra = True
+                g_lost = group[starts[lost]]
+                dl_x, veh_x = mid_dwell[g_lost], veh[starts[lost]]
+                geo_x = _pair_geometry(poses, dl_x, fleet.state_at(poses.time_s[dl_x], veh_x))
+                n_eval += lost.size
+                geo = {k: np.concatenate([v, geo_x[k]]) for k, v in geo.items()}
+                dl, veh = np.concatenate([dl, dl_x]), np.concatenate([veh, veh_x])
+                gidx = np.concatenate([gidx, lost])
+                active = geo["active"]
+                g_active[lost] = active[-lost.size:]
+            dist = np.where((geo["lb"] > 0) & active,
+                            np.abs(geo["sin_az"] - u_beam_all[dl % n_d]), 1e300)
+            in_fp = dist <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12)
+            if extra:     # the extra rows sit after every group: unbuffered group reductions
+                any_fp = np.zeros(len(starts), bool)
+                np.logical_or.at(any_fp, gidx, in_fp)
+                gmin = np.full(len(starts), np.inf)
+                np.minimum.at(gmin, gidx, dist)
+            else:
+                any_fp = np.logical_or.reduceat(in_fp, starts)
+                gmin = np.minimum.reduceat(dist, starts)
+            is_min = active & (dist <= gmin[gidx])
+            if extra:
+                first = np.zeros(len(dl), bool)
+                cand = np.flatnonzero(is_min)
+                _, first_of = np.unique(gidx[cand], return_index=True)
+                first[cand[first_of]] = True
+            else:
+                first = _first_in_group(gidx, is_min)
+            fallback = ~any_fp[gidx] & g_active[gidx] & first
+            sel = np.flatnonzero((in_fp & active) | fallback)
+            geo["in_fp"] = in_fp
+        else:
+            geo["in_fp"] = np.zeros(0, bool)
+    # candidates come grouped by (revisit, vehicle), dwells ascending: a stable sort on the
+    # dwell orders rows by (dwell, vehicle); int16 keys sort by radix
+    if sched.instant or not extra:
+        key = dl[sel]
+        key = key.astype(np.int16) if len(poses.time_s) < 32_000 else key
+        sel = sel[np.argsort(key, kind="stable")]
+    else:     # the extra middle-dwell rows come last: sort on (dwell, vehicle) explicitly
+        sel = sel[np.lexsort((veh[sel], dl[sel]))]
+    return dl[sel], veh[sel], Rows(geo, sel), n_eval
+
+
+class Rows:
+    """The selected rows of candidate-level columns, gathered only when (and where) used."""
+
+    def __init__(self, columns: Dict[str, np.ndarray], sel: np.ndarray):
+        self.columns, self.sel, self.cache = columns, sel, {}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self.cache:
+            self.cache[name] = self.columns[name][self.sel]
+        return self.cache[name]
+
+    def at(self, name: str, index: np.ndarray) -> np.ndarray:
+        """Column ``name`` at selected rows ``index`` (without gathering the others)."""
+        if name in self.cache:
+            return self.cache[name][index]
+        return self.columns[name][self.sel[index]]
