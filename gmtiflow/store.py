@@ -67,12 +67,12 @@ def required_columns() -> Dict[str, tuple]:
     """Columns every simulation run file of this layout has, per table: read off the writers'
     own column lists (imported lazily: the store sits below the stages)."""
     from gmtiflow.evaluate.events import EVENT_COLUMNS
-    from gmtiflow.evaluate.tracks import TRACK_COLUMNS
+    from gmtiflow.evaluate.tracks import REQUIRED_TRACK_COLUMNS
     from gmtiflow.formats.geojson import EDGE_COLUMNS, NODE_COLUMNS
     from gmtiflow.scene.fleet import TRUTH_COLUMNS
     from gmtiflow.sensor.model import DETECTION_COLUMNS, DWELL_COLUMNS, LOOK_COLUMNS
     return {"dwells": tuple(DWELL_COLUMNS), "detections": tuple(DETECTION_COLUMNS),
-            "looks": tuple(LOOK_COLUMNS), "tracks": tuple(TRACK_COLUMNS),
+            "looks": tuple(LOOK_COLUMNS), "tracks": REQUIRED_TRACK_COLUMNS,
             "truth": tuple(TRUTH_COLUMNS), "metrics/events": tuple(EVENT_COLUMNS),
             "roads/nodes": tuple(NODE_COLUMNS), "roads/edges": tuple(EDGE_COLUMNS),
             "platform": _PLATFORM_COLUMNS, "vehicles": _VEHICLE_COLUMNS,

@@ -25,9 +25,12 @@ from gmtiflow import frames
 from gmtiflow.errors import InputFileError
 from gmtiflow.tables import Table
 
-#: The columns of the tracks the baseline (and the Stone Soup trackers) write into /tracks.
+#: The columns of the tracks the baseline writes into /tracks (the Stone Soup trackers a subset).
 TRACK_COLUMNS = ("track_id", "time_s", "x_m", "y_m", "vx_mps", "vy_mps", "cov_xx_m2",
                  "cov_xy_m2", "cov_yy_m2", "range_rate_mps", "confirmed")
+#: The columns every /tracks table of a run has (a tracker of the protocol may report only
+#: these; the store requires them when reading a run file).
+REQUIRED_TRACK_COLUMNS = ("track_id", "time_s", "x_m", "y_m")
 
 GROUPS = (("vx_mps", "vy_mps"), ("cov_xx_m2", "cov_xy_m2", "cov_yy_m2"))
 SINGLE_OPTIONAL = ("range_rate_mps", "confirmed", "z_m")

@@ -83,3 +83,22 @@ def test_empty_table_is_fine():
     out = validate_tracks({"track_id": np.zeros(0), "time_s": np.zeros(0), "x_m": np.zeros(0),
                            "y_m": np.zeros(0)})
     assert len(out["track_id"]) == 0
+
+
+def test_a_run_file_with_a_trackers_own_columns_opens(tmp_path):
+    # The Stone Soup trackers report no range rate; their run files must read like any other
+    # (the benchmark collects them with require_columns).
+    from gmtiflow import store
+    tracks = {"track_id": np.array([1, 1]), "time_s": np.array([0.0, 5.0]),
+              "x_m": np.zeros(2), "y_m": np.ones(2), "confirmed": np.ones(2, bool)}
+    with store.RunWriter(tmp_path / "run.h5", seed=1) as w:
+        w.write_table("tracks", tracks)
+        path = w.commit()
+    with store.open_run(path, require_columns=True) as f:
+        assert "range_rate_mps" not in f["tracks"]
+    del tracks["x_m"]
+    with store.RunWriter(tmp_path / "bad.h5", seed=1) as w:
+        w.write_table("tracks", tracks)
+        bad = w.commit()
+    with pytest.raises(store.StoreError, match="lacks the column"):
+        store.open_run(bad, require_columns=True).close()
