@@ -181,37 +181,61 @@ def _coords(lat, lon, h):
             for a, b, c in zip(lon, lat, h if h is not None else [None] * len(lat))]
 
 
-def _road_features(nodes, edges) -> list[dict]:
+def _position_field(lat, lon, h, m) -> list:
+    """``lon,lat[,h]`` text of positions (no height where ``h`` is None or NaN)."""
+    out = [_json_field(np.asarray(lon, np.float64)), ",", _json_field(np.asarray(lat, np.float64))]
+    if h is not None:
+        h = np.asarray(h, np.float64)
+        fin = np.isfinite(h)
+        out += [_cells.literal(",", m).masked(fin), _cells.masked(_json_field(h), fin)]
+    return out
+
+
+def _props(table, columns, rows) -> list:
+    out: list = []
+    for c in columns:
+        if c in table:
+            out += [f",{json.dumps(c)}:", _json_field(np.asarray(table[c])[rows])]
+    return out
+
+
+def _road_blocks(nodes, edges) -> Iterator[bytes]:
+    """Point features of the road nodes, then LineString features of the edges (from-node to
+    to-node), a block at a time."""
     _need(nodes, ("node_id",) + _GEO[:2], "road nodes")
     nid = np.asarray(nodes["node_id"], dtype=np.int64)
-    index = {int(k): i for i, k in enumerate(nid.tolist())}
     lat = np.asarray(nodes["lat_deg"], float)
     lon = np.asarray(nodes["lon_deg"], float)
     h = np.asarray(nodes["height_m"], float) if "height_m" in nodes else None
-    feats = []
-    for i in range(len(nid)):
-        props = {"kind": "road_node"}
-        props.update({c: _num(np.asarray(nodes[c])[i]) for c in NODE_COLUMNS if c in nodes})
-        feats.append({"type": "Feature", "properties": props, "geometry": {
-            "type": "Point", "coordinates": _coords([lat[i]], [lon[i]], None if h is None else [h[i]])[0]}})
+    for a, b in _cells.row_chunks(len(nid), _ROWS):
+        r = np.arange(a, b)
+        yield _cells.join(['{"type":"Feature","properties":{"kind":"road_node"']
+                          + _props(nodes, NODE_COLUMNS, r)
+                          + ['},"geometry":{"type":"Point","coordinates":[']
+                          + _position_field(lat[r], lon[r], None if h is None else h[r], b - a)
+                          + ["]}},\n"], b - a)[:-2]
     if edges is None:
-        return feats
+        return
     _need(edges, ("edge_id", "from_node", "to_node"), "road edges")
     ne = n_rows(edges, "road edges")
-    for i in range(ne):
-        ends = []
-        for c in ("from_node", "to_node"):
-            k = int(np.asarray(edges[c])[i])
-            if k not in index:
-                raise ValueError(f"GeoJSON writer: road edge {i} refers to unknown node {k}")
-            ends.append(index[k])
-        props = {"kind": "road"}
-        props.update({c: _num(np.asarray(edges[c])[i]) for c in EDGE_COLUMNS if c in edges})
-        feats.append({"type": "Feature", "properties": props, "geometry": {
-            "type": "LineString",
-            "coordinates": _coords(lat[ends].tolist(), lon[ends].tolist(),
-                                   None if h is None else h[ends].tolist())}})
-    return feats
+    sorter = np.argsort(nid, kind="stable")
+    ends = []
+    for c in ("from_node", "to_node"):
+        k = np.asarray(edges[c], np.int64)
+        pos = np.minimum(np.searchsorted(nid[sorter], k), max(len(nid) - 1, 0))
+        bad = (len(nid) == 0) | (nid[sorter][pos] != k) if ne else np.zeros(0, bool)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"GeoJSON writer: road edge {i} refers to unknown node {k[i]}")
+        ends.append(sorter[pos])
+    for a, b in _cells.row_chunks(ne, _ROWS):
+        r, m = np.arange(a, b), b - a
+        f, t = ends[0][a:b], ends[1][a:b]
+        yield _cells.join(['{"type":"Feature","properties":{"kind":"road"'] + _props(
+            edges, EDGE_COLUMNS, r) + ['},"geometry":{"type":"LineString","coordinates":[[']
+            + _position_field(lat[f], lon[f], None if h is None else h[f], m) + ["],["]
+            + _position_field(lat[t], lon[t], None if h is None else h[t], m)
+            + ["]]}},\n"], m)[:-2]
 
 
 def _clutter_features(regions: Sequence[Mapping]) -> list[dict]:
@@ -273,7 +297,7 @@ def iter_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=Non
         if has_tracks:
             yield from _line_blocks(tracks, "track")
         if road_nodes is not None and n_rows(road_nodes, "road nodes"):
-            yield ",\n".join(dumps(f) for f in _road_features(road_nodes, road_edges)).encode()
+            yield from _road_blocks(road_nodes, road_edges)
         if clutter_regions:
             yield ",\n".join(dumps(f) for f in _clutter_features(clutter_regions)).encode()
 
