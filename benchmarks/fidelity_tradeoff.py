@@ -2,11 +2,14 @@
 
     python benchmarks/fidelity_tradeoff.py [--out DIR] [--seeds 1 2 3] [-- extra overrides]
 
-For every preset (fast, standard, full) and seed, the same scene runs end to end in this process
-(stage cache off, ``tracker=none``; metrics off) and is compared with the ``full`` run of the
-same seed:
+For every preset (fast, standard, full) and seed, the same scene runs in this process and is
+compared with the ``full`` run of the same seed.  What is timed is the simulation: truth, sensor
+with clutter and the run file; the tracker, the metrics, the report and the exports are off
+(``tracker=none metrics.enabled=false report=none export=none``; each has its own benchmark),
+stage cache off.  The presets alternate within each seed (fast, standard, full, fast, ...).
 
-* wall time of ``pipeline.run`` (mean over seeds, after one warm-up run);
+* wall and CPU time of ``pipeline.run`` (mean over seeds, after one warm-up run) and the
+  speed-up over ``full`` (ratio of the means);
 * truth position error (RMS and max over the (time, vehicle) rows both runs hold): what coarser
   motion steps change in the vehicles' paths (their speed noise is drawn per step);
 * truth position error with the vehicles' noise and random stops off (the same overrides
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 
@@ -33,7 +37,8 @@ SCENE = ["vehicles=random", "vehicles.random.count=200", "vehicles.random.start_
          "scene.duration_s=600", "clutter=urban"]
 NOISE_OFF = ["vehicles.random.speed_noise_mps=0", "vehicles.random.position_noise_m=[0.0,0.0,0.0]",
              "vehicles.random.random_stop_rate_per_s=0"]
-FIXED = ["tracker=none", "metrics.enabled=false", "cache.enabled=false", "progress=false"]
+FIXED = ["tracker=none", "metrics.enabled=false", "report=none", "export=none",
+         "cache.enabled=false", "progress=false"]
 
 
 def compose(overrides):
@@ -44,9 +49,9 @@ def compose(overrides):
 def one_run(preset, seed, out, extra):
     from gmtiflow import pipeline, store
     cfg = compose(SCENE + FIXED + [f"fidelity={preset}", f"seed={seed}", *extra])
-    start = time.perf_counter()
+    start, cpu0 = time.perf_counter(), time.process_time()
     path = pipeline.run(cfg, out / f"{preset}_{seed}")
-    wall = time.perf_counter() - start
+    wall = (time.perf_counter() - start, time.process_time() - cpu0)
     return wall, {t: store.read_table(path, t)
                   for t in ("truth", "detections", "looks", "dwells")}
 
@@ -96,17 +101,19 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    print(f"load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)")
     one_run("fast", args.seeds[0], out / "warmup", args.extra)      # imports, caches warm
     runs = {(p, s): one_run(p, s, out, args.extra) for s in args.seeds for p in PRESETS}
     quiet = {(p, s): one_run(p, s, out / "noise_off", args.extra + NOISE_OFF)[1]
              for s in args.seeds for p in PRESETS}
     rows = []
     for p in PRESETS:
-        walls, terr, tmax, st, dpd, ddet, qerr, qmax = [], [], [], [], [], [], [], []
+        walls, cpus, terr, tmax, st, dpd, ddet, qerr, qmax = [], [], [], [], [], [], [], [], []
         for s in args.seeds:
             wall, tab = runs[(p, s)]
             ref = runs[("full", s)][1]
-            walls.append(wall)
+            walls.append(wall[0])
+            cpus.append(wall[1])
             e_rms, e_max, _ = truth_error(tab["truth"], ref["truth"])
             terr.append(e_rms)
             tmax.append(e_max)
@@ -118,27 +125,29 @@ def main(argv=None) -> None:
             dpd.append(a["pd"] - r["pd"])
             ddet.append((a["n_target_det"] - r["n_target_det"]) / max(r["n_target_det"], 1))
         mean = lambda k: float(np.mean([x[k] for x in st]))  # noqa: E731
-        rows.append({"preset": p, "wall_s": float(np.mean(walls)),
+        rows.append({"preset": p, "wall_s": float(np.mean(walls)), "cpu_s": float(np.mean(cpus)),
                      "truth_rms_m": float(np.mean(terr)), "truth_max_m": float(np.max(tmax)),
                      "quiet_rms_m": float(np.mean(qerr)), "quiet_max_m": float(np.max(qmax)),
                      "n_target_det": mean("n_target_det"), "det_diff_pct": 100 * np.mean(ddet),
                      "pd": mean("pd"), "pd_diff": float(np.mean(dpd)),
                      "nerr_range": mean("nerr_range"), "nerr_az": mean("nerr_az"),
                      "nerr_rr": mean("nerr_rr"), "snr_mean_db": mean("snr_mean_db")})
-    full_wall = rows[-1]["wall_s"]
+    full_wall, full_cpu = rows[-1]["wall_s"], rows[-1]["cpu_s"]
     print(f"scene: {' '.join(SCENE + FIXED + args.extra)}; seeds {args.seeds}")
-    head = ("| preset | wall s | × full speed | truth err RMS / max (m) | same, noise off | "
+    head = ("| preset | wall s | CPU s | × full (wall / CPU) | truth err RMS / max (m) | same, noise off | "
             "target dets | Δdets vs full | scan P_D | ΔP_D | norm. err r / az / ṙ | "
             "mean SNR dB |")
     print(head)
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['preset']} | {r['wall_s']:.2f} | {full_wall / r['wall_s']:.1f} | "
+        print(f"| {r['preset']} | {r['wall_s']:.2f} | {r['cpu_s']:.2f} | "
+              f"{full_wall / r['wall_s']:.1f} / {full_cpu / r['cpu_s']:.1f} | "
               f"{r['truth_rms_m']:.1f} / {r['truth_max_m']:.1f} | "
               f"{r['quiet_rms_m']:.2f} / {r['quiet_max_m']:.2f} | {r['n_target_det']:.0f} | "
               f"{r['det_diff_pct']:+.1f} % | {r['pd']:.3f} | {r['pd_diff']:+.3f} | "
               f"{r['nerr_range']:.2f} / {r['nerr_az']:.2f} / {r['nerr_rr']:.2f} | "
               f"{r['snr_mean_db']:.1f} |")
+    print(f"load after: {os.getloadavg()[0]:.2f}")
     (out / "fidelity_tradeoff.json").write_text(json.dumps(rows, indent=1))
     import matplotlib
     matplotlib.use("Agg")

@@ -13,6 +13,14 @@ the steadier figure on a shared machine).  "pairs" are the (dwell, target) pairs
 geometry is evaluated exactly (the candidates of the footprint search, ~2 per vehicle and
 revisit here); "looks" the /looks rows kept; the coarse once-per-revisit pass over every
 vehicle is included in the time but not counted.
+
+``--plain`` also times a plain-numpy reference kernel on the same number of (dwell, target)
+pairs, given as flat arrays (platform and target position and velocity, antenna axes, beam):
+flat-earth range and line of sight, antenna angles, beam mismatch and scan loss, SNR, P_D, the
+counter-based detection draw and the three measurement-error draws; no tables, no candidate
+search, no round earth, no geolocation.  It is what one core does when only the per-pair
+arithmetic is left; the model's pairs per CPU second over it says how much the model's
+structure costs.  The two are alternated; both in pairs per CPU second.
 """
 from __future__ import annotations
 
@@ -80,6 +88,51 @@ class FlatTerrain:
         return np.ones(len(to_xyz), bool)
 
 
+def plain_kernel(cfg, plat, tgt, vel_p, vel_t, b, h, u, beam, dwell_id, veh_id, seed=1):
+    """The per-pair arithmetic alone (module doc): (hit, measured range, az, range rate)."""
+    from gmtiflow import rng
+    d = tgt - plat
+    r = np.sqrt(np.einsum("ij,ij->i", d, d))
+    los = d / r[:, None]
+    lb = np.einsum("ij,ij->i", los, b)
+    lh = np.einsum("ij,ij->i", los, h)
+    lu = np.einsum("ij,ij->i", los, u)
+    sin_az = lh / np.hypot(lb, lh)
+    az = np.arcsin(sin_az)
+    el = np.arcsin(lu)
+    x = (sin_az - np.sin(beam)) / cfg.beamwidth_sine
+    g = np.maximum(cfg.n_elements * np.cos(beam) ** 1.5 * np.exp(-2.772588722239781 * x * x),
+                   1e-30)
+    rr = np.einsum("ij,ij->i", vel_t - vel_p, los)
+    snr_db = 120.0 + 20.0 * np.log10(g) - 40.0 * np.log10(r) + 10.0 * np.log10(el * el + 1.0)
+    snr = 10.0 ** (snr_db / 10.0)
+    log_pd = np.log(cfg.pfa) / (1.0 + snr)
+    key = rng.counter_key(seed, "sensor", "pd")
+    hit = np.log(rng.pair_uniform(key, dwell_id, veh_id)) < log_pd
+    sig = 1.0 / np.sqrt(2.0 * snr)
+    e = [rng.pair_normal(rng.counter_key(seed, "sensor", k), dwell_id, veh_id) * sig
+         for k in ("error_range", "error_azimuth", "error_range_rate")]
+    return hit, r + 15.0 * e[0], az + 0.01 * e[1], rr + 0.5 * e[2]
+
+
+def plain_pairs(cfg, fleet, platform, duration_s, n_pairs, seed=0):
+    """``n_pairs`` pairs of the benchmark's scene as flat arrays (times spread over the scene,
+    random vehicles, the platform's antenna axes, a beam within the sector)."""
+    from gmtiflow.sensor import antenna
+    g = np.random.default_rng(seed)
+    t = g.uniform(0.0, duration_s, n_pairs)
+    vid = g.integers(0, len(fleet.vehicles["vehicle_id"]), n_pairs)
+    st = fleet.state_at(t, vid)
+    ps = platform.state_at(t)
+    b, h, u = antenna.antenna_axes(ps["heading_rad"], ps["pitch_rad"], ps["bank_rad"],
+                                   math.radians(cfg.mount_deg))
+    col = np.column_stack
+    return (col([ps["x_m"], ps["y_m"], ps["z_m"]]), col([st["x_m"], st["y_m"], st["z_m"]]),
+            col([ps["vx_mps"], ps["vy_mps"], ps["vz_mps"]]),
+            col([st["vx_mps"], st["vy_mps"], st["vz_mps"]]), col(b), col(h), col(u),
+            g.uniform(-0.15, 0.15, n_pairs), np.arange(n_pairs), vid)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--vehicles", type=int, nargs="+", default=[100, 10_000])
@@ -87,7 +140,10 @@ def main() -> None:
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--repeat", type=int, default=5, help="runs per case; the best is shown")
     ap.add_argument("--mode", default="dwell_resolved", choices=["dwell_resolved", "instant_scan"])
+    ap.add_argument("--plain", action="store_true", help="also time the plain-numpy kernel")
     args = ap.parse_args()
+    import os
+    print(f"load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)")
 
     cfg = OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(SensorConfig),
                                               OmegaConf.load(CONF)))
@@ -114,6 +170,21 @@ def main() -> None:
             print(f"{n:>9} {w:>7} {pairs:>9} {looks:>9} {dets:>8} {best:>8.3f} "
                   f"{pairs / best:>10.3g} {looks / best:>10.3g} {dets / best:>10.3g} "
                   f"{cpu:>8.3f} {pairs / cpu:>11.3g}")
+            if args.plain and w == 1:
+                arrays = plain_pairs(cfg, fleet, platform, args.duration, pairs)
+                p_cpu, m_cpu = math.inf, math.inf
+                for _ in range(args.repeat):      # alternated: plain kernel, model
+                    c0 = time.process_time()
+                    plain_kernel(cfg, *arrays)
+                    p_cpu = min(p_cpu, time.process_time() - c0)
+                    c0 = time.process_time()
+                    simulate(cfg, fleet, platform, FlatTerrain(), 1, args.duration, origin,
+                             dwell_mode=args.mode)
+                    m_cpu = min(m_cpu, time.process_time() - c0)
+                print(f"{'':>9} plain-numpy kernel on {pairs} pairs: {pairs / p_cpu:.3g} "
+                      f"pairs/cpu-s; model {pairs / m_cpu:.3g} pairs/cpu-s = "
+                      f"{p_cpu / m_cpu:.0%} of the plain kernel's rate")
+    print(f"load after: {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

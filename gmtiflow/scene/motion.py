@@ -438,6 +438,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
         "state": np.full(P, TRACK, dtype=np.int64), "wait_left": np.zeros(P, dtype=np.int64),
         "xi": np.zeros(P),
     }
+    points = len(inp.stop_m) > 0      # without stop points their logic is skipped
     block: Optional[tuple] = None
     rec = []
     from tqdm import tqdm     # imported here: start-up time of the CLI
@@ -460,27 +461,29 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
         release = stopped & (wait_left <= 0)
         state[release] = TRACK
         wait_left[stopped & ~release] -= 1
-        next_stop = np.where(stop_ptr < stop_end,
-                             stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)], np.inf)
-        dist = next_stop - s
         moving = state != STOPPED
         rand_stop = moving & (state == TRACK) & (v > 0) & (u_stop < act["p_stop"])
         state[rand_stop] = BRAKE_RANDOM
-        v_up = v + amax * dt
-        reach = s + v * dt + act["look_a"] + v_up * v_up / (2.0 * dmax) >= next_stop
-        b_rand = v * v / (2.0 * dmax)
-        to_point = (moving & (state != BRAKE_POINT) & reach & (dist > 0)
-                    & ~((state == BRAKE_RANDOM) & (b_rand < dist)))
-        # At rest within the start-up look-ahead of a stop point (it came to rest just short
-        # of it, e.g. by a random stop): that stop counts as made, it drives on.
-        served = to_point & (v <= 0.0)
-        if served.any():
-            stop_ptr[served] += 1
-            to_point &= ~served
+        if points:
             next_stop = np.where(stop_ptr < stop_end,
                                  stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)], np.inf)
             dist = next_stop - s
-        state[to_point] = BRAKE_POINT
+            v_up = v + amax * dt
+            reach = s + v * dt + act["look_a"] + v_up * v_up / (2.0 * dmax) >= next_stop
+            b_rand = v * v / (2.0 * dmax)
+            to_point = (moving & (state != BRAKE_POINT) & reach & (dist > 0)
+                        & ~((state == BRAKE_RANDOM) & (b_rand < dist)))
+            # At rest within the start-up look-ahead of a stop point (it came to rest just
+            # short of it, e.g. by a random stop): that stop counts as made, it drives on.
+            served = to_point & (v <= 0.0)
+            if served.any():
+                stop_ptr[served] += 1
+                to_point &= ~served
+                next_stop = np.where(stop_ptr < stop_end,
+                                     stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)],
+                                     np.inf)
+                dist = next_stop - s
+            state[to_point] = BRAKE_POINT
         # -- kinematics of the step
         n_act = len(s)
         a = np.zeros(n_act)
@@ -504,23 +507,31 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
         a = np.where(tr, a_tr, a)
         label = np.where(tr, np.where(raw > amax, MODE_ACCEL,
                                       np.where(raw < -dmax, MODE_DECEL, MODE_CRUISE)), label)
-        bp = state == BRAKE_POINT
         br = state == BRAKE_RANDOM
-        with np.errstate(divide="ignore", invalid="ignore"):
-            a_bp = np.where(dist > 0, -v * v / (2.0 * dist), 0.0)
-            t_bp = np.where(v > 0, 2.0 * dist / v, np.inf)
         t_br = v / dmax
-        a = np.where(bp, a_bp, np.where(br, -dmax, a))
-        t_stop = np.where(bp, t_bp, np.where(br, t_br, np.inf))
-        # A stop point reached up to rounding (the last braking step may leave ~1e-13 m/s and
-        # ~1e-12 m) counts as reached in this step.
-        stops = (bp | br) & (t_stop <= dt * (1.0 + 1e-9))
-        stops |= bp & (dist <= 1e-9)
+        if points:
+            bp = state == BRAKE_POINT
+            with np.errstate(divide="ignore", invalid="ignore"):
+                a_bp = np.where(dist > 0, -v * v / (2.0 * dist), 0.0)
+                t_bp = np.where(v > 0, 2.0 * dist / v, np.inf)
+            a = np.where(bp, a_bp, np.where(br, -dmax, a))
+            t_stop = np.where(bp, t_bp, np.where(br, t_br, np.inf))
+            # A stop point reached up to rounding (the last braking step may leave ~1e-13 m/s
+            # and ~1e-12 m) counts as reached in this step.
+            braking = bp | br
+            stops = braking & (t_stop <= dt * (1.0 + 1e-9))
+            stops |= bp & (dist <= 1e-9)
+        else:           # no stop points in the fleet: only random stops brake
+            a = np.where(br, -dmax, a)
+            t_stop = np.where(br, t_br, np.inf)
+            braking = br
+            stops = br & (t_stop <= dt * (1.0 + 1e-9))
         tau = np.where(stops, np.minimum(t_stop, dt), tau)
-        label = np.where(bp | br, MODE_DECEL, label)
+        label = np.where(braking, MODE_DECEL, label)
         v_end = np.where(stops, 0.0, np.maximum(v + a * tau, 0.0))
         s_end = s + v * tau + 0.5 * a * tau * tau + v_end * (dt - tau)
-        s_end = np.where(stops & bp, next_stop, s_end)
+        if points:
+            s_end = np.where(stops & bp, next_stop, s_end)
         free = np.zeros(n_act, bool)
         if k > 0:
             # free cruise from the free target c + σξ_k to c + σξ_{k+1}: the speed bridge
@@ -544,7 +555,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
             w = np.minimum(w, act["max_wait"][stops]).astype(np.int64)
             wait_left[stops] = w
             state[stops] = STOPPED
-            stop_ptr[stops & bp] += 1
+            if points:
+                stop_ptr[stops & bp] += 1
         rec.append((act["pid"], a, tau, label, s_end, v_end, free, sigma * xi))
         act["s"], act["v"] = s_end, v_end
         # -- profiles that are done or at their horizon leave the active set

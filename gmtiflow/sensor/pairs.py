@@ -169,13 +169,12 @@ def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
         pos_t = tuple(np.where(active, c, 0.0) for c in pos_t)
         vel_t = tuple(np.where(active, c, 0.0) for c in vel_t)
     plat = antenna.take(poses.pos, dl)
-    rng_m, los = geometry.line_of_sight(plat, pos_t, poses.radius_m)
+    rng_m, los, los_t = geometry.lines_of_sight(plat, pos_t, poses.radius_m)
     az, el, sin_az, lb = antenna.target_angles(los, antenna.take(poses.b, dl),
                                                antenna.take(poses.h, dl),
                                                antenna.take(poses.u, dl))
     # ṙ − ṙ_MLC: the target's velocity (its own local frame) on the LOS seen there
-    own_rr = antenna.dot(geometry.true_velocity(vel_t, pos_t[2], poses.radius_m),
-                         geometry.target_line_of_sight(plat, pos_t, poses.radius_m))
+    own_rr = antenna.dot(geometry.true_velocity(vel_t, pos_t[2], poses.radius_m), los_t)
     vel_p = geometry.true_velocity(antenna.take(poses.vel, dl), plat[2], poses.radius_m)
     rr = own_rr + geometry.clutter_range_rate(vel_p, los)   # ṙ
     return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],

@@ -1,0 +1,106 @@
+"""Run every benchmark whose figures docs/ quotes, and print each one's output with the date
+and the machine load (docs/scale.md, "Regenerating the figures").
+
+    python benchmarks/all.py [--quick] [--only NAME ...] [--list] [--out DIR]
+
+Each script runs in its own process, one after the other (never two at once: they would time
+each other), with its own arguments; ``--quick`` gives every script smaller arguments (fewer
+sizes, seeds and repeats: the same measurements, coarser) so that the whole set takes a few
+minutes, for checking that every figure still reproduces in order of magnitude.  The figures
+to quote are those of a full run on a quiet machine.  Before and after each script the UTC time
+and the 1-minute load average are printed; ratios from one script's run (A/B alternated inside
+it) are what count on a shared machine.  Output of each script also goes to ``--out``/NAME.txt.
+
+The table below (``BENCHMARKS``) names, for every script, the doc page that quotes it; a script
+that backs no figure in docs/ is not listed (``fuzz.py`` and ``config_extremes.py`` back the
+reliability tables through ``reliability_table.py``).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+# name: (doc page quoting it, full arguments, --quick arguments)
+BENCHMARKS = {
+    "scale": ("docs/scale.md", [], ["--quick"]),
+    "fidelity_tradeoff": ("docs/scale.md", [], ["--seeds", "1"]),
+    "stonesoup_peer": ("docs/scale.md", [], ["--quick"]),
+    "sweep_parallel": ("docs/scale.md", [], ["--jobs", "2"]),
+    "sensor_throughput": ("docs/sensor.md", [],
+                          ["--vehicles", "10000", "--workers", "1", "--repeat", "3"]),
+    "truth_throughput": ("docs/scene.md", [], ["--counts", "100", "1000", "--repeat", "1"]),
+    "effects_scaling": ("docs/effects.md", [],
+                        ["--sizes", "1000", "10000", "--densities", "1", "10", "--repeats", "1",
+                         "--pfas", "1e-5", "1e-4", "--fa-densities", "1", "10",
+                         "--fa-revisits", "5"]),
+    "terrain_los": ("docs/terrain.md", [], ["--rays", "10000", "--repeat", "1"]),
+    "export_throughput": ("docs/formats.md, docs/exports.md", [],
+                          ["--detections", "50000", "--dwells", "500", "--repeat", "1"]),
+    "read_4607_throughput": ("docs/formats.md", [], ["--packets", "100000", "--repeat", "1"]),
+    "metrics_throughput": ("docs/evaluation.md", [], []),
+    "tracker_protocol_overhead": ("docs/evaluation.md", [],
+                                  ["--vehicles", "200", "--duration-s", "120", "--repeats", "1"]),
+    "two_orbits": ("docs/evaluation.md", ["--seeds", "1", "2", "3"], ["--seeds", "1"]),
+    "report_time": ("docs/reports.md", [], ["--big", "100", "--repeat", "1"]),
+    "startup_time": ("README.md", [], ["--repeat", "2"]),
+    "reliability_table": ("docs/reliability.md", [],
+                          ["--fuzz-cases", "100", "--config-runs", "5"]),
+    "benchmark_suite": ("docs/benchmark.md", [], ["--quick"]),
+}
+#: Left out of --quick: they run whole tracker suites or sweeps of processes (minutes each).
+SLOW = {"benchmark_suite", "sweep_parallel", "reliability_table"}
+
+
+def stamp() -> str:
+    now = dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return f"{now}, load {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)"
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="smaller arguments; slow ones skipped")
+    ap.add_argument("--only", nargs="+", choices=sorted(BENCHMARKS), help="run just these")
+    ap.add_argument("--list", action="store_true", help="list the scripts and their docs")
+    ap.add_argument("--out", type=Path, default=Path("outputs/benchmarks/all"))
+    args = ap.parse_args(argv)
+    if args.list:
+        for name, (doc, full, quick) in BENCHMARKS.items():
+            print(f"{name:26s} {doc:36s} full: {' '.join(full) or '-'}   quick: "
+                  f"{'skipped' if name in SLOW else ' '.join(quick) or '-'}")
+        return
+    names = args.only or [n for n in BENCHMARKS if not (args.quick and n in SLOW)]
+    args.out.mkdir(parents=True, exist_ok=True)
+    print(f"benchmarks/all.py{' --quick' if args.quick else ''}: {len(names)} scripts; "
+          f"started {stamp()}", flush=True)
+    failed, t_all = [], time.perf_counter()
+    for name in names:
+        doc, full, quick = BENCHMARKS[name]
+        cmd = [sys.executable, str(HERE / f"{name}.py"), *(quick if args.quick else full)]
+        print(f"\n=== {name} (quoted in {doc}): {' '.join(cmd[1:])}\n    start {stamp()}",
+              flush=True)
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, capture_output=True, text=True,
+                              env={**os.environ, "PYTHONPATH": str(HERE.parent)})
+        text = proc.stdout + (proc.stderr[-2000:] if proc.returncode else "")
+        (args.out / f"{name}.txt").write_text(text)
+        print(text.rstrip())
+        print(f"    end   {stamp()}; {time.perf_counter() - t0:.1f} s"
+              + ("" if proc.returncode == 0 else f"; FAILED (exit {proc.returncode})"),
+              flush=True)
+        if proc.returncode:
+            failed.append(name)
+    print(f"\nall: {len(names) - len(failed)} of {len(names)} ran in "
+          f"{time.perf_counter() - t_all:.0f} s; finished {stamp()}"
+          + (f"; failed: {', '.join(failed)}" if failed else ""))
+    raise SystemExit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()

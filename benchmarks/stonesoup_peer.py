@@ -1,0 +1,164 @@
+"""gmtiflow against Stone Soup's own detection simulator on a matched workload (docs/scale.md).
+
+    python benchmarks/stonesoup_peer.py [--quick] [--targets 10 1000] [--scans 1800 120]
+
+Workload, the same for both: N targets present at every scan, S scans 5 s apart, about 10
+false alarms per scan, P_D about 0.9.
+
+* Stone Soup (the peer): ``MultiTargetGroundTruthSimulator`` (N pre-existing targets, constant
+  velocity, no births or deaths) feeding ``SimpleDetectionSimulator`` (linear position
+  measurement, P_D 0.9, clutter rate 10 per scan over the 10 km x 10 km surveillance area).
+* gmtiflow: the default scene and sensor, ``fidelity=fast`` (1 s motion steps, each scan at
+  one instant: Stone Soup's model has no dwells either), N off-road vehicles each driving laps
+  of its own 4 km x 2 km rectangle around the town for the whole scene (5 m/s), thermal-noise
+  false alarms at 10 per scan (``sensor.pfa`` set from the resolution cells), no clutter
+  regions; tracker, metrics, report and text exports off; run.h5 written.
+
+Both run in a fresh process each.  "sim" is the simulation alone (Stone Soup: building and
+iterating the simulators; gmtiflow: ``pipeline.run``, truth + sensor + run.h5, after its
+imports), "process" is the whole process from launch (imports and config included).  The figure compared is detections per second
+(target detections and false alarms): ratio = gmtiflow's / Stone Soup's.  ``--quick`` runs 10
+targets x 360 scans and 1,000 targets x 24 scans.  Prints the load before and after.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+REVISIT_S = 5.0
+FA_PER_SCAN = 10.0
+GOALS = {10: 50.0, 1000: 300.0}     # issue 18: simulation-only speed-up over the peer
+
+
+def stonesoup_child(n: int, scans: int) -> dict:
+    import datetime
+
+    import numpy as np
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.models.transition.linear import (CombinedLinearGaussianTransitionModel,
+                                                    ConstantVelocity)
+    from stonesoup.simulator.simple import (MultiTargetGroundTruthSimulator,
+                                            SimpleDetectionSimulator)
+    from stonesoup.types.state import GaussianState
+
+    start = time.perf_counter()
+    g = np.random.default_rng(1)
+    states = [np.array([[x], [vx], [y], [vy]])
+              for x, y, vx, vy in zip(g.uniform(-3000, 1000, n), g.uniform(-1500, 500, n),
+                                      g.uniform(-10, 10, n), g.uniform(-10, 10, n))]
+    truth = MultiTargetGroundTruthSimulator(
+        transition_model=CombinedLinearGaussianTransitionModel(
+            [ConstantVelocity(0.05), ConstantVelocity(0.05)]),
+        initial_state=GaussianState(np.zeros((4, 1)), np.diag([1e6, 100.0, 1e6, 100.0])),
+        timestep=datetime.timedelta(seconds=REVISIT_S), number_steps=scans, birth_rate=0.0,
+        death_probability=0.0, preexisting_states=states, initial_number_targets=0, seed=1)
+    detector = SimpleDetectionSimulator(
+        groundtruth=truth,
+        measurement_model=LinearGaussian(ndim_state=4, mapping=(0, 2),
+                                         noise_covar=np.diag([25.0, 25.0])),
+        meas_range=np.array([[-5000.0, 5000.0], [-5000.0, 5000.0]]),
+        detection_probability=0.9, clutter_rate=FA_PER_SCAN, seed=1)
+    n_det = n_scan = 0
+    for _, detections in detector:
+        n_det += len(detections)
+        n_scan += 1
+    return {"sim_s": time.perf_counter() - start, "detections": n_det, "scans": n_scan}
+
+
+def gmtiflow_child(n: int, scans: int, out: str) -> dict:
+    import numpy as np
+
+    from gmtiflow import pipeline
+    from gmtiflow.compose import compose
+    from gmtiflow.scene.vehicles import VehicleSpec, VehiclesConfig
+
+    duration = scans * REVISIT_S
+    base = ["fidelity=fast", "clutter=none", "tracker=none", "metrics.enabled=false",
+            "report=none", "export=none", "cache.enabled=false", "progress=false",
+            f"scene.duration_s={duration:g}"]
+    cfg = compose(base)
+    sensor = cfg.sensor.normalised()
+    per_scan = sensor.expected_false_alarms_per_dwell * sensor.n_dwells
+    cfg = compose(base + [f"sensor.pfa={sensor.pfa * FA_PER_SCAN / per_scan:.6g}"])
+    g = np.random.default_rng(1)
+    laps = int(np.ceil(duration * 5.0 / 12_000.0)) + 1     # 12 km laps at 5 m/s
+    specs = []
+    for i, (x, y) in enumerate(zip(g.uniform(-4000, -2000, n).tolist(),
+                                   g.uniform(-2500, -1500, n).tolist())):
+        corners = [[x, y], [x + 4000, y], [x + 4000, y + 2000], [x, y + 2000]]
+        specs.append(VehicleSpec(name=f"t{i:04d}", cruise_speed_mps=5.0,
+                                 off_road=corners * laps + [[x, y]],
+                                 position_noise_m=[0.0, 0.0, 0.0]))
+    cfg.vehicles = VehiclesConfig(vehicles=specs)
+    import gmtiflow.evaluate
+    gmtiflow.evaluate.track       # the lazy imports a run makes: in the process time, not sim
+    start = time.perf_counter()
+    path = pipeline.run(cfg, out)
+    sim = time.perf_counter() - start
+    import h5py
+    with h5py.File(path, "r") as f:
+        tid = f["detections"]["truth_id"][()]
+        dwells = f["dwells"]["revisit_id"][()]
+    return {"sim_s": sim, "detections": int(len(tid)), "false_alarms": int((tid < 0).sum()),
+            "scans": int(len(np.unique(dwells)))}
+
+
+def run_child(kind: str, n: int, scans: int, out: str) -> dict:
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, __file__, "--child", kind, str(n), str(scans), out],
+                          capture_output=True, text=True, env={**os.environ,
+                                                               "OMP_NUM_THREADS": "1"})
+    wall = time.perf_counter() - t0
+    if proc.returncode:
+        print(proc.stderr[-3000:], file=sys.stderr)
+        raise SystemExit(f"{kind} {n} x {scans} failed")
+    r = json.loads(proc.stdout.strip().splitlines()[-1])
+    r["process_s"] = wall
+    return r
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--targets", type=int, nargs="+", default=[10, 1000])
+    ap.add_argument("--scans", type=int, nargs="+", default=[1800, 120],
+                    help="scans per target count (same order)")
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--out", default="outputs/benchmarks/stonesoup_peer")
+    ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        kind, n, scans, out = args.child
+        fn = stonesoup_child if kind == "stonesoup" else gmtiflow_child
+        res = fn(int(n), int(scans)) if kind == "stonesoup" else fn(int(n), int(scans), out)
+        print(json.dumps(res))
+        return
+    scans = [360, 24] if args.quick else args.scans
+    print(f"load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)")
+    print(f"{'targets':>7} {'scans':>6} {'simulator':>10} {'detections':>10} {'sim s':>8} "
+          f"{'process s':>9} {'det/s sim':>10} {'det/s process':>13}")
+    for n, s in zip(args.targets, scans):
+        res = {}
+        for kind in ("stonesoup", "gmtiflow"):
+            r = run_child(kind, n, s, os.path.join(args.out, f"{n}_{s}"))
+            res[kind] = r
+            print(f"{n:7d} {s:6d} {kind:>10} {r['detections']:10d} {r['sim_s']:8.2f} "
+                  f"{r['process_s']:9.2f} {r['detections'] / r['sim_s']:10.3g} "
+                  f"{r['detections'] / r['process_s']:13.3g}", flush=True)
+        rate = {k: (v["detections"] / v["sim_s"], v["detections"] / v["process_s"])
+                for k, v in res.items()}
+        ratio_sim = rate["gmtiflow"][0] / rate["stonesoup"][0]
+        ratio_proc = rate["gmtiflow"][1] / rate["stonesoup"][1]
+        goal = GOALS.get(n)
+        print(f"  {n} targets: gmtiflow / Stone Soup detections per second: simulation "
+              f"{ratio_sim:.1f}x" + (f" (goal >= {goal:g}x)" if goal else "") +
+              f", whole process {ratio_proc:.1f}x; gmtiflow scans {res['gmtiflow']['scans']}, "
+              f"false alarms {res['gmtiflow']['false_alarms']}")
+    print(f"load after: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
