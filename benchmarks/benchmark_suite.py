@@ -9,6 +9,8 @@ CPU time, the machine's load before and after, and the summary table of bench_re
 Trackers: ``nn_kalman`` and ``nn_kalman_coast``, plus ``stonesoup_gnn``, ``stonesoup_jpda`` and
 ``stonesoup_gmphd`` when their configs are shipped and Stone Soup is installed.
 
+``--no-run --extra-sweep DIR`` joins other sweeps (a scenario or trackers run on their own) to
+the one in ``--out``: the verdict is built from all of them, paired by seed.
 ``--update-docs`` replaces the results section of docs/benchmark.md (between its
 ``<!-- bench-results -->`` markers) with this run's tables, command and load.  ``--figures DIR``
 writes one scene picture per scenario (seed 1, from the sweep's first tracker's runs) as
@@ -57,6 +59,9 @@ def main(argv=None) -> int:
     p.add_argument("--figures", type=Path, default=None)
     p.add_argument("--no-run", action="store_true",
                    help="reuse the sweep and run_info.txt an earlier run left in --out")
+    p.add_argument("--extra-sweep", type=Path, action="append", default=[],
+                   help="with --no-run: another sweep dir to join (e.g. a scenario or tracker "
+                        "run separately); the verdict pairs all of them by seed")
     args = p.parse_args(argv)
     trackers = args.trackers or ",".join(default_trackers())
     sweep = args.out / "sweep"
@@ -89,14 +94,21 @@ def main(argv=None) -> int:
 
 
 def report(args, sweep: Path, info: str, trackers: str) -> int:
-    md = (sweep / "bench_results.md").read_text()
+    sweeps = [sweep, *args.extra_sweep]
+    if args.extra_sweep:
+        from gmtiflow.bench.outputs import build
+        out = args.out / "combined"
+        md = build(sweeps, out)["md"].read_text()
+        print(f"verdict of {len(sweeps)} sweeps: {out}")
+    else:
+        md = (sweep / "bench_results.md").read_text()
     print(info)
     print(md)
     if args.figures:
         from gmtiflow.bench import collect
         from gmtiflow.bench.figures import save_scene_png
         first = trackers.split(",")[0]
-        for rec in collect.collect([sweep]):
+        for rec in collect.collect(sweeps):
             if rec.ok and rec.seed == 1 and rec.tracker == first:
                 print(save_scene_png(rec.dir / "run.h5", rec.scenario,
                                      args.figures / f"{rec.scenario}.png"))

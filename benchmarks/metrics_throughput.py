@@ -4,11 +4,21 @@
    one ``linear_sum_assignment`` per step on a broadcast cost matrix.
 2. The whole ``evaluate`` stage on the same sizes (OSPA/GOSPA + identity association + errors).
 3. The baseline tracker on 100 vehicles x 100 revisits (one dwell per revisit, light clutter).
+4. ``--scaling``: issue 18's targets.  The tracker on straight-road scenes of 10, 1k, 3k and
+   10k vehicles (60 revisits of 14 beams, 840 dwells; vehicles 300 m apart, so the plots per
+   dwell grow with the vehicles) and ``evaluate()`` on 300, 1k, 3k and 10k truths x as many
+   tracks x 60 steps at a fixed density (1 per km², the box grows with them): CPU seconds
+   (best of 2), the per-dwell cost at 10 vehicles (the fixed cost) and the log-log slopes
+   (target <= 1.1 from 1k to 10k, fixed cost <= 0.2 ms per dwell).  CPU time, not wall
+   time: the development machine is shared.
 
-Run:  PYTHONPATH=. python benchmarks/metrics_throughput.py
+Run:  PYTHONPATH=. python benchmarks/metrics_throughput.py [--scaling]
 """
 from __future__ import annotations
 
+import argparse
+import math
+import os
 import platform
 import time
 
@@ -21,19 +31,50 @@ from gmtiflow.evaluate.synthetic import straight_scene
 from gmtiflow.evaluate.tracker import track
 
 
-def best_of(fn, repeats=3):
+def best_of(fn, repeats=3, clock=time.perf_counter):
     times = []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = clock()
         result = fn()
-        times.append(time.perf_counter() - t0)
+        times.append(clock() - t0)
     return min(times), result
 
 
-def random_tables(n_truth=100, n_tracks=100, n_steps=1000, seed=0):
+def slope(sizes, seconds) -> float:
+    """The log-log slope between the first and the last size."""
+    return math.log(seconds[-1] / seconds[0]) / math.log(sizes[-1] / sizes[0])
+
+
+def scaling() -> None:
+    cpu = time.process_time
+    sizes, secs = (10, 1000, 3000, 10000), []
+    for n in sizes:
+        scene = straight_scene(n_vehicles=n, n_revisits=60, revisit_s=5.0, spacing_m=300.0,
+                               n_beams=14, seed=1)
+        n_dw, n_det = len(scene["dwells"]["dwell_id"]), len(scene["detections"]["dwell_id"])
+        sec, _ = best_of(lambda: track(TrackerConfig(), scene["detections"], scene["dwells"]),
+                         repeats=2, clock=cpu)
+        secs.append(sec)
+        print(f"tracker {n:6d} vehicles: {n_dw} dwells, {n_det:7d} detections: {sec:7.3f} s CPU "
+              f"({1e3 * sec / n_dw:.3f} ms per dwell)")
+    print(f"tracker log-log slope 1k -> 10k vehicles: {slope(sizes[1:], secs[1:]):.2f} "
+          f"(target <= 1.1); per-dwell cost at 10 vehicles {1e3 * secs[0] / n_dw:.3f} ms "
+          f"(target <= 0.2 ms)")
+    sizes, secs = (300, 1000, 3000, 10000), []
+    for n in sizes:
+        # a fixed density: 1 vehicle per km², as in the 100-truth case above
+        _, truth, tracks = random_tables(n, n, 60, extent_m=10000.0 * math.sqrt(n / 100))
+        sec, _ = best_of(lambda: evaluate(MetricsConfig(), truth, tracks), repeats=2, clock=cpu)
+        secs.append(sec)
+        print(f"evaluate() {n:5d} truths x {n} tracks x 60 steps: {sec:7.3f} s CPU")
+    print(f"evaluate() log-log slope 1k -> 10k truths: {slope(sizes[1:], secs[1:]):.2f} "
+          f"(target <= 1.1)")
+
+
+def random_tables(n_truth=100, n_tracks=100, n_steps=1000, seed=0, extent_m=10000.0):
     rng = np.random.default_rng(seed)
     grid = np.arange(float(n_steps))
-    pos0 = rng.uniform(0, 10000, (n_truth, 2))
+    pos0 = rng.uniform(0, extent_m, (n_truth, 2))
     vel = rng.normal(0, 10, (n_truth, 2))
     tt = np.repeat(grid, n_truth)
     vid = np.tile(np.arange(n_truth), n_steps)
@@ -49,8 +90,15 @@ def random_tables(n_truth=100, n_tracks=100, n_steps=1000, seed=0):
 
 
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scaling", action="store_true", help="the issue-18 scaling figures")
+    args = ap.parse_args()
     print(f"python {platform.python_version()}, numpy {np.__version__}, "
-          f"{platform.processor() or platform.machine()}")
+          f"{platform.processor() or platform.machine()}, load average "
+          f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())}")
+    if args.scaling:
+        scaling()
+        return
     grid, truth, tracks = random_tables()
     cfg = MetricsConfig()
     truth_at = align.truth_at_grid(truth, grid)

@@ -210,11 +210,19 @@ def receive_stream(args) -> Path:
         raise InputFileError(f"{args.input}: a live stream converts to HDF5 tables only (--to h5)")
     if args.output is None:
         raise InputFileError(f"{args.input}: give the output file with -o OUT.h5")
+    import math
+    if not (math.isfinite(args.idle_timeout) and args.idle_timeout > 0):
+        raise InputFileError(f"{args.input}: --idle-timeout must be a finite number of seconds "
+                             f"> 0, got {args.idle_timeout!r}")
+    if args.max_packets is not None and args.max_packets < 1:
+        raise InputFileError(f"{args.input}: --max-packets must be at least 1, got "
+                             f"{args.max_packets}")
     try:
         data = b"".join(live.receive(args.input, max_packets=args.max_packets,
                                      idle_timeout_s=args.idle_timeout))
     except ValueError as exc:
-        raise InputFileError(str(exc)) from None
+        msg = str(exc)       # name the address when the parser's message does not
+        raise InputFileError(msg if args.input in msg else f"{args.input}: {msg}") from None
     except OSError as exc:
         raise InputFileError(f"{args.input}: cannot listen: {exc.strerror or exc}") from None
     if not data:

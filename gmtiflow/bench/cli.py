@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import logging
+import math
 import subprocess
 import sys
 from datetime import datetime
@@ -96,15 +97,30 @@ def _finish(dirs, out, reference, commands, timeout) -> int:
     return 0
 
 
+def _check_numbers(parser: argparse.ArgumentParser, args) -> None:
+    """--jobs a whole number >= 1, --timeout a finite number of seconds > 0 (exit 2 otherwise,
+    before any sweep starts)."""
+    jobs = getattr(args, "jobs", 1)
+    if jobs < 1:
+        parser.error(f"--jobs must be at least 1, got {jobs}")
+    timeout = args.timeout
+    if not (math.isfinite(timeout) and timeout > 0):
+        parser.error(f"--timeout must be a finite number of seconds > 0, got {timeout!r}")
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     logging.basicConfig(level=logging.INFO, format=f"{PROG}: %(message)s")
     try:
         if argv[:1] == ["report"]:
-            args = _report_parser().parse_args(argv[1:])
+            parser = _report_parser()
+            args = parser.parse_args(argv[1:])
+            _check_numbers(parser, args)
             return _finish(args.dirs, args.out, args.reference, _commands(args.command),
                            args.timeout)
-        args = _parser().parse_args(argv)
+        parser = _parser()
+        args = parser.parse_args(argv)
+        _check_numbers(parser, args)
         commands = _commands(args.command)
         out = args.out or Path("outputs/bench") / datetime.now().strftime("%Y-%m-%d/%H-%M-%S")
         cmd = sweep_command(args, out)

@@ -11,8 +11,8 @@ distances and ``max_d`` = g, against which ``tests/evaluate/test_clearmot.py`` c
   with Euclidean distances).
 * **IDF1** = 2·IDTP / (GT + track-steps): IDTP is the number of steps at which a truth and the
   track it is matched with *for the whole run* are closer than g, with the one-to-one
-  truth↔track matching that maximises it (``linear_sum_assignment`` on the co-occurrence
-  counts); IDP = IDTP / track-steps, IDR = IDTP / GT.
+  truth↔track matching that maximises it (an optimal assignment on the co-occurrence counts,
+  per connected component of the co-occurring pairs); IDP = IDTP / track-steps, IDR = IDTP / GT.
 
 Pairs closer than g are found with one k-d tree over (x, y, step·4g) for all steps at once, so
 the cost is linear in rows (no per-step Python loop).
@@ -22,8 +22,10 @@ from __future__ import annotations
 from typing import Dict, Mapping
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
+
+from gmtiflow.evaluate.assignment import sparse_gated_assignment
+from gmtiflow.evaluate.identity import unique_pairs
 
 
 def _matched_distance(truth_at, tracks_at, assigned: np.ndarray) -> np.ndarray:
@@ -62,12 +64,15 @@ def idtp(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray]
     r, c = coo.row[close], coo.col[close]
     vid = np.asarray(truth_at["vehicle_id"], np.int64)[r]
     tid = np.asarray(tracks_at["track_id"], np.int64)[c]
-    uv, vi = np.unique(vid, return_inverse=True)
-    ut, ti = np.unique(tid, return_inverse=True)
-    counts = np.zeros((len(uv), len(ut)))
-    np.add.at(counts, (vi, ti), 1.0)
-    rr, cc = linear_sum_assignment(counts, maximize=True)
-    return int(counts[rr, cc].sum())
+    pairs, counts = unique_pairs(vid, tid, return_counts=True)
+    # maximise the matched co-occurrences: minimise −count, every pair "inside" a gate of 0;
+    # solved per connected component of the (vehicle, track) pairs (sparse, linear in them)
+    rr, cc = sparse_gated_assignment(pairs[:, 0], pairs[:, 1], -counts.astype(float), 0.0)
+    lo, span = pairs.min(axis=0), int(np.ptp(pairs[:, 1])) + 1
+
+    def key(v, t):      # the pairs' order (vehicle, then track) as one sortable integer
+        return (v - lo[0]) * span + (t - lo[1])
+    return int(counts[np.searchsorted(key(pairs[:, 0], pairs[:, 1]), key(rr, cc))].sum())
 
 
 def clear_mot(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],

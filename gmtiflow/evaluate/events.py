@@ -45,8 +45,12 @@ OUTCOME_DETECTED = 0
 BLIND_OUTCOMES = {2: "invisible_road", 3: "terrain", 4: "doppler_blind"}
 STOPPED = 2
 
-EVENT_COLUMNS = ("vehicle_id", "kind", "sensor_id", "start_s", "end_s", "duration_s",
-                 "track_before", "track_after", "id_kept", "reacquired", "reacq_delay_s")
+EVENT_COLUMNS = ("vehicle_id", "kind", "start_s", "end_s", "duration_s", "track_before",
+                 "track_after", "id_kept", "reacquired", "reacq_delay_s")
+"""The columns every /metrics/events table has (the store requires them when reading)."""
+OPTIONAL_COLUMNS = ("sensor_id",)
+"""Written since several sensors are scored per sensor; run files from before lack it (one
+sensor, every row fused)."""
 FUSED = -1
 """``sensor_id`` of stop events and of blind gaps in all sensors' looks together (fused)."""
 

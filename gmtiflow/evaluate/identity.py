@@ -52,49 +52,78 @@ def unique_pairs(a: np.ndarray, b: np.ndarray, return_counts: bool = False):
     return (pairs, counts) if return_counts else pairs
 
 
+#: Up to this many (truth, track) pairs a step is paired with one dense assignment; above,
+#: candidate pairs inside the gate come from a k-d tree and are assigned per connected
+#: component.  Both give the same association (the threshold only trades fixed cost for scaling).
+DENSE_PAIRS = 4096
+
+
 def associate(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
               n_steps: int, gate_m: float) -> np.ndarray:
     """Track id associated with every ``truth_at`` row (-1 when none), CLEAR-MOT style: a truth
     keeps its last track while that track is present and inside the gate; the rest are paired by
-    one optimal assignment per step (see the module docstring)."""
+    one optimal assignment per step (see the module docstring).  Vectorised over the truths and
+    tracks of a step; one Python iteration per step."""
     out = np.full(len(truth_at["step"]), -1, np.int64)
     tb = np.searchsorted(truth_at["step"], np.arange(n_steps + 1))
     kb = np.searchsorted(tracks_at["step"], np.arange(n_steps + 1))
     X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1)
     Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1)
     tid = np.asarray(tracks_at["track_id"], np.int64)
-    vid = np.asarray(truth_at["vehicle_id"], np.int64)
+    vehicles, vpos = np.unique(np.asarray(truth_at["vehicle_id"], np.int64), return_inverse=True)
     g2 = float(gate_m) ** 2
-    last: dict = {}                               # vehicle id -> last associated track id
+    last = np.full(len(vehicles), -1, np.int64)   # per vehicle: last associated track id
     for s in np.flatnonzero((np.diff(tb) > 0) & (np.diff(kb) > 0)):
         a, b, c, d = tb[s], tb[s + 1], kb[s], kb[s + 1]
-        D2 = ((X[a:b, None, 0] - Y[None, c:d, 0]) ** 2 + (X[a:b, None, 1] - Y[None, c:d, 1]) ** 2)
         ids = tid[c:d]
         free_r = np.ones(b - a, bool)
         free_k = np.ones(d - c, bool)
-        # Pass 1: keep still-valid correspondences, closest first when two truths claim a track.
-        keep = []
-        for r in range(b - a):
-            prev = last.get(int(vid[a + r]))
-            if prev is None:
-                continue
-            k = np.flatnonzero(ids == prev)
-            if len(k) and D2[r, k[0]] < g2:
-                keep.append((D2[r, k[0]], r, k[0]))
-        for _, r, k in sorted(keep):
-            if free_k[k]:
-                out[a + r] = ids[k]
-                free_r[r] = free_k[k] = False
+        # Pass 1: keep still-valid correspondences, closest first when two truths claim a track
+        # (ties: the lower truth row, as sorting (D², row, col) tuples does).
+        prev = last[vpos[a:b]]
+        order = np.argsort(ids, kind="stable")
+        j = np.minimum(np.searchsorted(ids[order], prev), d - c - 1)
+        r = np.flatnonzero((prev >= 0) & (ids[order][j] == prev))
+        k = order[j[r]]
+        d2 = (X[a + r, 0] - Y[c + k, 0]) ** 2 + (X[a + r, 1] - Y[c + k, 1]) ** 2
+        inside = d2 < g2
+        r, k, d2 = r[inside], k[inside], d2[inside]
+        o = np.lexsort((k, r, d2))
+        r, k = r[o], k[o]
+        _, win = np.unique(k, return_index=True)
+        out[a + r[win]] = ids[k[win]]
+        free_r[r[win]] = free_k[k[win]] = False
         # Pass 2: optimal assignment of the rest.
         rr, kk = np.flatnonzero(free_r), np.flatnonzero(free_k)
         if len(rr) and len(kk):
-            sub = D2[np.ix_(rr, kk)]
-            r, k = linear_sum_assignment(np.minimum(sub, g2))
-            inside = sub[r, k] < g2
-            out[a + rr[r[inside]]] = ids[kk[k[inside]]]
-        for r in np.flatnonzero(out[a:b] >= 0):
-            last[int(vid[a + r])] = int(out[a + r])
+            pr, pk = _pass2(X[a + rr], Y[c + kk], g2)
+            out[a + rr[pr]] = ids[kk[pk]]
+        got = np.flatnonzero(out[a:b] >= 0)
+        last[vpos[a + got]] = out[a + got]
     return out
+
+
+def _pass2(X: np.ndarray, Y: np.ndarray, g2: float):
+    """Pairs (rows of X, rows of Y) of one optimal assignment on ``min(D², g2)`` that are inside
+    the gate: dense for small steps, else k-d tree candidates assigned per component (the same
+    optimum: a pair at or beyond the gate costs what leaving both unpaired costs)."""
+    if len(X) * len(Y) <= DENSE_PAIRS:
+        sub = (X[:, None, 0] - Y[None, :, 0]) ** 2 + (X[:, None, 1] - Y[None, :, 1]) ** 2
+        r, k = linear_sum_assignment(np.minimum(sub, g2))
+        inside = sub[r, k] < g2
+        return r[inside], k[inside]
+    from scipy.spatial import cKDTree
+
+    from gmtiflow.evaluate.assignment import sparse_gated_assignment
+    hits = cKDTree(Y).query_ball_point(X, np.sqrt(g2) * (1.0 + 1e-9))
+    counts = np.fromiter((len(h) for h in hits), np.int64, len(X))
+    if not counts.sum():
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    r = np.repeat(np.arange(len(X), dtype=np.int64), counts)
+    k = np.concatenate([np.sort(np.asarray(h, np.int64)) for h in hits])
+    d2 = (X[r, 0] - Y[k, 0]) ** 2 + (X[r, 1] - Y[k, 1]) ** 2
+    inside = d2 < g2
+    return sparse_gated_assignment(r[inside], k[inside], d2[inside], g2)
 
 
 def identity_metrics(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,

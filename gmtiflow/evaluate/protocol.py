@@ -310,12 +310,21 @@ def import_object(path: str, what: str = "tracker.target"):
     except ImportError as exc:
         raise ConfigError(f"{what}: cannot import module {mod_name!r} for {path!r} "
                           f"({exc})") from None
+    except SyntaxError as exc:          # the user's module does not compile
+        raise TrackerError(f"{what}: module {mod_name!r} has a syntax error: {exc.msg} "
+                           f"({exc.filename}, line {exc.lineno})") from None
+    except Exception as exc:            # noqa: BLE001 - the user's module raised at import
+        raise TrackerError(f"{what}: importing module {mod_name!r} raised "
+                           f"{type(exc).__name__}: {exc}") from None
     obj = module
     for part in attr.split("."):
         try:
             obj = getattr(obj, part)
         except AttributeError:
             raise ConfigError(f"{what}: module {mod_name!r} has no {attr!r}") from None
+        except Exception as exc:        # noqa: BLE001 - a module __getattr__ that raised
+            raise TrackerError(f"{what}: reading {attr!r} of module {mod_name!r} raised "
+                               f"{type(exc).__name__}: {exc}") from None
     return obj
 
 

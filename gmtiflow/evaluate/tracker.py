@@ -220,6 +220,8 @@ class NNKalmanTracker:
 
     def _dwell(self, dw, k: int, det, didx, has_fp: bool, out: list) -> None:
         cfg, tr = self.cfg, self._tr
+        if len(tr.id) == 0 and len(didx) == 0:      # no track, no detection: nothing to do
+            return
         use_rr = cfg.use_range_rate and "range_rate_mps" in det
         gate = self._gate[3 if use_rr else 2]
         init_var_v = cfg.init_speed_sigma_mps ** 2

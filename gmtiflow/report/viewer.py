@@ -517,10 +517,18 @@ def main(argv: Optional[List[str]] = None) -> int:
     out = Path(args.output) if args.output else run_h5.parent / "viewer.html"
     if args.max_frames < 1 or args.max_labels < 0:
         ap.error("--max-frames must be >= 1 and --max-labels >= 0")
+    from gmtiflow.paths import refuse_same_file
     try:
+        refuse_same_file(out, [run_h5])           # never write the page over its run file
+        if out.is_dir():
+            raise GmtiflowError(f"{out}: is a directory; give the output HTML file")
         print(build_viewer(run_h5, out, max_frames=args.max_frames, max_labels=args.max_labels))
     except GmtiflowError as exc:
         print(f"gmtiflow-view: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:                        # the output cannot be written
+        print(f"gmtiflow-view: error: {out}: cannot write the viewer "
+              f"({exc.strerror or exc})", file=sys.stderr)
         return 1
     return 0
 

@@ -25,11 +25,14 @@ import numpy as np
 
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError
+from gmtiflow.paths import check_input_file, excerpt
 from gmtiflow.scene import flight
 from gmtiflow.scene.platform_config import PlatformConfig, PlatformKind
 from gmtiflow.tables import Table
 
 REQUIRED = ("time_s", "lat_deg", "lon_deg", "height_m")
+#: Largest trajectory log read (bytes): ten million samples at ~60 B a row.
+MAX_TRAJECTORY_BYTES = 1 << 30
 ATTITUDE = ("heading_deg", "pitch_deg", "roll_deg")
 LIMITS = {"lat_deg": (-90.0, 90.0), "lon_deg": (-180.0, 360.0), "pitch_deg": (-90.0, 90.0),
           "roll_deg": (-90.0, 90.0)}
@@ -45,13 +48,20 @@ def read_trajectory_csv(path) -> Dict[str, np.ndarray]:
     """The columns of a trajectory CSV, validated; errors name the file, line and column."""
     path = Path(path)
     where = f"platform.path: {path}"
+    if not path.exists() and not path.is_symlink():
+        raise InputFileError(f"{where}: no such trajectory file")
+    # a regular file of bounded size (/dev/zero used to be read without end)
+    check_input_file(path, "platform.path: trajectory file", MAX_TRAJECTORY_BYTES)
     try:
         with open(path, newline="", encoding="utf-8") as fh:
             rows = list(csv.reader(fh))
     except FileNotFoundError:
         raise InputFileError(f"{where}: no such trajectory file") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputFileError(f"{where}: cannot read the trajectory file ({exc})") from None
+        what = exc.strerror if isinstance(exc, OSError) and exc.strerror else \
+            f"not UTF-8 text (byte {exc.start})" if isinstance(exc, UnicodeDecodeError) else \
+            type(exc).__name__
+        raise InputFileError(f"{where}: cannot read the trajectory file ({what})") from None
     rows = [(n, r) for n, r in enumerate(rows, start=1) if r and any(c.strip() for c in r)
             and not r[0].lstrip().startswith("#")]
     if not rows:
@@ -62,7 +72,7 @@ def read_trajectory_csv(path) -> Dict[str, np.ndarray]:
     missing = [c for c in REQUIRED if c not in names]
     if missing:
         raise InputFileError(f"{where} line {header_line}: header lacks column(s) "
-                             f"{', '.join(missing)} (got {', '.join(names)})")
+                             f"{', '.join(missing)} (got {', '.join(excerpt(n) for n in names)})")
     present = [c for c in ATTITUDE if c in names]
     if present and len(present) != len(ATTITUDE):
         raise InputFileError(f"{where} line {header_line}: attitude columns come as all of "
@@ -70,7 +80,8 @@ def read_trajectory_csv(path) -> Dict[str, np.ndarray]:
     unknown = [c for c in names if c not in REQUIRED + ATTITUDE]
     if unknown:
         raise InputFileError(f"{where} line {header_line}: unknown column(s) "
-                             f"{', '.join(unknown)} (known: {', '.join(REQUIRED + ATTITUDE)})")
+                             f"{', '.join(excerpt(n) for n in unknown)} (known: "
+                             f"{', '.join(REQUIRED + ATTITUDE)})")
     wanted = list(REQUIRED) + present
     index = {c: names.index(c) for c in wanted}
     data = rows[1:]
@@ -87,10 +98,10 @@ def read_trajectory_csv(path) -> Dict[str, np.ndarray]:
                 value = float(text)
             except ValueError:
                 raise InputFileError(f"{where} line {line}, column {c}: not a number: "
-                                     f"{text!r}") from None
+                                     f"{excerpt(text)}") from None
             if not np.isfinite(value):
                 raise InputFileError(f"{where} line {line}, column {c}: must be finite, "
-                                     f"got {text!r}")
+                                     f"got {excerpt(text)}")
             lo_hi = LIMITS.get(c)
             if lo_hi and not lo_hi[0] <= value <= lo_hi[1]:
                 raise InputFileError(f"{where} line {line}, column {c}: {value:g} is outside "

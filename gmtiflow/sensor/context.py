@@ -77,13 +77,15 @@ class ChunkContext:
     def _platform(self, k):
         return tuple(self.dwells[f"platform_{c}_m"][k] for c in "xyz")
 
+    def _line_of_sight(self, k, x_m, y_m, z_m):
+        """Slant range and LOS (platform frame) of points from chunk-local dwells ``k``."""
+        pts = tuple(np.asarray(c, float) for c in (x_m, y_m, z_m))
+        return geometry.line_of_sight(self._platform(k), pts, self.radius_m)
+
     def antenna_angles(self, dwell_id, x_m, y_m, z_m):
         """(slant range m, azimuth rad, elevation rad) of points in the dwell's antenna frame."""
         k = self._local(dwell_id)
-        rng_m, los = geometry.line_of_sight(self._platform(k), (np.asarray(x_m, float),
-                                                                np.asarray(y_m, float),
-                                                                np.asarray(z_m, float)),
-                                            self.radius_m)
+        rng_m, los = self._line_of_sight(k, x_m, y_m, z_m)
         az, el, _, _ = antenna.target_angles(los, antenna.take(self.boresight, k),
                                              antenna.take(self.scan_axis, k),
                                              antenna.take(self.antenna_up, k))
@@ -125,10 +127,7 @@ class ChunkContext:
     def range_rate_of_ground(self, dwell_id, x_m, y_m, z_m):
         """ṙ_MLC = −v_p·ℓ of ground points (the clutter's range rate, m/s)."""
         k = self._local(dwell_id)
-        _, los = geometry.line_of_sight(self._platform(k), (np.asarray(x_m, float),
-                                                            np.asarray(y_m, float),
-                                                            np.asarray(z_m, float)),
-                                        self.radius_m)
+        _, los = self._line_of_sight(k, x_m, y_m, z_m)
         vel = geometry.true_velocity(tuple(self.dwells[f"platform_v{c}_mps"][k] for c in "xyz"),
                                      self._platform(k)[2], self.radius_m)
         return geometry.clutter_range_rate(vel, los)

@@ -47,6 +47,21 @@ MIN_RANGE_M = 1e-3
 DEFAULT_RADIUS_M = 6_371_008.8
 
 
+def _curvature(d2, radius_m):
+    """(sin θ/θ, 1 − cos θ) for θ² = d²/R²: even power series (no sqrt or trig; error below
+    θ^8/362880, 2e-13 at θ = 0.1, the 640 km the horizon allows) when θ ≤ 0.5, else exact."""
+    t2 = d2 / (radius_m * radius_m)
+    if t2.size == 0 or float(np.max(t2)) <= 0.25:
+        sinc = 1.0 - t2 * (1.0 / 6.0 - t2 * (1.0 / 120.0 - t2 * (1.0 / 5040.0)))
+        vers = t2 * (0.5 - t2 * (1.0 / 24.0 - t2 * (1.0 / 720.0 - t2 * (1.0 / 40320.0))))
+        return sinc, vers
+    theta = np.sqrt(t2)
+    small = theta < 1e-4
+    safe = np.where(small, 1.0, theta)
+    sinc = np.where(small, 1.0 - t2 / 6.0, np.sin(safe) / safe)
+    return sinc, 2.0 * np.sin(0.5 * theta) ** 2
+
+
 def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
     """(o_P, o_T): the target from the platform in the platform's local ENU frame and the
     platform from the target in the target's local frame (module doc), each a 3-tuple (m)."""
@@ -57,19 +72,14 @@ def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
     if radius_m is None:
         dz = zt - zp
         return (dx, dy, dz), (-dx, -dy, -dz)
-    d = np.hypot(dx, dy)
-    theta = d / radius_m
-    # b sin θ / d without 0/0: (b/R) sinθ/θ
-    small = theta < 1e-4
-    safe = np.where(small, 1.0, theta)
-    sinc = np.where(small, 1.0 - theta * theta / 6.0, np.sin(safe) / safe)
-    h2 = 2.0 * np.sin(0.5 * theta) ** 2
+    sinc, vers = _curvature(dx * dx + dy * dy, radius_m)
     a = radius_m + zp
     b = radius_m + zt
-    kp = b / radius_m * sinc
-    kt = a / radius_m * sinc
-    o_p = (dx * kp, dy * kp, (zt - zp) - b * h2)
-    o_t = (-dx * kt, -dy * kt, (zp - zt) - a * h2)
+    kp = b * (sinc / radius_m)          # b sin θ / d
+    kt = a * (sinc / radius_m)
+    dz = zt - zp
+    o_p = (dx * kp, dy * kp, dz - b * vers)
+    o_t = (-dx * kt, -dy * kt, -dz - a * vers)
     return o_p, o_t
 
 

@@ -119,3 +119,21 @@ def test_two_sensors_give_per_sensor_and_fused_gaps():
     one = {k: v[:20] for k, v in looks.items()}
     ev1 = evaluate(CFG, truth, track_table(rows(1, truth, T)), looks=one)["metrics/events"]
     assert list(ev1["sensor_id"]) == [-1] and (ev1["start_s"][0], ev1["end_s"][0]) == (10.0, 20.0)
+
+
+def test_event_tables_written_before_the_sensor_id_column_still_read(tmp_path):
+    from gmtiflow import store
+    from gmtiflow.evaluate.events import EVENT_COLUMNS
+    old = {c: np.zeros(2) for c in EVENT_COLUMNS}          # an events table without sensor_id
+    old["kind"] = np.array(["stop", "doppler_blind"])
+    with store.RunWriter(tmp_path / "old.h5", seed=1) as w:
+        w.write_table("metrics/events", old)
+        path = w.commit()
+    with store.open_run(path, require_columns=True) as f:
+        assert "sensor_id" not in f["metrics/events"]
+    del old["track_after"]                                  # a column it always had is required
+    with store.RunWriter(tmp_path / "bad.h5", seed=1) as w:
+        w.write_table("metrics/events", old)
+        bad = w.commit()
+    with pytest.raises(store.StoreError, match="lacks the column"):
+        store.open_run(bad, require_columns=True).close()

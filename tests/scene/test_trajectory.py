@@ -149,6 +149,28 @@ def test_the_run_refuses_a_short_log_before_touching_the_run_directory(tmp_path)
     assert not (tmp_path / "run").exists()
 
 
+def test_a_device_or_directory_as_trajectory_is_refused_not_read(tmp_path):
+    """``platform.path=/dev/zero`` used to read without end; a directory is refused too."""
+    for path in ("/dev/zero", str(tmp_path)):
+        with pytest.raises(InputFileError, match="not a regular file"):
+            read_trajectory_csv(path)
+
+
+@pytest.mark.parametrize("body", [
+    "root:$6$s3cr3t$abcdefghijklmnopqrstuvwxyz0123456789:19000:0:99999:7:::\n",
+    "time_s,lat_deg,lon_deg,height_m\n0,50,7," + "9" * 5000 + "\n1,50,7,100\n",
+    "time_s,lat_deg,lon_deg,height_m\n0,50,7,100\n1,50,7,s3cr3t$6$abcdefghijklmnopqrstuvwxyz\n"])
+def test_trajectory_errors_never_echo_the_file(tmp_path, body):
+    """A secret-like line or a 5,000-digit number is not copied into the message (and the log)
+    beyond a short token that is plausibly the user's own data."""
+    f = tmp_path / "log.csv"
+    f.write_text(body)
+    with pytest.raises(InputFileError) as info:
+        read_trajectory_csv(f)
+    msg = str(info.value)
+    assert "s3cr3t" not in msg and "99999" not in msg and len(msg) < 300, msg
+
+
 BAD_FILES = {
     "unsorted": ("time_s,lat_deg,lon_deg,height_m\n0,50,7,100\n2,50,7,100\n1,50,7,100\n",
                  r"line 4, column time_s: times must be strictly increasing, got 1 after 2"),
