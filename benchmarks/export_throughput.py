@@ -16,6 +16,12 @@ of the detections, plus the dwells' cells for XML), the unit of issue 18's "text
 ``--against REV`` compares the 4607 writer with the one of git revision REV (its ``formats``
 package is extracted to a temporary directory): A and B alternate, --ab-runs times each, and
 the medians of their CPU times give the ratio.  The machine's load average is printed first.
+
+``--run RUN.h5 --against REV`` times the export stage's own files of a real run instead
+(``gmtiflow.export.write_format`` of every file ``export=all`` writes, truth.csv included,
+tracks.geojson left out: older writers have none), today's writers against REV's, alternating::
+
+    python benchmarks/export_throughput.py --run outputs/x/run.h5 --against 011254f --ab-runs 3
 """
 from __future__ import annotations
 
@@ -49,15 +55,47 @@ def best(fn, repeat):
     return min(times), out
 
 
-def load_reference(rev: str, tmp: Path):
-    """The ``stanag4607`` module of git revision ``rev``, importable beside today's."""
+def load_reference(rev: str, tmp: Path, module: str = "stanag4607"):
+    """A module of the ``formats`` package of git revision ``rev``, importable beside today's."""
     data = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "formats"],
                           capture_output=True, check=True).stdout
     with tarfile.open(fileobj=BytesIO(data)) as tar:
         tar.extractall(tmp, filter="data")
     (tmp / "formats").rename(tmp / "formats_reference")
     sys.path.insert(0, str(tmp))
-    return importlib.import_module("formats_reference.stanag4607")
+    return importlib.import_module("formats_reference" + (f".{module}" if module else ""))
+
+
+def run_file_ab(run_path: Path, rev: str, runs: int) -> None:
+    """The export stage's files of ``run_path``: today's writers against ``rev``'s."""
+    from gmtiflow import export, formats as today
+    cfg = export.ExportConfig(csv_tables=list(export.CSV_TABLES), geojson_tracks=False)
+    run = export.load_run(run_path)
+    names = ("write_4607", "write_xml", "write_csv", "write_geojson")
+    mine = {k: getattr(today, k) for k in names}
+    print(f"# {run_path}: {len(run.tables['detections']['det_id']):,} detections, "
+          f"{len(run.tables['truth']['time_s']):,} truth samples; {runs} alternating runs, "
+          f"median CPU time")
+    print(f"{'file':<16} {'bytes':>12} {'reference s':>12} {'today s':>10} {'speed-up':>9}")
+    with tempfile.TemporaryDirectory() as tmp:
+        ref = load_reference(rev, Path(tmp), module="")
+        theirs = {k: getattr(ref, k) for k in names}
+        for fmt, name in export.planned_files(cfg):
+            cpu = {"ref": [], "today": []}
+            for _ in range(runs):
+                for label, writers in (("ref", theirs), ("today", mine)):
+                    for k, f in writers.items():
+                        setattr(today, k, f)
+                    try:
+                        t0 = time.process_time()
+                        export.write_format(fmt, run, cfg, Path(tmp) / name)
+                        cpu[label].append(time.process_time() - t0)
+                    finally:
+                        for k, f in mine.items():
+                            setattr(today, k, f)
+            a, b = np.median(cpu["ref"]), np.median(cpu["today"])
+            size = (Path(tmp) / name).stat().st_size
+            print(f"{name:<16} {size:>12,d} {a:>12.2f} {b:>10.2f} {a / b:>8.1f}x")
 
 
 def ab_4607(rev: str, dwells, dets, meta, runs: int) -> None:
@@ -90,7 +128,15 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--against", metavar="REV", help="A/B the 4607 writer with git revision REV")
     ap.add_argument("--ab-runs", type=int, default=9)
+    ap.add_argument("--run", type=Path, metavar="RUN.h5",
+                    help="with --against: time the export stage's files of this run file")
     a = ap.parse_args(argv)
+    if a.run is not None:
+        if not a.against:
+            ap.error("--run needs --against REV")
+        print(f"# load average {os.getloadavg()[0]:.2f} ({os.cpu_count()} CPUs)")
+        run_file_ab(a.run, a.against, a.ab_runs)
+        return
     dwells, dets = synthetic.tables(a.dwells, a.detections, seed=1)
     meta = {"epoch_utc": synthetic.EPOCH_UTC}
     n = a.detections

@@ -97,27 +97,28 @@ def ascii_fixed(values: np.ndarray) -> Field:
     return [Cells(chars, np.count_nonzero(chars, axis=1).astype(np.int64))]
 
 
-_GROUPS = np.array([list(f"{k:03d}".encode()) for k in range(1000)], np.uint8)
+_GROUPS = np.frombuffer(b"".join(f"{k:03d}".encode() for k in range(1000)), "V3")
+"""The three ASCII digits of 0..999, one 3-byte item each (a whole group per gather)."""
 
 
 def _digits(mag: np.ndarray, width: int) -> np.ndarray:
     """Right-aligned decimal digits (ASCII) of unsigned integers, zero-padded to ``width``
     (<= 21): three digits at a time through a table."""
-    groups = []
+    ng = -(-width // 3)
+    g = np.empty((len(mag), ng), np.intp)
     r = mag.astype(np.uint64)
-    for _ in range(-(-width // 3)):
-        groups.append(r % np.uint64(1000))
-        r = r // np.uint64(1000)
-    g = np.stack(groups[::-1], axis=1).astype(np.int64)          # most significant first
-    chars = _GROUPS[g].reshape(len(mag), 3 * len(groups))
-    return chars[:, chars.shape[1] - width:]
+    thousand = np.uint64(1000)
+    for j in range(ng - 1, -1, -1):                 # least significant group last
+        q = r // thousand
+        g[:, j] = r - q * thousand
+        r = q
+    chars = _GROUPS[g].view(np.uint8).reshape(len(mag), 3 * ng)
+    return chars[:, 3 * ng - width:]
 
 
 def _count_digits(mag: np.ndarray, most: int) -> np.ndarray:
-    nd = np.ones(len(mag), np.int64)
-    for k in range(1, most):
-        nd += mag >= _POW10_U[k]
-    return nd
+    """Decimal digits of each unsigned integer (at least 1, at most ``most``)."""
+    return np.searchsorted(_POW10_U[1:most], mag, side="right").astype(np.int64) + 1
 
 
 _MINUS_CELL = np.frombuffer(b"-", np.uint8).reshape(1, 1)
@@ -134,7 +135,15 @@ def int_cells(values) -> Field:
         mag = v.astype(np.uint64)
         mag[neg] = ~mag[neg] + np.uint64(1)             # two's complement: |int64 min| too
     nd = _count_digits(mag, 20)
-    return [Cells(_MINUS_CELL, neg.astype(np.int64)), Cells(_digits(mag, 20), nd, 20 - nd)]
+    w = int(nd.max()) if len(nd) else 1
+    right = _digits(mag, w)
+    if np.all(nd == w):                          # e.g. ids of one magnitude: already aligned
+        return [Cells(_MINUS_CELL, neg.astype(np.int64)), Cells(right, nd)]
+    left = np.zeros((len(mag), w), np.uint8)
+    for k in np.unique(nd).tolist():             # left-align, a group of equal length at a time
+        r = np.flatnonzero(nd == k)
+        left[r, :k] = right[r, w - k:]
+    return [Cells(_MINUS_CELL, neg.astype(np.int64)), Cells(left, nd)]
 
 
 _EXP_TEXT = [f"e{k:+03d}" for k in range(-400, 401)]          # repr's exponents: e-05, e+16
@@ -163,22 +172,27 @@ def float_cells(values, nan: str = "nan", inf: str = "inf") -> Field:
             up = np.nextafter(ai, np.inf) - ai
         down = ai - np.nextafter(ai, 0.0)
         tol = (np.minimum(up, down) * 0.495).astype(np.longdouble)
-        todo = np.ones(len(idx), bool)
+        todo = np.arange(len(idx))
         for p in (15, 16, 17):
-            k = np.flatnonzero(todo)
-            if not len(k):
+            if not len(todo):
                 break
+            k = todo
             scale = _POW10_LD[p - 1 - e[k] + 400]
-            m = np.rint(al[k] * scale)
-            carry = m >= _POW10_LD[p + 400]                    # rounded up to 10^p
-            m = np.where(carry, m / 10, m)
-            scale = np.where(carry, scale / 10, scale)
-            good = np.abs(m / scale - al[k]) < tol[k]
+            prod = al[k] * scale                               # |x| 10^(p-1-e), 64-bit mantissa
+            m = np.rint(prod)
+            # D = m 10^(e-p+1) reads back as x if |D - x| < the half-gap: compared scaled
+            good = np.abs(m - prod) < tol[k] * scale
+            ek = e[k]
+            carry = good & (m >= _POW10_LD[p + 400])           # rounded up to 10^p: 1 0...0
+            if carry.any():
+                m[carry] = m[carry] / 10
+                ek = ek + carry
             g = k[good]
             mant[idx[g]] = m[good].astype(np.uint64)
-            e10[idx[g]] = e[k][good] + carry[good]
-            todo[g] = False
-        ok[idx[~todo]] = True
+            e10[idx[g]] = ek[good]
+            todo = k[~good]
+        ok[idx] = True
+        ok[idx[todo]] = False
     # trailing zeros off: mant = d1 d2 ... d_nd (d_nd != 0)
     ten = np.uint64(10)
     cand = np.flatnonzero(ok & (mant % ten == 0))
@@ -190,9 +204,10 @@ def float_cells(values, nan: str = "nan", inf: str = "inf") -> Field:
     sci = ok & ((e10 < -4) | (e10 >= 16))
     low = ok & ~sci & (e10 < 0)
     field = [Cells(_MINUS_CELL, (ok & (x < 0)).astype(np.int64)),
-             _body(left, nd, e10, ok, sci, low),
-             Cells(_EXP_CELLS.chars[np.clip(e10 + 400, 0, 800)],
-                   np.where(sci, _EXP_CELLS.lens[np.clip(e10 + 400, 0, 800)], 0))]
+             _body(left, nd, e10, ok, sci, low)]
+    if sci.any():
+        code = np.clip(e10 + 400, 0, 800)
+        field.append(Cells(_EXP_CELLS.chars[code], np.where(sci, _EXP_CELLS.lens[code], 0)))
     special = np.flatnonzero(~ok)
     if len(special):       # zeros, NaN, inf, and what the proof did not cover
         texts = []
@@ -217,22 +232,28 @@ def _body(left, nd, e10, ok, sci, low) -> Cells:
     """repr's layout of the digits ``left`` (d1..d_nd then '0's) of |x| = d1.d2... × 10^e10,
     without the exponent: positional for -4 <= e10 < 16, else d1[.d2...d_nd]."""
     n = len(nd)
-    col = np.arange(_W)[None, :]
-    src = np.concatenate([left, np.full((n, _W + 1 - 17), 48, np.uint8)], axis=1)
-    # digits with a '.' after the first L of them: positional e10 >= 0 (L = e10 + 1) and
-    # scientific (L = 1)
-    L = np.where(sci, 1, np.clip(e10 + 1, 1, 17))[:, None]
-    chars = np.take_along_axis(src, np.minimum(col - (col > L), _W), axis=1)
-    chars[col == L] = ord(".")
-    lens = np.where(sci, np.where(nd > 1, nd + 1, 1), L[:, 0] + 1 + np.maximum(nd - L[:, 0], 1))
-    if low.any():                               # 0.000ddd: e10 = -1 .. -4
-        r = np.flatnonzero(low)
-        z = (-e10[r] - 1)[:, None]
-        sub = np.take_along_axis(src[r], np.clip(col - 2 - z, 0, _W), axis=1)
-        sub[col.repeat(len(r), axis=0) < 2 + z] = ord("0")
-        sub[:, 1] = ord(".")
-        chars[r] = sub
-        lens[r] = 2 + z[:, 0] + nd[r]
+    chars = np.full((n, _W), 48, np.uint8)
+    # a '.' after the first L digits: positional e10 >= 0 (L = e10 + 1), scientific (L = 1);
+    # rows grouped by L, each group copied as two blocks
+    L = np.where(sci, 1, np.clip(e10 + 1, 1, 17))
+    hi = ok & ~low
+    lens = np.where(sci, np.where(nd > 1, nd + 1, 1), L + 1 + np.maximum(nd - L, 1))
+    for k in np.unique(L[hi]).tolist():
+        r = np.flatnonzero(hi & (L == k))
+        block = left[r]
+        sub = np.empty((len(r), 18), np.uint8)
+        sub[:, :k] = block[:, :k]
+        sub[:, k] = ord(".")
+        sub[:, k + 1:] = block[:, k:]
+        chars[r, :18] = sub
+    for z in range(4):                           # 0.000ddd: e10 = -1 .. -4
+        r = np.flatnonzero(low & (e10 == -1 - z))
+        if len(r):
+            sub = np.full((len(r), _W), 48, np.uint8)
+            sub[:, 1] = ord(".")
+            sub[:, 2 + z:2 + z + 17] = left[r]
+            chars[r] = sub
+            lens[r] = 2 + z + nd[r]
     return Cells(chars, np.where(ok, lens, 0).astype(np.int64))
 
 
@@ -262,12 +283,17 @@ def join_rows(pieces: Sequence[Union[Piece, Field]], n: int):
         else:
             if not p.lens.any():                # e.g. no negative values: no sign piece
                 continue
-            w = p.chars.shape[1]
-            col = np.arange(w)[None, :]
             st = np.asarray(p.start)
-            st = st[:, None] if st.ndim else st
-            mats.append(np.broadcast_to(p.chars, (n, w)))
-            sels.append((col >= st) & (col < st + p.lens[:, None]))
+            lo = int(st.min()) if st.ndim else int(st)
+            hi = int((st + p.lens).max())
+            chars = p.chars[:, lo:hi]              # only the columns some row uses
+            col = np.arange(hi - lo)[None, :]
+            mats.append(np.broadcast_to(chars, (n, hi - lo)))
+            if st.ndim:
+                first = (st - lo)[:, None]
+                sels.append((col >= first) & (col < first + p.lens[:, None]))
+            else:
+                sels.append(col < p.lens[:, None])
             row_len += p.lens
     offsets = np.concatenate([[0], np.cumsum(row_len)])
     if not mats:

@@ -3,8 +3,9 @@
 One row per table row, one column per table column, a header line, comma separated, UTF-8,
 ``\\n`` line ends.  The first two columns are the time as ISO-8601 UTC (``time_utc``,
 microseconds, ``Z``) and as seconds since the scene epoch (``time_s``, authoritative on reading);
-then the table's columns in the order of :data:`COLUMNS`.  Floats are written as their shortest
-round-trip repr (exact), NaN as ``nan``, booleans as ``True``/``False``.  Rows are written in time
+then the table's columns in the order of :data:`COLUMNS`.  Floats are written column-wise by
+:mod:`formats._text` in digits that read back exactly (repr's layout), NaN as ``nan``, booleans as
+``True``/``False``; a block of rows at a time (:func:`iter_csv`).  Rows are written in time
 order (stable), as Stone Soup's readers require.
 
 Stone Soup::

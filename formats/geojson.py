@@ -21,8 +21,9 @@ ellipsoid), no ``crs`` member (RFC 7946 §4).  Every feature has ``properties.ki
 * ``"clutter"`` — Polygon per clutter region (a closed exterior ring, counter-clockwise as RFC
   7946 §3.1.6 recommends) plus the region's scalar properties.
 
-Floats are written as their shortest repr, so positions and values round-trip exactly; NaN is
-written as ``null`` (RFC 8259 has no NaN) and read back as NaN.  The geometry needs geodetic
+Floats are written column-wise by :mod:`formats._text` in digits that read back exactly, so
+positions and values round-trip exactly, a block of features at a time (:func:`iter_geojson`);
+NaN is written as ``null`` (RFC 8259 has no NaN) and read back as NaN.  The geometry needs geodetic
 columns: ``lat_deg lon_deg height_m`` on detections, truth and road nodes (the caller converts
 ENU with ``gmtiflow.frames``; formats never imports gmtiflow).
 """

@@ -15,8 +15,9 @@ Document::
     </GmtiDocument>
 
 Attribute names of Dwell and TargetReport are the table column names (docs/tables.md); an absent
-attribute is NaN (float) or -1 (ids).  Doubles are written as their shortest round-trip repr, so
-the XML form is lossless for every float64 column (quantum: none).  The meta keys are those of
+attribute is NaN (float) or -1 (ids).  Doubles are written column-wise by :mod:`formats._text` in
+digits that read back exactly, so the XML form is lossless for every float64 column (quantum:
+none); the document is written a block of dwells at a time (:func:`iter_xml`).  The meta keys are those of
 :data:`formats.stanag4607.DEFAULT_META` (``epoch_utc`` required).
 
 The reader parses with a hardened lxml parser (no entity resolution, no network, no DTD

@@ -129,6 +129,8 @@ def main() -> None:
         print(console.help_text())
         return
     _VERBOSE = console.pop_verbose_flag(sys.argv)
+    from gmtiflow import interrupts
+    interrupts.install()
     try:
         _hydra_app()()
     except KeyboardInterrupt:

@@ -312,6 +312,25 @@ def validate(obj: AppConfig) -> None:
 
 
 def to_yaml(obj: AppConfig) -> str:
-    """The resolved config as YAML (stored as /config in the run file)."""
-    return OmegaConf.to_yaml(OmegaConf.structured(obj))
+    """The resolved config as YAML (stored as /config in the run file): the text of
+    ``OmegaConf.to_yaml(OmegaConf.structured(obj))``, written from the dataclasses directly
+    (that round trip deep-copies every node: ~70 s for a scene that lists 1,000 vehicles)."""
+    import yaml
+    from omegaconf._utils import get_omega_conf_dumper
+    return yaml.dump(_plain(obj), default_flow_style=False, allow_unicode=True,
+                     sort_keys=False, Dumper=get_omega_conf_dumper())
+
+
+def _plain(value):
+    """Dataclasses, Enums (by name), lists and dicts as plain containers, as OmegaConf's
+    ``to_container(enum_to_str=True)`` gives them."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, Enum):
+        return value.name
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {(k.name if isinstance(k, Enum) else k): _plain(v) for k, v in value.items()}
+    return value
 

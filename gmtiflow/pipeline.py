@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from gmtiflow import config as config_mod
-from gmtiflow import budget, rundir
+from gmtiflow import budget, interrupts, rundir
 from gmtiflow.cache import StageCache, stage_key
 from gmtiflow.config import AppConfig, SensorSlot, sensor_slots
 from gmtiflow.errors import ConfigError
@@ -194,6 +194,7 @@ def _run(cfg: AppConfig, out_dir: Path) -> Path:
         state.writer.write_text("config", config_mod.to_yaml(cfg))
         try:
             for st in declared:
+                interrupts.check()       # a Ctrl-C swallowed inside an extension stops here
                 start = time.perf_counter()
                 compute = partial(st.compute, state)
                 if st.name not in keys:
@@ -205,6 +206,7 @@ def _run(cfg: AppConfig, out_dir: Path) -> Path:
                 state.values[st.name] = st.write(state, value) if st.write else value
                 state.seconds[st.name] = time.perf_counter() - start
                 log.info("stage %-14s %8.3f s", st.name, state.seconds[st.name])
+            interrupts.check()
         finally:
             if state.live is not None:      # the live stream ends with the sensor stages
                 state.live.close()

@@ -126,11 +126,19 @@ def test_geometry_angles_finite(graze_deg, az_deg, rng_m, bank_deg, heading_deg)
     with raise_all():
         los = antenna.direction(np.deg2rad(az_deg), -np.deg2rad(graze_deg), b, h, u)
         target = tuple(rng_m * c for c in los)
-        r, los2 = geometry.line_of_sight((0.0, 0.0, 0.0), target)
+        r, los2 = geometry.line_of_sight((0.0, 0.0, 0.0), target, radius_m=None)
         az, el, sin_az, cb = antenna.target_angles(los2, b, h, u)
         rr = geometry.range_rate((0.0, 0.0, 0.0), (150.0, 0.0, 0.0), los2)
-    assert finite(r, *los2, az, el, sin_az, cb, rr)
-    assert r == pytest.approx(rng_m, rel=1e-9)
+        r_round, los_round = geometry.line_of_sight((0.0, 0.0, 0.0), target)
+    assert finite(r, *los2, az, el, sin_az, cb, rr, r_round, *los_round)
+    assert r == pytest.approx(rng_m, rel=1e-9)                 # flat: the map offset itself
+    # round earth: the chord between the two points on a sphere (platform above the origin,
+    # the target at arc ρ = |(x, y)| and height z), computed here independently
+    radius = geometry.DEFAULT_RADIUS_M
+    rho, theta = math.hypot(target[0], target[1]), math.hypot(target[0], target[1]) / radius
+    t_xyz = ((radius + target[2]) * math.sin(theta), 0.0, (radius + target[2]) * math.cos(theta))
+    chord = math.dist(t_xyz, (0.0, 0.0, radius))
+    assert r_round == pytest.approx(chord, rel=1e-7, abs=1e-6), rho
 
 
 def test_zero_range_line_of_sight():

@@ -67,10 +67,12 @@ class LazyTable(Mapping):
     column that cannot be read (the file changed or was damaged since) raises StoreError.
     """
 
-    def __init__(self, path: Path, name: str, columns: Iterable[str]) -> None:
+    def __init__(self, path: Path, name: str, columns: Iterable[str], rows: int) -> None:
         self._path, self._name = path, name
         self._columns = tuple(columns)
         self._data: Dict[str, np.ndarray] = {}
+        self.rows = rows
+        """Rows of the table (known from the columns' shapes: :func:`n` reads no column)."""
 
     def __getitem__(self, column: str) -> np.ndarray:
         if column not in self._data:
@@ -107,7 +109,7 @@ def _lazy_table(f: h5py.File, path: Path, name: str) -> LazyTable:
     if len({s for s in columns.values()}) > 1 or any(len(s) != 1 for s in columns.values()):
         raise StoreError(f"{path}: table /{name} has columns of different lengths or shapes; "
                          f"not a gmtiflow table")
-    return LazyTable(path, name, columns)
+    return LazyTable(path, name, columns, next(iter(columns.values()), (0,))[0])
 
 
 def load_run(run_path, tables: Iterable[str] = TABLES, *, lazy: bool = False) -> RunData:
@@ -134,6 +136,8 @@ def load_run(run_path, tables: Iterable[str] = TABLES, *, lazy: bool = False) ->
 
 def n(table: Table) -> int:
     """Rows of a table (0 for an empty or missing one)."""
+    if isinstance(table, LazyTable):
+        return table.rows
     for col in table.values():
         return len(col)
     return 0

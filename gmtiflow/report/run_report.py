@@ -45,11 +45,7 @@ def run_figures(run: RunData, cfg: ReportConfig) -> List[Tuple[str, Callable[[],
     t = run.table
     tracker_on = bool(run.cfg("tracker.enabled", True))
     pages = [
-        ("title", lambda: F.title_figure(
-            run.attrs, run.config, key_numbers(run), summary(t("metrics")), str(run.path),
-            overrides=recorded_overrides(run.path),
-            references=reference_values(run.config, key_numbers(run), t("detections"),
-                                        _expected_false_alarms(run)))),
+        ("title", lambda: _title(run)),
         ("map", lambda: F.map_figure(t("roads/nodes"), t("roads/edges"), t("truth"), t("platform"),
                                      t("dwells"), t("detections"), t("tracks"),
                                      run.cfg("clutter.regions", []) or [], run.origin,
@@ -88,6 +84,15 @@ def _fused(events):
         return events
     keep = np.asarray(events["sensor_id"]) < 0
     return {k: np.asarray(v)[keep] for k, v in events.items()}
+
+
+def _title(run: RunData) -> Figure:
+    numbers = key_numbers(run)
+    return F.title_figure(run.attrs, run.config, numbers, summary(run.table("metrics")),
+                          str(run.path), overrides=recorded_overrides(run.path),
+                          references=reference_values(run.config, numbers,
+                                                      run.table("detections"),
+                                                      _expected_false_alarms(run)))
 
 
 def _terrain_args(run: RunData) -> dict:

@@ -68,3 +68,10 @@ def test_random_columns_match_float_parsing_at_scale():
     x = rng.normal(size=20000) * 10.0 ** rng.integers(-40, 40, 20000)
     back = np.array(lines(_text.float_cells(x), len(x)), dtype=np.float64)
     np.testing.assert_array_equal(back, x)
+
+
+def test_without_extended_precision_every_value_falls_back_to_repr(monkeypatch):
+    """Where numpy's longdouble is a plain double the proof is off: repr, value by value."""
+    monkeypatch.setattr(_text, "_LD_EXTENDED", False)
+    x = np.array(EDGES + [np.nan, -np.inf])
+    assert lines(_text.float_cells(x), len(x)) == [repr(v) for v in x.tolist()]

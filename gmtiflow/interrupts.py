@@ -1,0 +1,38 @@
+"""Ctrl-C that always stops a run, even when an extension swallows the KeyboardInterrupt.
+
+Python turns SIGINT into a ``KeyboardInterrupt`` raised at the next bytecode; when that happens
+inside C code that clears pending exceptions (some numpy/h5py paths do), the interrupt is lost
+and the run would finish and claim to be complete (seen about once in ten runs at load 10).
+:func:`install` (called by the ``gmtiflow`` command) keeps Python's behaviour and also records
+the request; :func:`check`, called by the runner between stages, raises it again, so an
+interrupted run stops at the latest at the next stage boundary — before ``run.h5`` is committed
+if the interrupt came earlier.  A SIGINT the parent process ignores (``nohup``, a background job
+of a script) stays ignored.
+"""
+from __future__ import annotations
+
+import signal
+import threading
+
+_requested = threading.Event()
+
+
+def _on_sigint(signum, frame):
+    _requested.set()
+    raise KeyboardInterrupt
+
+
+def install() -> None:
+    """Record Ctrl-C as well as raising it (only where SIGINT has Python's default handler)."""
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _on_sigint)
+
+
+def requested() -> bool:
+    return _requested.is_set()
+
+
+def check() -> None:
+    """Raise ``KeyboardInterrupt`` if Ctrl-C was pressed (and perhaps swallowed) earlier."""
+    if _requested.is_set():
+        raise KeyboardInterrupt
