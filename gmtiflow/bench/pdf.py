@@ -58,8 +58,12 @@ def _summary_page(comp: Comparison):
         rows.append(row)
         colours.append(col)
     if rows:
+        # the metric label gets the room it needs; the trackers share the rest
+        label_w, scen_w = 0.24, 0.09
+        each = (1.0 - label_w - scen_w) / max(len(comp.trackers), 1)
         table = ax.table(cellText=rows, cellColours=colours, colLabels=header, loc="upper center",
-                         cellLoc="center")
+                         cellLoc="center",
+                         colWidths=[scen_w, label_w] + [each] * len(comp.trackers))
         table.auto_set_font_size(False)
         table.set_fontsize(8)
         table.scale(1.0, 1.6)
