@@ -146,6 +146,16 @@ def test_hydra_job_logging_disabled_runs_and_reports_errors(tmp_path):
     assert "scene.duration_s" in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
 
 
+def _sigint_as_in_a_terminal():
+    """The child starts with SIGINT deliverable and at its default action, as under an
+    interactive shell.  Both are inherited through fork and exec: a test-runner process whose
+    SIGINT was left ignored or blocked (loky's and multiprocessing's resource trackers block it
+    while they spawn) would pass that on, Python never sees the signal and the run ends with exit
+    0 (happened twice under pytest-xdist at load)."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_is_one_line_exit_130_and_outputs_marked_incomplete(tmp_path):
     out = tmp_path / "run"
     out.mkdir()
@@ -153,7 +163,7 @@ def test_ctrl_c_is_one_line_exit_130_and_outputs_marked_incomplete(tmp_path):
                              "scene.duration_s=600", "export=none", "report=none",
                              "progress=false", "cache.enabled=false"],
                             stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
-                            cwd=tmp_path)
+                            cwd=tmp_path, preexec_fn=_sigint_as_in_a_terminal)
     lines = []
     for line in proc.stderr:
         lines.append(line)
