@@ -230,3 +230,33 @@ def test_footprints_and_platform_tracks_of_two_sensors_are_never_mixed(tmp_path)
     assert len(tracks) == 2                                   # one line per aircraft
     for ln in tracks:                                         # no jump between the aircraft
         assert np.max(np.hypot(np.diff(ln.get_xdata()), np.diff(ln.get_ydata()))) < 1.0  # km
+
+
+def test_range_rate_page_draws_each_sensor_with_its_own_notch_and_points(tmp_path):
+    """Two sensors with different MDVs: one row per sensor, each row holding that sensor's
+    looks and reports only and a notch band as wide as its own MDV (the old page drew both
+    sensors' points in one pair of panels around the median MDV)."""
+    from .conftest import make_run
+    run = load_run(make_run(tmp_path, ["experiment=two_orbits", "scene.duration_s=20",
+                                       "tracker=none", "sensors.west.sensor.mdv_mps=5.0"]))
+    looks, det, dwells = run.table("looks"), run.table("detections"), run.table("dwells")
+    fig = F.range_rate_figure(looks, det, dwells)
+    assert len(fig.axes) == 4
+    sensor_of_dwell = dict(zip(np.asarray(dwells["dwell_id"]).tolist(),
+                               np.asarray(dwells["sensor_id"]).tolist()))
+    for sid, (left, right) in enumerate(zip(fig.axes[0::2], fig.axes[1::2])):
+        mine = np.array([sensor_of_dwell[d] == sid for d in np.asarray(looks["dwell_id"]).tolist()])
+        drawn = int(np.isin(np.asarray(looks["outcome"])[mine], [0, 4, 5, 6]).sum())
+        assert drawn > 0
+        assert sum(len(c.get_offsets()) for c in left.collections
+                   if isinstance(c, PathCollection)) == drawn
+        det_mine = int(sum(sensor_of_dwell[d] == sid for d in np.asarray(det["dwell_id"]).tolist()))
+        assert _points(right, {f"{lab} ({k})" for lab in DET_LABELS
+                               for k in range(n(det) + 1)}) == det_mine
+        mdv = 2.0 if sid == 0 else 5.0
+        band = next(c for c in right.collections if isinstance(c, PolyCollection))
+        y = band.get_paths()[0].vertices[:, 1]
+        notch = right.lines[0].get_ydata()
+        assert np.isclose(np.max(y[: len(notch)] - notch), mdv) or \
+            np.isclose((y.max() - y.min()) - (notch.max() - notch.min()), 2 * mdv)
+        assert f"MDV {mdv:g} m/s" in right.get_title()

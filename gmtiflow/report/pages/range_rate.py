@@ -49,13 +49,59 @@ def range_rate_figure(looks: Table, detections: Table, dwells: Table, *,
     blind speeds are the notch shifted by ± λ·PRF/2.  Right: the reports (measured range rate);
     where the radar is Doppler-ambiguous the processor wraps the range rate relative to the
     clutter, so the reports lie between the wrap limits ṙ_MLC ± λ·PRF/4 drawn around the notch.
+
+    Several sensors (``sensor_id`` in the dwells): one row of the two panels per sensor, each
+    with its own looks and reports (by their dwell) and its own platform speed, MDV and wrap
+    limits — each sensor's processor wraps around its own clutter notch.
     """
     fig = new_figure()
-    axl, axr = fig.subplots(1, 2, sharex=True, gridspec_kw=dict(left=0.07, right=0.98, top=0.86,
-                                                                 bottom=0.1, wspace=0.15))
+    sensor_ids = (np.unique(_col(dwells, "sensor_id")) if n(dwells) and "sensor_id" in dwells
+                  else np.zeros(0, np.int64))
+    if len(sensor_ids) < 2:
+        axl, axr = fig.subplots(1, 2, sharex=True, gridspec_kw=dict(
+            left=0.07, right=0.98, top=0.86, bottom=0.1, wspace=0.15))
+        if not n(dwells):
+            _note(axl, "no dwells")
+            return fig
+        v_p, mdv, blind = _sensor_panels(axl, axr, looks, detections, dwells, max_points)
+        axl.set_title("Looks: true range rate by outcome", fontsize=10)
+        axr.set_title("Reports: measured range rate", fontsize=10)
+        fig.suptitle(f"Range rate vs azimuth — platform {v_p:.0f} m/s, MDV {mdv:g} m/s"
+                     + (f", blind speed {blind:.1f} m/s" if math.isfinite(blind)
+                        else ", no PRF set"), fontsize=14, weight="bold", x=0.05, ha="left")
+        return fig
+    axes = fig.subplots(len(sensor_ids), 2, squeeze=False, gridspec_kw=dict(
+        left=0.07, right=0.98, top=0.88, bottom=0.07, wspace=0.15, hspace=0.45))
+    sensor_of_dwell = _col(dwells, "sensor_id")
+    for (axl, axr), sid in zip(axes, sensor_ids):
+        keep = sensor_of_dwell == sid
+        own = {k: np.asarray(v)[keep] for k, v in dwells.items()}
+        v_p, mdv, blind = _sensor_panels(axl, axr, _rows_of(looks, own), _rows_of(detections, own),
+                                         own, max_points)
+        axl.set_title(f"sensor {int(sid)} looks: true range rate — platform {v_p:.0f} m/s",
+                      fontsize=9)
+        axr.set_title(f"sensor {int(sid)} reports — MDV {mdv:g} m/s, "
+                      + (f"blind speed {blind:.1f} m/s" if math.isfinite(blind) else "no PRF"),
+                      fontsize=9)
+    fig.suptitle("Range rate vs azimuth, per sensor (each its own notch and wrap limits)",
+                 fontsize=14, weight="bold", x=0.05, ha="left")
+    return fig
+
+
+def _rows_of(table: Table, dwells: Table) -> Table:
+    """The rows of ``table`` whose ``dwell_id`` is one of ``dwells``' (one sensor's)."""
+    if not n(table):
+        return table
+    keep = np.isin(_col(table, "dwell_id"), _col(dwells, "dwell_id"))
+    return {k: np.asarray(v)[keep] for k, v in table.items()}
+
+
+def _sensor_panels(axl, axr, looks: Table, detections: Table, dwells: Table, max_points: int):
+    """Draw one sensor's looks (``axl``) and reports (``axr``) with its notch, blind speeds
+    and wrap limits; returns its (median platform speed, MDV, blind speed) for the titles."""
     if not n(dwells):
         _note(axl, "no dwells")
-        return fig
+        return float("nan"), 0.0, float("nan")
     speed = np.hypot(_col(dwells, "platform_vx_mps"), _col(dwells, "platform_vy_mps"))
     v_p = float(np.median(speed))
     mdv = _finite_median(dwells.get("mdv_mps"), 0.0)
@@ -137,9 +183,4 @@ def range_rate_figure(looks: Table, detections: Table, dwells: Table, *,
     yv = yv[np.isfinite(yv)]
     axl.set_ylim(yv.min() - max(10.0, 3 * mdv), yv.max() + max(10.0, 3 * mdv))
     axl.set_ylabel("range rate (m/s, + = receding)")
-    axl.set_title("Looks: true range rate by outcome", fontsize=10)
-    axr.set_title("Reports: measured range rate", fontsize=10)
-    fig.suptitle(f"Range rate vs azimuth — platform {v_p:.0f} m/s, MDV {mdv:g} m/s"
-                 + (f", blind speed {blind:.1f} m/s" if math.isfinite(blind) else ", no PRF set"),
-                 fontsize=14, weight="bold", x=0.05, ha="left")
-    return fig
+    return v_p, mdv, blind
