@@ -4,12 +4,34 @@ A leaf package (numpy and lxml only; it never imports gmtiflow).  Every format h
 a reader; readers raise :class:`FormatError` for malformed input.  See ``docs/formats.md``.
 """
 from ._io import atomic_path, write_atomic
-from .csvtable import (read_csv, read_detections_csv, read_tracks_csv, read_truth_csv,
-                       write_csv, write_detections_csv, write_tracks_csv, write_truth_csv)
 from .errors import FormatError
-from .geojson import read_geojson, write_geojson
-from .stanag4607 import iter_packets, read_4607, write_4607
-from .xmldoc import read_xml, validate_xml, write_xml
+
+# The writers and readers (and lxml behind the XML ones) load on first use (PEP 562): a caller
+# that needs only write_atomic (gmtiflow.rundir, on every start-up) does not pay for them, and
+# importing any public name from this package works as before.
+_LAZY = {
+    "read_csv": "csvtable", "read_detections_csv": "csvtable", "read_tracks_csv": "csvtable",
+    "read_truth_csv": "csvtable", "write_csv": "csvtable", "write_detections_csv": "csvtable",
+    "write_tracks_csv": "csvtable", "write_truth_csv": "csvtable",
+    "read_geojson": "geojson", "write_geojson": "geojson",
+    "iter_packets": "stanag4607", "read_4607": "stanag4607", "write_4607": "stanag4607",
+    "read_xml": "xmldoc", "validate_xml": "xmldoc", "write_xml": "xmldoc",
+}
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from importlib import import_module
+    value = getattr(import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "FormatError", "atomic_path", "write_atomic",

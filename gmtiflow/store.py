@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import weakref
 from pathlib import Path
 from typing import Any, Dict, Mapping, Optional
 
@@ -252,7 +253,7 @@ def open_run(path: os.PathLike, *, require_columns: bool = False) -> h5py.File:
         check_structure(f, path, layout=layout)
         check_attrs(f, path)
         if "config" in f:
-            read_text(f, "config")
+            read_config(f)      # checked (and kept for a caller's read_config) once per open
         if layout:
             check_columns(f, path)
     except StoreError:
@@ -467,8 +468,9 @@ def read_column(f: h5py.File, name: str, column: str) -> np.ndarray:
                          f"({exc})") from None
 
 
-def read_text(source, name: str) -> str:
-    """Read a scalar string dataset such as ``/config``."""
+def read_text(source, name: str, *, check: bool = True) -> str:
+    """Read a scalar string dataset such as ``/config`` (checked with
+    :func:`check_config_text` unless ``check`` is False)."""
     def get(f: h5py.File) -> str:
         try:
             obj = f[name]
@@ -480,7 +482,7 @@ def read_text(source, name: str) -> str:
         except _DAMAGED as exc:
             raise StoreError(f"{f.filename}: /{name} cannot be read "
                              f"({type(exc).__name__})") from None
-        if name == "config":
+        if name == "config" and check:
             check_config_text(text, f.filename)
         return text
     if isinstance(source, h5py.File):
@@ -489,8 +491,27 @@ def read_text(source, name: str) -> str:
         return get(f)
 
 
+_CONFIGS: "weakref.WeakKeyDictionary[h5py.File, dict]" = weakref.WeakKeyDictionary()
+"""The parsed ``/config`` of each open run file, read and checked by :func:`open_run`."""
+
+
+def read_config(f: h5py.File) -> dict:
+    """The run's ``/config`` as a dict, read and checked (:func:`check_config_text`) once per
+    open file: :func:`open_run` already did it, so a reader of the config does not parse the
+    YAML again.  The dict is shared by the callers of one open file: do not modify it."""
+    doc = _CONFIGS.get(f)
+    if doc is None:
+        doc = _CONFIGS[f] = _parse_config(read_text(f, "config", check=False), f.filename)
+    return doc
+
+
 def check_config_text(text: str, source) -> None:
-    """StoreError unless ``text`` is a resolved YAML mapping (the run's ``/config``).
+    """StoreError unless ``text`` is a resolved YAML mapping (the run's ``/config``)."""
+    _parse_config(text, source)
+
+
+def _parse_config(text: str, source) -> dict:
+    """The mapping of ``text``, or StoreError unless it is a resolved YAML mapping.
 
     A ``${...}`` anywhere is refused: OmegaConf would evaluate it when a consumer loads the
     config (``${oc.env:HOME}`` reads the environment), and gmtiflow stores resolved configs.
@@ -518,3 +539,4 @@ def check_config_text(text: str, source) -> None:
             elif isinstance(value, str) and "${" in value or isinstance(key, str) and "${" in key:
                 raise StoreError(f"{source}: /config holds an interpolation '${{...}}'; run files "
                                  f"store resolved configs (refused: it would be evaluated)")
+    return doc

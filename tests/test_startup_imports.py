@@ -10,8 +10,10 @@ import pytest
 
 # What a config error must not pay for: plotting, routing graphs, scipy (interpolation,
 # optimisation, statistics), HDF5, the viewer, the package metadata (~0.05 s: read for
-# gmtiflow.__version__ on first use) and the simulation itself.
-HEAVY = ("matplotlib", "networkx", "scipy", "h5py", "plotly", "PIL", "importlib.metadata",
+# gmtiflow.__version__ on first use), lxml and the format writers (gmtiflow.rundir needs only
+# gmtiflow.formats.write_atomic) and the simulation itself.
+HEAVY = ("matplotlib", "networkx", "scipy", "h5py", "plotly", "PIL", "importlib.metadata", "lxml",
+         "gmtiflow.formats.stanag4607", "gmtiflow.formats.xmldoc",
          "gmtiflow.pipeline", "gmtiflow.sensor.model", "gmtiflow.evaluate.tracker",
          "gmtiflow.report.run_report", "gmtiflow.scene.trajectory")
 

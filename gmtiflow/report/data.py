@@ -13,12 +13,11 @@ from typing import Any, Dict, Iterable, Iterator, Tuple
 
 import h5py
 import numpy as np
-import yaml
 
 from gmtiflow.errors import StoreError
 from gmtiflow.frames import Origin
 from gmtiflow.sensor.outcome import Outcome
-from gmtiflow.store import open_run, read_attrs, read_column, read_table, read_text
+from gmtiflow.store import open_run, read_attrs, read_column, read_config, read_table
 from gmtiflow.tables import Table
 
 TABLES = ("roads/nodes", "roads/edges", "vehicles", "truth", "platform", "dwells", "detections",
@@ -119,11 +118,7 @@ def load_run(run_path, tables: Iterable[str] = TABLES, *, lazy: bool = False) ->
     names = tuple(tables)
     with open_run(path, require_columns=True) as f:
         attrs = read_attrs(f)
-        try:
-            config = yaml.safe_load(read_text(f, "config")) if "config" in f else {}
-        except yaml.YAMLError:      # a foreign or hand-edited /config: use no config values
-            config = {}
-        config = config if isinstance(config, dict) else {}
+        config = read_config(f) if "config" in f else {}    # checked by open_run: parsed once
         tables = {}
         for name in names:
             if name in f:

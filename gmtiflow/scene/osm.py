@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import Dict, List, Optional
 
 import numpy as np
-from lxml import etree
 
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError, RoadMapError
@@ -60,8 +59,10 @@ def _deleted(element) -> bool:
     return element.get("action") == "delete" or element.get("visible") == "false"
 
 
-def hardened_parser() -> etree.XMLParser:
-    """An XML parser that resolves no entities, loads no DTD and never touches the network."""
+def hardened_parser():
+    """An XML parser (``lxml.etree.XMLParser``) that resolves no entities, loads no DTD and
+    never touches the network."""
+    from lxml import etree      # only when an OSM file is read: not on every start-up
     return etree.XMLParser(resolve_entities=False, load_dtd=False, no_network=True,
                            dtd_validation=False, huge_tree=False, remove_comments=True,
                            remove_pis=True)
@@ -77,6 +78,7 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         raise InputFileError(f"{p}: OSM file not found (roadmap.path; experiment=monaco reads "
                              f"monaco.osm and N43E007.hgt from the folder in GMTIFLOW_DATA_DIR)")
     check_input_file(p, "OSM file", MAX_OSM_BYTES, memory_factor=6.0)
+    from lxml import etree
     try:
         root = etree.parse(str(p), hardened_parser()).getroot()
     except etree.XMLSyntaxError as exc:

@@ -74,3 +74,19 @@ def test_lazy_tables_read_what_read_table_reads_and_only_when_asked(small_run, t
         truth["y_m"]                           # never read, and the file is gone
     with pytest.raises(StoreError, match="no column 'nosuch'"):
         truth["nosuch"]
+
+
+def test_load_run_reads_and_checks_the_config_once(small_run, monkeypatch):
+    """open_run checks /config (a YAML parse); load_run reuses that parse instead of reading
+    and checking the text again (it did both: three parses of the same YAML per report)."""
+    import yaml
+
+    from gmtiflow import store
+    from gmtiflow.report.data import load_run
+    expected = yaml.safe_load(store.read_text(small_run, "config"))
+    calls = []
+    real = yaml.safe_load
+    monkeypatch.setattr(store.yaml, "safe_load", lambda text: calls.append(1) or real(text))
+    run = load_run(small_run, lazy=True)
+    assert len(calls) == 1
+    assert run.config == expected and run.cfg("scene.duration_s") == 30
