@@ -3,6 +3,8 @@
 A leaf package (numpy and lxml only; it never imports gmtiflow).  Every format has a writer and
 a reader; readers raise :class:`FormatError` for malformed input.  See ``docs/formats.md``.
 """
+from pathlib import Path as _Path
+
 from ._io import atomic_path, write_atomic
 from .errors import FormatError
 
@@ -18,12 +20,18 @@ _LAZY = {
     "read_xml": "xmldoc", "validate_xml": "xmldoc", "write_xml": "xmldoc",
 }
 
+_SUBMODULES = frozenset(p.stem for p in _Path(__file__).parent.iterdir()
+                        if p.suffix == ".py" and p.stem != "__init__" or
+                        (p / "__init__.py").is_file())
+
 
 def __getattr__(name: str):
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     from importlib import import_module
+    module = _LAZY.get(name)
+    if module is None:      # a submodule (``formats.xmldoc.DETECTION_COLUMNS``) loads on use too
+        if name in _SUBMODULES:
+            return import_module(f".{name}", __name__)
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     value = getattr(import_module(f".{module}", __name__), name)
     globals()[name] = value
     return value

@@ -34,3 +34,14 @@ def test_formats_sources_import_nothing_outside_the_package():
         text = path.read_text()
         assert "from .." not in text and "import gmtiflow" not in text, path
         assert "from gmtiflow" not in text, path
+
+
+def test_lazy_names_and_submodules_resolve_in_a_fresh_interpreter():
+    """The writers and submodules load on first use (start-up): attribute access still works."""
+    code = ("import sys; from gmtiflow import formats; assert 'lxml' not in sys.modules; "
+            "assert formats.xmldoc.DETECTION_COLUMNS and formats.stanag4607.READ_TABLES; "
+            "from gmtiflow.formats import write_4607, read_xml; print(write_4607.__module__)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "gmtiflow.formats.stanag4607" or \
+        out.stdout.strip().startswith("gmtiflow.formats.s4607")
