@@ -232,13 +232,20 @@ def test_footprints_and_platform_tracks_of_two_sensors_are_never_mixed(tmp_path)
         assert np.max(np.hypot(np.diff(ln.get_xdata()), np.diff(ln.get_ydata()))) < 1.0  # km
 
 
-def test_range_rate_page_draws_each_sensor_with_its_own_notch_and_points(tmp_path):
+@pytest.fixture(scope="module")
+def two_sensor_run(tmp_path_factory):
+    """Two sensors (experiment=two_orbits) with different MDVs, 20 s, no tracker."""
+    from .conftest import make_run
+    return load_run(make_run(tmp_path_factory.mktemp("two"), [
+        "experiment=two_orbits", "scene.duration_s=20", "tracker=none",
+        "sensors.west.sensor.mdv_mps=5.0"]))
+
+
+def test_range_rate_page_draws_each_sensor_with_its_own_notch_and_points(two_sensor_run):
     """Two sensors with different MDVs: one row per sensor, each row holding that sensor's
     looks and reports only and a notch band as wide as its own MDV (the old page drew both
     sensors' points in one pair of panels around the median MDV)."""
-    from .conftest import make_run
-    run = load_run(make_run(tmp_path, ["experiment=two_orbits", "scene.duration_s=20",
-                                       "tracker=none", "sensors.west.sensor.mdv_mps=5.0"]))
+    run = two_sensor_run
     looks, det, dwells = run.table("looks"), run.table("detections"), run.table("dwells")
     fig = F.range_rate_figure(looks, det, dwells)
     assert len(fig.axes) == 4
@@ -260,3 +267,25 @@ def test_range_rate_page_draws_each_sensor_with_its_own_notch_and_points(tmp_pat
         assert np.isclose(np.max(y[: len(notch)] - notch), mdv) or \
             np.isclose((y.max() - y.min()) - (notch.max() - notch.min()), 2 * mdv)
         assert f"MDV {mdv:g} m/s" in right.get_title()
+
+
+def test_timeline_gives_each_sensor_its_own_lane_and_counts(two_sensor_run):
+    """Two sensors: each vehicle row has one lane per sensor (sensor 0 above), holding that
+    sensor's looks, and one stacked bar per sensor counting them (the old page mixed them)."""
+    run = two_sensor_run
+    looks = run.table("looks")
+    fig = F.timeline_figure(run.table("vehicles"), run.table("truth"), looks)
+    ax, bx = fig.axes
+    ys = np.concatenate([c.get_offsets()[:, 1] for c in ax.collections
+                         if isinstance(c, PathCollection)])
+    lane = np.round(ys - np.round(ys), 6)
+    sid = np.asarray(looks["sensor_id"])
+    assert len(ys) == n(looks)
+    assert sorted(set(lane.tolist())) == [-0.175, 0.175]
+    assert np.sum(lane < 0) == np.sum(sid == 0) and np.sum(lane > 0) == np.sum(sid == 1)
+    bars = next(c for c in bx.collections if isinstance(c, PolyCollection)).get_paths()
+    width = np.array([p.vertices[:, 0].max() - p.vertices[:, 0].min() for p in bars])
+    top = np.array([p.vertices[:, 1].min() for p in bars])
+    frac = np.round(top - np.round(top), 6)
+    assert width[frac == -0.35].sum() == np.sum(sid == 0)      # sensor 0's lane: its looks
+    assert width[frac == 0.0].sum() == np.sum(sid == 1)

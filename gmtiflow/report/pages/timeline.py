@@ -71,30 +71,43 @@ def timeline_figure(vehicles: Table, truth: Table, looks: Table, *,
                 s, w, r = (np.asarray(c, float) for c in zip(*runs))
                 ax.add_collection(PolyCollection(rectangles(s, s + w, r - 0.38, r + 0.38),
                                                  zorder=1, **style))
-    counts = np.zeros((len(shown), len(OUTCOME_STYLE)))
     codes = list(OUTCOME_STYLE)
+    # Several sensors: each vehicle row is split into one lane per sensor (sensor 0 on top),
+    # for its looks and its outcome counts; one sensor keeps the full row.
+    sensors = (np.unique(_col(looks, "sensor_id")) if n(looks) and "sensor_id" in looks
+               else np.zeros(1, np.int64))
+    lane_h = 0.7 / len(sensors)
+    counts = np.zeros((len(sensors), len(shown), len(codes)))
     if n(looks):
         lv, lo, lt = _col(looks, "vehicle_id"), _col(looks, "outcome"), _col(looks, "time_s")
-        sel = np.isin(lv, shown)
+        ls = _col(looks, "sensor_id") if len(sensors) > 1 else None
         row_of = np.full(int(max(lv.max(), shown.max())) + 1, -1)
         row_of[shown] = np.arange(len(shown))
-        rows = row_of[lv[sel]]
-        for j, code in enumerate(codes):
-            m = lo[sel] == code
-            colour, label, size = OUTCOME_STYLE[code]
-            if m.any():
-                ax.scatter(lt[sel][m], rows[m], s=size, color=colour, marker="|" if code == Outcome.OUTSIDE_FOV else "o",
-                           lw=1 if code == Outcome.OUTSIDE_FOV else 0, zorder=3,
-                           rasterized=m.sum() > RASTER_ABOVE)
-                counts[:, j] = np.bincount(rows[m], minlength=len(shown))
+        for k, sid in enumerate(sensors):
+            sel = np.isin(lv, shown) if ls is None else np.isin(lv, shown) & (ls == sid)
+            rows = row_of[lv[sel]]
+            lane = -0.35 + lane_h * (k + 0.5)
+            for j, code in enumerate(codes):
+                m = lo[sel] == code
+                colour, label, size = OUTCOME_STYLE[code]
+                if m.any():
+                    ax.scatter(lt[sel][m], rows[m] + lane if len(sensors) > 1 else rows[m], s=size,
+                               color=colour, marker="|" if code == Outcome.OUTSIDE_FOV else "o",
+                               lw=1 if code == Outcome.OUTSIDE_FOV else 0, zorder=3,
+                               rasterized=m.sum() > RASTER_ABOVE)
+                    counts[k, :, j] = np.bincount(rows[m], minlength=len(shown))
     # Stacked horizontal bars as one collection (barh makes a patch per bar and vehicle).
-    right = np.cumsum(counts, axis=1)
+    right = np.cumsum(counts, axis=2)
     left = right - counts
-    r = np.broadcast_to(np.arange(len(shown))[:, None], counts.shape).ravel()
-    bars = rectangles(left, right, r - 0.35, r + 0.35)
-    bx.add_collection(PolyCollection(bars, lw=0, facecolors=np.broadcast_to(
-        np.array([OUTCOME_STYLE[c][0] for c in codes]), counts.shape).ravel()))
-    bx.set_xlim(0, max(float(right[:, -1].max()) if right.size else 0.0, 1.0) * 1.05)
+    r = np.broadcast_to(np.arange(len(shown))[:, None], counts.shape[1:]).ravel()
+    lanes = [(r - 0.35, r + 0.35)] if len(sensors) == 1 else [
+        (r - 0.35 + lane_h * k, r - 0.35 + lane_h * (k + 1)) for k in range(len(sensors))]
+    bars = np.concatenate([rectangles(left[k], right[k], y0, y1)
+                           for k, (y0, y1) in enumerate(lanes)])
+    colours = np.broadcast_to(np.array([OUTCOME_STYLE[c][0] for c in codes]), counts.shape[1:])
+    bx.add_collection(PolyCollection(bars, lw=0, facecolors=np.tile(colours.ravel(),
+                                                                     len(sensors))))
+    bx.set_xlim(0, max(float(right[:, :, -1].max()) if right.size else 0.0, 1.0) * 1.05)
     labels = [f"{names.get(v, v)} (#{v})" for v in shown]
     ax.set_yticks(np.arange(len(shown)))
     ax.set_yticklabels(labels, fontsize=max(5, min(9, int(300 / max(len(shown), 1)))))
@@ -102,7 +115,8 @@ def timeline_figure(vehicles: Table, truth: Table, looks: Table, *,
     bx.set_ylim(len(shown) - 0.5, -0.5)
     bx.set_yticks([])
     bx.set_xlabel("looks")
-    bx.set_title("outcome counts", fontsize=9)
+    bx.set_title("outcome counts" if len(sensors) < 2 else "outcome counts per sensor\n(lanes top "
+                 "to bottom: sensor " + ", ".join(str(int(v)) for v in sensors) + ")", fontsize=9)
     ax.set_xlabel("time (s)")
     ax.grid(axis="x", alpha=0.3)
     handles = [Line2D([], [], ls="", marker="o", color=OUTCOME_STYLE[c][0], label=OUTCOME_STYLE[c][1])
