@@ -121,15 +121,21 @@ class RunWriter:
         self.tmp_path = self.path.with_name(f".{self.path.name}.{os.getpid()}.partial")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._check_space(0)
-        self._file = h5py.File(self.tmp_path, "w", track_order=True)
-        root = self._file.attrs
-        root["layout_version"] = LAYOUT_VERSION
-        root["seed"] = int(seed)
-        root["gmtiflow_version"] = __version__
-        root["complete"] = False
-        for key, value in (attrs or {}).items():
-            root[key] = value
         self._committed = False
+        try:
+            self._file = h5py.File(self.tmp_path, "w", track_order=True)
+            root = self._file.attrs
+            root["layout_version"] = LAYOUT_VERSION
+            root["seed"] = int(seed)
+            root["gmtiflow_version"] = __version__
+            root["complete"] = False
+            for key, value in (attrs or {}).items():
+                root[key] = value
+        except BaseException:       # Ctrl-C or a bad attribute before ``with`` took over
+            if getattr(self, "_file", None) is not None:
+                self._file.close()
+            self.tmp_path.unlink(missing_ok=True)
+            raise
 
     def __enter__(self) -> "RunWriter":
         return self

@@ -41,3 +41,16 @@ def test_install_keeps_an_ignored_sigint_ignored(fresh_request):
     with pytest.raises(KeyboardInterrupt):
         signal.raise_signal(signal.SIGINT)
     assert interrupts.requested()
+
+
+def test_an_interrupt_while_the_run_file_is_created_leaves_no_partial_file(tmp_path):
+    """Ctrl-C can land inside RunWriter's constructor, after the temporary file exists and
+    before ``with`` would clean up (seen once in test_rundir's Ctrl-C test)."""
+    from gmtiflow import store
+
+    class Boom:                     # the seed attribute is written after the file is created
+        def __int__(self):
+            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        store.RunWriter(tmp_path / "run.h5", seed=Boom())
+    assert not list(tmp_path.iterdir())
