@@ -22,6 +22,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from gmtiflow.cache import CacheConfig
+from gmtiflow.config_tree import numeric_leaves
 from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.export import ExportConfig
@@ -283,23 +284,12 @@ the one exception (any integer in [0, 2^63))."""
 _MAGNITUDE_EXEMPT = {"seed"}
 
 
-def magnitude_problems(obj, prefix: str = "") -> List[Problem]:
+def magnitude_problems(obj) -> List[Problem]:
     """A Problem for every numeric leaf of the tree beyond ±:data:`MAX_MAGNITUDE`."""
-    out: List[Problem] = []
-    if dataclasses.is_dataclass(obj):
-        for f in dataclasses.fields(obj):
-            out += magnitude_problems(getattr(obj, f.name), f"{prefix}{f.name}.")
-    elif isinstance(obj, (list, tuple)):
-        for i, item in enumerate(obj):
-            out += magnitude_problems(item, f"{prefix[:-1]}[{i}].")
-    elif isinstance(obj, dict):
-        for key, item in obj.items():
-            out += magnitude_problems(item, f"{prefix}{key}.")
-    elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
-        key = prefix[:-1]
-        if key not in _MAGNITUDE_EXEMPT and math.isfinite(obj) and abs(obj) > MAX_MAGNITUDE:
-            out.append(Problem(key, f"must be within ±{MAX_MAGNITUDE:g}, got {obj!r}"))
-    return out
+    return [Problem(key, f"must be within ±{MAX_MAGNITUDE:g}, got {value!r}")
+            for key, value in numeric_leaves(obj)
+            if key not in _MAGNITUDE_EXEMPT and math.isfinite(value)
+            and abs(value) > MAX_MAGNITUDE]
 
 
 def validate(obj: AppConfig) -> None:
