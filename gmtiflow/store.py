@@ -616,6 +616,11 @@ def read_config(f: h5py.File) -> dict:
     return doc
 
 
+_SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+"""``yaml.safe_load``'s loader, in libyaml's C scanner and parser when PyYAML has it (the same
+documents, ~10x faster: every reader of a run file parses its /config)."""
+
+
 def check_config_text(text: str, source) -> None:
     """StoreError unless ``text`` is a resolved YAML mapping (the run's ``/config``)."""
     _parse_config(text, source)
@@ -630,7 +635,7 @@ def _parse_config(text: str, source) -> dict:
     if len(text) > 16 * 2**20:
         raise StoreError(f"{source}: /config is {len(text)} characters; not a gmtiflow config")
     try:
-        doc = yaml.safe_load(text)
+        doc = yaml.load(text, Loader=_SAFE_LOADER)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1})" if mark is not None else ""
