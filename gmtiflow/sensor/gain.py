@@ -40,9 +40,12 @@ def scan_loss(scan_rad):
     return c * np.sqrt(c)
 
 
-def transmit_gain(n_elements: int, scan_rad, f_mismatch):
-    """G_t = π N cos^{3/2}(φ_b) f_mismatch (eq. 7), linear."""
-    return math.pi * n_elements * scan_loss(scan_rad) * np.asarray(f_mismatch, float)
+def transmit_gain(n_elements: int, scan_rad, f_mismatch, loss=None):
+    """G_t = π N cos^{3/2}(φ_b) f_mismatch (eq. 7), linear; ``loss``: :func:`scan_loss` of
+    ``scan_rad`` when the caller has it (e.g. looked up per beam), which is then not read."""
+    if loss is None:
+        loss = scan_loss(scan_rad)
+    return math.pi * n_elements * loss * np.asarray(f_mismatch, float)
 
 
 def blind_offset(own_range_rate_mps, blind_speed_mps=None):

@@ -60,7 +60,8 @@ def horizon_distance_m(height_m, k_factor: float, radius_m: float = EARTH_RADIUS
     return a * np.arctan(np.sqrt(h * (2.0 * a + h)) / a)
 
 
-def within_horizon(platform_xyz, target_xyz, k_factor: float, radius_m: float = EARTH_RADIUS_M):
+def within_horizon(platform_xyz, target_xyz, k_factor: float, radius_m: float = EARTH_RADIUS_M,
+                   platform_reach_m=None):
     """True where a point is above the radar horizon of the platform (smooth k-earth).
 
     Heights are map ``z`` (above the sphere through the scene origin, :mod:`gmtiflow.frames`);
@@ -71,9 +72,13 @@ def within_horizon(platform_xyz, target_xyz, k_factor: float, radius_m: float = 
     on the k-earth (:func:`gmtiflow.sensor.geometry.grazing_angle_rad` with radius k·R) of a
     ground point reaches 0.  At 10 m altitude a ground point is seen out to 13 km, at 6 km
     altitude out to 319 km, at 20 km out to 583 km.
+
+    ``platform_reach_m``: the platform's :func:`horizon_distance_m`, when the caller has it (one
+    per dwell rather than per pair); ``platform_xyz[2]`` is then not read.
     """
     dx = np.asarray(target_xyz[0], float) - np.asarray(platform_xyz[0], float)
     dy = np.asarray(target_xyz[1], float) - np.asarray(platform_xyz[1], float)
-    reach = (horizon_distance_m(platform_xyz[2], k_factor, radius_m)
-             + horizon_distance_m(target_xyz[2], k_factor, radius_m))
+    if platform_reach_m is None:
+        platform_reach_m = horizon_distance_m(platform_xyz[2], k_factor, radius_m)
+    reach = platform_reach_m + horizon_distance_m(target_xyz[2], k_factor, radius_m)
     return dx * dx + dy * dy <= reach * reach
