@@ -98,10 +98,11 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
         l_bc = antenna.direction(scan_angle, el[vis], antenna.take(poses.b, dv),
                                  antenna.take(poses.h, dv), antenna.take(poses.u, dv))
         own_rr = rr[vis] + antenna.dot(antenna.take(poses.vel, dv), l_bc)
+    folded = gain.blind_offset(own_rr, cfg.blind_speed_mps)   # for the gain and the misses
     if cfg.stap:
-        g_r = g_t * gain.stap_notch(own_rr, mdv, cfg.blind_speed_mps)
+        g_r = g_t * gain.stap_notch(own_rr, mdv, cfg.blind_speed_mps, offset=folded)
     else:
-        g_r = g_t * gain.clutter_band_gain(own_rr, mdv, cfg.blind_speed_mps)
+        g_r = g_t * gain.clutter_band_gain(own_rr, mdv, cfg.blind_speed_mps, folded=folded)
     rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo.at("heading_rad", vis), None, None,
                                 los_azimuth_rad=los_az[vis])
     s_db = snr.snr_db(cfg, rng_m[vis], g_t, g_r, rcs_v)
@@ -109,11 +110,12 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     lpd = detect.log_pd(s_lin, cfg.pfa)
     pairs = rng.Counters(dwell_id[vis], veh[vis])       # mixed once for all four draws
     uni = pairs.uniform(rng.counter_key(seed, "sensor", "pd"))
-    hit = np.log(uni) < lpd
+    log_u = np.log(uni)
+    hit = log_u < lpd
     snr_db_col[vis] = s_db
     pd_col[vis] = np.exp(lpd)
     miss = vis[~hit]
-    blind = np.abs(gain.blind_offset(own_rr[~hit], cfg.blind_speed_mps)) < mdv[~hit]
+    blind = np.abs(folded[~hit]) < mdv[~hit]
     outcome[miss] = np.where(blind, Outcome.DOPPLER_BLIND, Outcome.PD_MISS)
 
     # --- detections: reported SNR, errors, geolocation ----------------------------------
@@ -121,7 +123,7 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     k = d.size
     outcome[d] = Outcome.DETECTED
     det_local[d] = np.arange(k)
-    snr_rep = detect.reported_snr(uni[hit], s_lin[hit])
+    snr_rep = detect.reported_snr(None, s_lin[hit], log_uniform=log_u[hit])
     bw_rad = (scan.broadened_beamwidth_rad(cfg, scan_angle[hit]) if instant else
               scan.broadened_beamwidth_rad(cfg, sched.beam_scan_rad)[b_vis[hit]])
     s_r, s_az, s_rr = measurement.sigmas(cfg, snr_rep, bw_rad)

@@ -57,6 +57,13 @@ def horizon_distance_m(height_m, k_factor: float, radius_m: float = EARTH_RADIUS
     a = k_factor * radius_m
     h = np.maximum(np.asarray(height_m, float), 0.0)
     # acos(a/(a+h)) = atan(√(2ah + h²)/a), stable for small h
+    if h.ndim == 1 and h.size > 64:      # points on the surface (flat ground) are exactly 0
+        up = np.flatnonzero(h)
+        out = np.zeros(h.shape)
+        if up.size:
+            hu = h[up]
+            out[up] = a * np.arctan(np.sqrt(hu * (2.0 * a + hu)) / a)
+        return out
     return a * np.arctan(np.sqrt(h * (2.0 * a + h)) / a)
 
 
