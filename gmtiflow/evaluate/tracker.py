@@ -207,9 +207,10 @@ class NNKalmanTracker:
         for c in ("x_m", "y_m"):
             usable &= np.isfinite(np.asarray(det[c], float))
         out = []
+        one = len(dw["dwell_id"]) == 1          # per-dwell batches: the batch is the dwell
         for k, rows in batch.dwell_slices():
             idx = np.flatnonzero(usable[rows])
-            sub = {name: col[rows] for name, col in det.items()} if len(idx) else det
+            sub = det if one or not len(idx) else {name: col[rows] for name, col in det.items()}
             self._dwell(dw, k, sub, idx, has_fp, out)
         if not out:
             return None
@@ -305,14 +306,20 @@ class NNKalmanTracker:
             row_sel = hit | np.isin(ci, missed_rev)
         row_sel &= ~dead[ci]
         rows_i = ci[row_sel]
-        if len(rows_i):
-            out.append(_rows(tr.id[rows_i], t, xp[row_sel], Pp[row_sel], tr.z[rows_i], plat_pos,
-                             plat_vel, tr.confirmed[rows_i]))
-        if nf:
+        if nf:          # the covered tracks' rows, then the new tracks' first rows
             new = n_tr + np.arange(nf)
             new = new[~dead[new]]
-            out.append(_rows(tr.id[new], t, tr.x[new], tr.P[new], tr.z[new], plat_pos, plat_vel,
-                             tr.confirmed[new]))
+            if len(rows_i):
+                both = np.concatenate([rows_i, new])
+                out.append(_rows(tr.id[both], t, np.concatenate([xp[row_sel], tr.x[new]]),
+                                 np.concatenate([Pp[row_sel], tr.P[new]]), tr.z[both],
+                                 plat_pos, plat_vel, tr.confirmed[both]))
+            elif len(new):
+                out.append(_rows(tr.id[new], t, tr.x[new], tr.P[new], tr.z[new], plat_pos,
+                                 plat_vel, tr.confirmed[new]))
+        elif len(rows_i):
+            out.append(_rows(tr.id[rows_i], t, xp[row_sel], Pp[row_sel], tr.z[rows_i], plat_pos,
+                             plat_vel, tr.confirmed[rows_i]))
         if dead.any():
             tr.keep(~dead)
 
