@@ -53,6 +53,10 @@ _STAR_MARGIN = 1e-9
 #: than building a scipy.sparse graph for a dwell's handful of pairs); above, by scipy.
 _SMALL_GRAPH = 256
 
+#: Components whose augmented matrix has up to this many entries share one buffer; larger ones
+#: are built one at a time.
+_BUFFERED = 1024
+
 
 def _components(r_idx: np.ndarray, c_idx: np.ndarray, nr: int, nc: int):
     """Component label (0, 1, ...) of every row node (first ``nr``) and column node (next
@@ -246,6 +250,30 @@ def _solve_components(pairs, r_idx, c_idx, cost, label, pair_label, nr, nc, comp
         keep = ~general[np.searchsorted(comps, lab)]
         order, lab = order[keep], lab[keep]
         comps = comps[~general]
+        first = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else first[:0]
+    large = comp_rows[comps] * (comp_rows[comps] + comp_cols[comps]) > _BUFFERED
+    if large.any():          # one by one: their matrices would make the buffer huge
+        bounds = np.r_[first, len(order)]
+        for k in np.flatnonzero(large).tolist():
+            grp = order[bounds[k]:bounds[k + 1]]
+            n, m = int(comp_rows[comps[k]]), int(comp_cols[comps[k]])
+            gr, ir = np.unique(r_idx[grp], return_inverse=True)
+            gc, ic = np.unique(c_idx[grp], return_inverse=True)
+            aug = np.full((n, m + n), gate * (n + 1) + 1.0)
+            aug[ir, ic] = cost[grp]
+            aug[np.arange(n), m + np.arange(n)] = gate
+            a, b = linear_sum_assignment(aug)
+            real = b < m
+            a, b = a[real], b[real]
+            pair = np.zeros((n, m), bool)
+            pair[ir, ic] = True
+            keep = pair[a, b]
+            out_r.append(gr[a[keep]])
+            out_c.append(gc[b[keep]])
+        keep = ~large[np.searchsorted(comps, lab)]
+        order, lab = order[keep], lab[keep]
+        comps = comps[~large]
+        first = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else first[:0]
     if len(comps):
         # One flat buffer holding every component's augmented matrix (n rows, m + n columns:
         # the pairs' costs, big elsewhere, the rows' private miss columns at the gate).
