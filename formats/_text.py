@@ -51,7 +51,7 @@ class Cells:
         """The cells of ``rows`` (indices or a slice), in that order."""
         chars = self.chars if len(self.chars) == 1 else self.chars[rows]
         start = self.start if np.ndim(self.start) == 0 else np.asarray(self.start)[rows]
-        return Cells(chars, self.lens[rows].astype(np.int64), start, self.nul)
+        return Cells(chars, self.lens[rows], start, self.nul)
 
     def compact(self) -> "Cells":
         """The same cells in less memory (kept whole by :func:`shared_columns`)."""
@@ -112,6 +112,17 @@ def ascii_fixed(values: np.ndarray) -> Field:
     chars = np.frombuffer(b.tobytes(), np.uint8).reshape(len(b), w) if len(b) else \
         np.zeros((0, w), np.uint8)
     return [Cells(chars, np.count_nonzero(chars, axis=1).astype(np.int64))]
+
+
+def utc_cells(epoch, time_s) -> Field:
+    """ISO-8601 UTC text of ``epoch + time_s`` (:func:`formats._io.iso_utc`; empty where the
+    time is not finite), made once per run of equal times (a dwell's reports share its time)."""
+    from ._io import iso_utc
+    t = np.asarray(time_s, dtype=np.float64)
+    runs = _repeats(t)
+    if runs is not None:
+        return _expand(ascii_fixed(iso_utc(epoch, t[runs[0]])), runs[1])
+    return ascii_fixed(iso_utc(epoch, t))
 
 
 _GROUPS = np.frombuffer(b"".join(f"{k:03d}".encode() for k in range(1000)), "V3")
