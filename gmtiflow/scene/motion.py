@@ -407,22 +407,22 @@ def _track_speeds(v0, v_des, amax, dmax, dt):
     the speed is within reach of v_des again.  ``amax``, ``dmax``: (n, 1).  A guess: the
     caller checks it step by step."""
     n, w = v_des.shape
-    ar = np.arange(w)
     V = np.empty((n, w))
     V[:, 0] = v0
     V[:, 1:] = v_des[:, :-1]
     settled = np.zeros(n, np.int64)           # columns before it are final
-    for _ in range(8):                        # each pass: the first unsettled run of each row
+    t = np.arange(w)
+    for _ in range(4):
         raw = (v_des - V) / dt
-        clipped = ((raw > amax) | (raw < -dmax)) & (ar >= settled[:, None])
-        c = _first_true(clipped)
-        rows = np.flatnonzero(c < w - 1)
+        clipped = ((raw > amax) | (raw < -dmax)) & (t >= settled[:, None])
+        clipped[:, -1] = False                # its end is not a start speed in the window
+        # runs start at a clipped step after a free one (or at the first unsettled column)
+        start = clipped & ~np.concatenate([np.zeros((n, 1), bool), clipped[:, :-1]], axis=1)
+        rows, c = np.nonzero(start)
         if not rows.size:
             break
-        c = c[rows]
         am, dm = amax[rows], dmax[rows]
         inc = np.clip(raw[rows, c][:, None], -dm, am) * dt
-        t = np.arange(w)
         col = np.minimum(c[:, None] + t, w - 1)
         chain = np.broadcast_to(inc, (rows.size, w)).copy()
         chain[:, 0] = V[rows, c]
@@ -430,9 +430,18 @@ def _track_speeds(v0, v_des, amax, dmax, dt):
         rr = (v_des[rows[:, None], col] - chain) / dt
         inside = c[:, None] + t < w
         e = _first_true((rr <= am) & (rr >= -dm) & (t >= 1) & inside)  # the run's last step
-        put = (t >= 1) & (t <= e[:, None]) & inside
+        # a run that starts within an earlier run of its row (as guessed) waits for a later pass
+        key = rows * (2 * w + 2)
+        end = np.maximum.accumulate(key + c + e)
+        prev_end = np.concatenate([[-1], end[:-1]])
+        ok = key + c > prev_end
+        put = (t >= 1) & (t <= e[:, None]) & inside & ok[:, None]
         V[np.broadcast_to(rows[:, None], put.shape)[put], col[put]] = chain[put]
-        settled[rows] = c + e + 1
+        settled_new = np.full(n, w, np.int64)
+        np.minimum.at(settled_new, rows[~ok], c[~ok])
+        settled = settled_new
+        if ok.all():
+            break
     return V
 
 
@@ -522,12 +531,14 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             normal[:r, sel] = nrm
             us_buf[pids[sel], col0:col0 + r] = us.T
             uw_buf[pids[sel], col0:col0 + r] = uw.T
-        rh, rc = rho[pids], rho_c[pids]
-        xi = np.empty((W, pids.size))
+        rh = rho[pids]
+        xi = rho_c[pids] * normal                  # ξ_k = ρ ξ_{k-1} + √(1-ρ²) n_k, in order
         prev = xi_buf[pids, col0 - 1]
-        xi[0] = np.where(blocks == 0, normal[0], rh * prev + rc * normal[0])
+        xi[0] = np.where(blocks == 0, normal[0], rh * prev + xi[0])
+        tmp = np.empty(pids.size)
         for r in range(1, W):
-            xi[r] = rh * xi[r - 1] + rc * normal[r]
+            np.multiply(rh, xi[r - 1], out=tmp)
+            np.add(tmp, xi[r], out=xi[r])
         xi_buf[pids, col0:col0 + W] = xi.T
 
     ar = np.arange(W)
@@ -568,55 +579,56 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         out = {name: np.empty((n, W)) for name in ("a", "raw", "s_end", "v_end")}
         out["free"] = np.empty((n, W), bool)
         todo = np.arange(n)
+        S, V, x0, x1, step, sig, s0, v0 = S_a, V_a, x0_a, x1_a, step_a, sig_a, s0_a, v0_a
+        c = per
+        ev0, last0 = ev0_a, last_a
+
+        def desired(S, V):
+            j = np.clip(np.searchsorted(seg_key, S + c["pbase"], side="right") - 1,
+                        c["fseg"], c["lseg"])
+            target = seg_target[j]
+            with np.errstate(invalid="ignore"):
+                ahead = np.maximum(cap_s[j] - (S + V * dt), 0.0)
+            cap = np.sqrt(cap_t[j] ** 2 + 2.0 * c["dcap"] * ahead)
+            noisy = target + x1
+            return target, noisy, np.maximum(np.minimum(noisy, cap), 0.0)
+
+        target, noisy, v_des = desired(S, V)
         for sweep in range(MAX_SWEEPS):
-            full = todo.size == n
-            g = (lambda x: x) if full else (lambda x: x[todo])   # noqa: E731
-            S, V, x0, x1, step = g(S_a), g(V_a), g(x0_a), g(x1_a), g(step_a)
-            c = {key: g(val) for key, val in per.items()}
             amx, dmx = c["amx"], c["dmx"]
-            s0, v0 = g(s0_a), g(v0_a)
-            sig = g(sig_a)
-
-            def desired(S, V):
-                j = np.clip(np.searchsorted(seg_key, S + c["pbase"], side="right") - 1,
-                            c["fseg"], c["lseg"])
-                target = seg_target[j]
-                with np.errstate(invalid="ignore"):
-                    ahead = np.maximum(cap_s[j] - (S + V * dt), 0.0)
-                cap = np.sqrt(cap_t[j] ** 2 + 2.0 * c["dcap"] * ahead)
-                noisy = target + x1
-                return target, noisy, np.maximum(np.minimum(noisy, cap), 0.0)
-
-            def kinematics(V, target, noisy, v_des):
-                raw = (v_des - V) / dt
-                a = np.clip(raw, -dmx, amx)
-                v_end = np.maximum(V + a * dt, 0.0)
-                t_a = V * dt
-                t_b = 0.5 * a * dt * dt
-                t_c = v_end * (dt - dt)
-                free = ((raw <= amx) & (raw >= -dmx) & (v_des == noisy) & (sig > 0)
-                        & (np.abs(V - (target + x0)) <= 1e-9 * np.maximum(V, 1.0))
-                        & (np.minimum(V, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
-                                                                              np.abs(x1)))
-                        & (step > 0))
-                t_d = 0.5 * (x0 + x1) * c["c1"] * dt
-                return raw, a, v_end, t_a, t_b, t_c, free, t_d
-
-            # every step of the window from its guessed start state (S, V), as general() does
-            target, noisy, v_des = desired(S, V)
-            raw, a, v_end, t_a, t_b, t_c, free, t_d = kinematics(V, target, noisy, v_des)
-            s_end = S + t_a + t_b + t_c
-            s_end = np.where(free, s_end + t_d, s_end)
-            # right: the steps whose start state is the previous step's end, bit for bit
-            ok = (S[:, 1:] == s_end[:, :-1]) & (V[:, 1:] == v_end[:, :-1])
-            n_exact = 1 + _leading_true(ok)
-            ev = g(ev0_a) & (V > 0)
+            # The steps for these desired speeds: start speeds by the step recurrence in v
+            # alone, then every step's kinematics as general() computes them, and positions
+            # by the very additions the steps make (so s_end[i] = S[i + 1] exactly).
+            V = _track_speeds(v0, v_des, amx, dmx, dt)
+            raw = (v_des - V) / dt
+            a = np.clip(raw, -dmx, amx)
+            v_end = np.maximum(V + a * dt, 0.0)
+            free = ((raw <= amx) & (raw >= -dmx) & (v_des == noisy) & (sig > 0)
+                    & (np.abs(V - (target + x0)) <= 1e-9 * np.maximum(V, 1.0))
+                    & (np.minimum(V, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
+                                                                          np.abs(x1)))
+                    & (step > 0))
+            x = np.empty((todo.size, 4 * W + 1))
+            x[:, 0] = s0
+            x[:, 1::4] = V * dt
+            x[:, 2::4] = 0.5 * a * dt * dt
+            x[:, 3::4] = v_end * (dt - dt)
+            x[:, 4::4] = np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0)
+            S_full = np.add.accumulate(x, axis=1)[:, ::4]
+            S, s_end = S_full[:, :-1], S_full[:, 1:]
+            # Right: step 0 (its start state is exact) and every step after a right one whose
+            # start speed is the previous step's end and whose desired speed at its start
+            # state is the one used (the position needs no check: it is built that way).
+            t2, n2, v2 = desired(S, V)
+            same = (v2 == v_des) & (t2 == target)
+            ok = same[:, 1:] & (V[:, 1:] == v_end[:, :-1])
+            n_exact = np.where(same[:, 0], 1 + _leading_true(ok), 0)
+            ev = ev0 & (V > 0)
             if points:
                 v_up = V + amx * dt
                 reach = S + V * dt + c["look_a"] + v_up * v_up / (2.0 * dmx) >= c["nxt"]
                 ev |= reach & (c["nxt"] - S > 0)
-            cand = np.minimum(_first_true(ev),
-                              _first_true(g(last_a) | (s_end >= c["length"])) + 1)
+            cand = np.minimum(_first_true(ev), _first_true(last0 | (s_end >= c["length"])) + 1)
             m = np.minimum(n_exact, cand)
             fin = (m == cand) | (sweep == MAX_SWEEPS - 1)
             r = todo[fin]
@@ -626,25 +638,13 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                 out[name][r] = val[fin]
             if fin.all():
                 break
-            todo = todo[~fin]
-            # next guess for the rows still short: speeds for these desired speeds, then
-            # positions by the same sequence of additions from s0 as the steps make
+            # the rows still short: again, with the desired speeds at this pass's states
             keep = ~fin
-            v_des, target, noisy = v_des[keep], target[keep], noisy[keep]
-            s0, v0 = s0[keep], v0[keep]
-            x0, x1, step, sig = x0[keep], x1[keep], step[keep], sig[keep]
+            todo = todo[keep]
+            target, noisy, v_des = t2[keep], n2[keep], v2[keep]
+            s0, v0, x0, x1 = s0[keep], v0[keep], x0[keep], x1[keep]
+            step, sig, ev0, last0 = step[keep], sig[keep], ev0[keep], last0[keep]
             c = {key: val[keep] for key, val in c.items()}
-            amx, dmx = c["amx"], c["dmx"]
-            V = _track_speeds(v0, v_des, amx, dmx, dt)
-            raw, a, v_end, t_a, t_b, t_c, free, t_d = kinematics(V, target, noisy, v_des)
-            x = np.empty((todo.size, 4 * W + 1))
-            x[:, 0] = s0
-            x[:, 1::4], x[:, 2::4], x[:, 3::4] = t_a, t_b, t_c
-            x[:, 4::4] = np.where(free, t_d, 0.0)
-            S = np.empty_like(V)
-            S[:, 0] = s0
-            S[:, 1:] = np.add.accumulate(x, axis=1)[:, 4:4 * W:4]
-            S_a[todo], V_a[todo] = S, V
         m = m_out
         took = ar < m[:, None]
         if took.any():

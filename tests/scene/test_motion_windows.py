@@ -5,9 +5,11 @@ free cruise with correlated and independent speed noise, speed limits and speed 
 not powers of two, trips that end inside a window and horizons shorter than a window."""
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as hst
 
 from gmtiflow.scene import motion
-from gmtiflow.scene.roadmap import RoadmapConfig, load_roadmap
+from gmtiflow.scene.roadmap import RoadmapConfig, RoadSpec, load_roadmap
 from gmtiflow.scene.vehicles import (ConvoySpec, RandomFleetSpec, SpeedChangeSpec,
                                      VehiclesConfig, VehicleSpec, build_fleet)
 
@@ -20,14 +22,18 @@ def default_map():
     return load_roadmap(RoadmapConfig())
 
 
+REAL = motion.simulate_profiles
+
+
 def both(monkeypatch, cfg, roadmap, duration_s, dt_s, seed=3):
-    real = motion.simulate_profiles
+    """The fleet's profiles with windows and step by step (the same draws)."""
     out = []
     for windows in (True, False):
         monkeypatch.setattr(motion, "simulate_profiles",
-                            lambda inp, dt, progress=False, w=windows: real(inp, dt, progress,
+                            lambda inp, dt, progress=False, w=windows: REAL(inp, dt, progress,
                                                                             windows=w))
         out.append(build_fleet(cfg, roadmap, seed, duration_s, dt_s).profiles)
+    monkeypatch.setattr(motion, "simulate_profiles", REAL)
     return out
 
 
@@ -42,8 +48,7 @@ RANDOM = dict(count=20, start_time_max_s=200.0, speed_noise_mps=1.0, speed_noise
               random_stop_rate_per_s=0.01, mean_wait_s=3.0, max_wait_s=20.0)
 
 
-@pytest.mark.parametrize("dt_s", [1.0, 0.1, 0.3])
-@pytest.mark.parametrize("corr_s", [4.0, 0.0])
+@pytest.mark.parametrize("dt_s, corr_s", [(1.0, 4.0), (0.1, 4.0), (0.3, 0.0), (1.0, 0.0)])
 def test_windows_reproduce_the_step_loop_random_fleet(monkeypatch, default_map, dt_s, corr_s):
     cfg = VehiclesConfig(random=RandomFleetSpec(**{**RANDOM, "speed_noise_corr_s": corr_s}))
     a, b = both(monkeypatch, cfg, default_map, 300.0, dt_s)
@@ -76,4 +81,25 @@ def test_windows_reproduce_the_step_loop_stop_points_convoys(monkeypatch, defaul
 def test_windows_reproduce_the_step_loop_short_horizon(monkeypatch, default_map):
     cfg = VehiclesConfig(random=RandomFleetSpec(**{**RANDOM, "count": 10}))
     a, b = both(monkeypatch, cfg, default_map, 37.0, 0.5)       # 75 steps: within a window
+    assert_identical(a, b)
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(dt=hst.sampled_from([0.1, 0.5, 1.0, 2.0, 3.3]), cruise=hst.floats(1.0, 40.0),
+       sigma=hst.floats(0.0, 3.0), corr=hst.sampled_from([0.0, 2.0, 8.0]),
+       amax=hst.floats(0.3, 5.0), dmax=hst.floats(0.5, 8.0), limit=hst.floats(3.0, 30.0),
+       v0=hst.sampled_from([None, 0.0, 35.0]), seed=hst.integers(0, 2**31),
+       rate=hst.sampled_from([0.0, 0.05, 0.3]))
+def test_windows_reproduce_the_step_loop_any_parameters(monkeypatch, make_map, dt, cruise,
+                                                         sigma, corr, amax, dmax, limit, v0,
+                                                         seed, rate):
+    rm = make_map({"a": [0, 0, 0], "b": [400, 0, 0], "c": [400, 700, 5], "d": [1500, 700, 5]},
+                  [RoadSpec("a", "b"), RoadSpec("b", "c", speed_limit_mps=limit),
+                   RoadSpec("c", "d")])
+    spec = VehicleSpec(name="h", start="a", end="d", cruise_speed_mps=cruise,
+                       start_speed_mps=v0, speed_noise_mps=sigma, speed_noise_corr_s=corr,
+                       max_accel_mps2=amax, max_decel_mps2=dmax, stop_points=["c"],
+                       mean_wait_s=3.0, max_wait_s=6.0, random_stop_rate_per_s=rate)
+    a, b = both(monkeypatch, VehiclesConfig(vehicles=[spec]), rm, 300.0, dt, seed=seed)
     assert_identical(a, b)
