@@ -2,7 +2,7 @@
 
 ``tracker=stonesoup_gnn`` / ``stonesoup_jpda`` / ``stonesoup_gmphd`` (``conf/tracker/``) build
 these classes with ``tracker.params``; each is fed the protocol's blind per-dwell batches
-(:mod:`gmtiflow.evaluate.protocol`) and assembled from Stone Soup components (stonesoup ≥ 1.0;
+(:mod:`gmtiflow.evaluate.protocol`) and assembled from Stone Soup components (stonesoup ≥ 1.7;
 tested with 1.9.1), so the filtering, gating and association are Stone Soup's, not ours:
 
 * **State and motion**: ``[x, vx, y, vy]`` in the scene's ENU ground plane; two
@@ -20,8 +20,11 @@ tested with 1.9.1), so the filtering, gating and association are Stone Soup's, n
 * ``StoneSoupGNN``: ``DistanceHypothesiser`` (Mahalanobis, ``missed_distance`` = the χ²
   gate ``gate_probability`` as a distance) + ``GNNWith2DAssignment``.
 * ``StoneSoupJPDA``: ``PDAHypothesiser`` (``prob_detect``, ``clutter_density_per_km2``,
-  ``gate_probability``) + ``JPDA``; each track's posterior is the moment-matched mixture of its
-  hypotheses (``gm_reduce_single``).
+  ``gate_probability``) + ``JPDAwithEHM`` (stonesoup ≥ 1.7): the exact JPDA marginals, computed
+  per cluster of tracks that share gated detections by efficient hypothesis management (Maskell
+  et al. 2004) instead of enumerating every joint hypothesis of all covered tracks, which is
+  exponential in their number and did not finish a dense-clutter scene; each track's posterior
+  is the moment-matched mixture of its hypotheses (``gm_reduce_single``).
 * Both initiate with ``MultiMeasurementInitiator`` (GNN on the unassociated detections; a track
   is confirmed and reported after ``min_points`` updates) and delete tracks without an update
   for ``delete_after_s`` (``UpdateTimeDeleter``).
@@ -47,7 +50,7 @@ from gmtiflow.evaluate.tracker import TRACK_COLUMNS, _covered, _measurements
 
 try:
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
-    from stonesoup.dataassociator.probability import JPDA
+    from stonesoup.dataassociator.probability import JPDAwithEHM
     from stonesoup.deleter.time import UpdateTimeDeleter
     from stonesoup.functions import gm_reduce_single
     from stonesoup.hypothesiser.distance import DistanceHypothesiser
@@ -247,14 +250,14 @@ class StoneSoupGNN(_AssociatingTracker):
 
 
 class StoneSoupJPDA(_AssociatingTracker):
-    """Joint probabilistic data association (Stone Soup ``JPDA``)."""
+    """Joint probabilistic data association (Stone Soup ``JPDAwithEHM``: exact JPDA marginals)."""
 
     def __init__(self, prob_detect: float = 0.6, clutter_density_per_km2: float = 0.01,
                  **kwargs):
         self.prob_detect = float(prob_detect)
         self.clutter_density_per_km2 = float(clutter_density_per_km2)
         super().__init__(**kwargs)
-        self.jpda = JPDA(PDAHypothesiser(
+        self.jpda = JPDAwithEHM(PDAHypothesiser(
             self.predictor, self.updater, clutter_spatial_density=self.clutter_density_per_km2
             / 1e6, prob_detect=self.prob_detect, prob_gate=self.gate_probability))
 
