@@ -514,7 +514,8 @@ def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
         if det is not None:
             ok = np.isfinite(np.asarray(det["lat_deg"], float)) & \
                 np.isfinite(np.asarray(det["lon_deg"], float))
-            det = {k: np.asarray(v)[ok] for k, v in det.items()}
+            if not ok.all():        # else the same columns as XML and CSV: formatted once
+                det = {k: np.asarray(v)[ok] for k, v in det.items()}
         nodes = edges = None
         if cfg.geojson_roads and "roads/nodes" in t:
             nodes = with_geodetic(t["roads/nodes"], run.origin)
@@ -608,18 +609,20 @@ def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
     out_dir = Path(out_dir) if out_dir is not None else Path(run_path).parent
     out_dir.mkdir(parents=True, exist_ok=True)
     written: List[Path] = []
+    from gmtiflow import formats
     try:
-        for fmt, name in progress(plan, "export", "file"):   # on a terminal, after 2 s
-            if fmt in ("csv:tracks", "geojson:tracks") and "tracks" not in run.tables:
-                log.info("no /tracks in %s: %s not written", run.path, name)
-                continue
-            if fmt == "geojson:truth" and "truth" not in run.tables:
-                log.info("no /truth in %s: truth.geojson not written", run.path)
-                continue
-            path = out_dir / name
-            write_format(fmt, run, cfg, path)
-            written.append(path)
-            log.info("export: wrote %s (%d bytes)", path, path.stat().st_size)
+        with formats.shared_columns():     # each column's text made once for every format
+            for fmt, name in progress(plan, "export", "file"):   # on a terminal, after 2 s
+                if fmt in ("csv:tracks", "geojson:tracks") and "tracks" not in run.tables:
+                    log.info("no /tracks in %s: %s not written", run.path, name)
+                    continue
+                if fmt == "geojson:truth" and "truth" not in run.tables:
+                    log.info("no /truth in %s: truth.geojson not written", run.path)
+                    continue
+                path = out_dir / name
+                write_format(fmt, run, cfg, path)
+                written.append(path)
+                log.info("export: wrote %s (%d bytes)", path, path.stat().st_size)
     except BaseException:
         for path in written:
             try:

@@ -7,6 +7,8 @@ Pairs outside the gate get a cost larger than any gated solution and are never r
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
@@ -51,6 +53,10 @@ _STAR_MARGIN = 1e-9
 #: than building a scipy.sparse graph for a dwell's handful of pairs); above, by scipy.
 _SMALL_GRAPH = 256
 
+#: Components whose augmented matrix has up to this many entries share one buffer; larger ones
+#: are built one at a time.
+_BUFFERED = 1024
+
 
 def _components(r_idx: np.ndarray, c_idx: np.ndarray, nr: int, nc: int):
     """Component label (0, 1, ...) of every row node (first ``nr``) and column node (next
@@ -80,6 +86,74 @@ def _components(r_idx: np.ndarray, c_idx: np.ndarray, nr: int, nc: int):
     return len(uniq), label
 
 
+#: Up to this many pairs (a dwell's typical handful) :func:`sparse_gated_assignment` runs in
+#: plain Python (:func:`_small_assignment`): numpy's per-call cost dominates there.
+_SMALL_PAIRS = 48
+
+
+def _small_assignment(rows: list, cols: list, cost: list, gate: float):
+    """:func:`sparse_gated_assignment` of a few pairs (Python lists), the same decisions made
+    the same way: components by union-find, a single pair taken, a star's clear cheapest pair
+    taken, every other component solved on the matrix :func:`gated_assignment` builds."""
+    n_pairs = len(rows)
+    if len(set(rows)) == n_pairs and len(set(cols)) == n_pairs:
+        o = sorted(range(n_pairs), key=rows.__getitem__)
+        return (np.array([rows[i] for i in o], np.int64),
+                np.array([cols[i] for i in o], np.int64))
+    parent = {}
+
+    def root(x):
+        while parent.setdefault(x, x) != x:
+            x = parent[x]
+        return x
+    for r, c in zip(rows, cols):
+        a, b = root((0, r)), root((1, c))
+        if a != b:
+            parent[b] = a
+    comps = {}
+    for i, r in enumerate(rows):
+        comps.setdefault(root((0, r)), []).append(i)
+    out = []
+    for idx in comps.values():
+        if len(idx) == 1:
+            out.append((rows[idx[0]], cols[idx[0]]))
+            continue
+        rs = sorted({rows[i] for i in idx})
+        cs = sorted({cols[i] for i in idx})
+        costs = [cost[i] for i in idx]
+        if not all(math.isfinite(c) and c < gate for c in costs):   # out of the gate: general
+            sub = np.full((len(rs), len(cs)), np.inf)
+            rpos = {r: k for k, r in enumerate(rs)}
+            cpos = {c: k for k, c in enumerate(cs)}
+            for i in idx:
+                sub[rpos[rows[i]], cpos[cols[i]]] = cost[i]
+            a, b = gated_assignment(sub, gate)
+            out.extend((rs[x], cs[y]) for x, y in zip(a.tolist(), b.tolist()))
+            continue
+        if len(rs) == 1 or len(cs) == 1:
+            o = sorted(range(len(idx)), key=costs.__getitem__)
+            best, second = costs[o[0]], costs[o[1]]
+            scale = max(abs(best), abs(second), abs(gate))
+            if second - best > _STAR_MARGIN * scale:
+                out.append((rows[idx[o[0]]], cols[idx[o[0]]]))
+                continue
+        n, m = len(rs), len(cs)
+        rpos = {r: k for k, r in enumerate(rs)}
+        cpos = {c: k for k, c in enumerate(cs)}
+        aug = np.full((n, m + n), gate * (n + 1) + 1.0)
+        pair = set()
+        for i in idx:
+            aug[rpos[rows[i]], cpos[cols[i]]] = cost[i]
+            pair.add((rpos[rows[i]], cpos[cols[i]]))
+        diag = np.arange(n)
+        aug[diag, m + diag] = gate
+        _, picked = linear_sum_assignment(aug)
+        out.extend((rs[x], cs[y]) for x, y in enumerate(picked.tolist())
+                   if y < m and (x, y) in pair)
+    out.sort()
+    return (np.array([r for r, _ in out], np.int64), np.array([c for _, c in out], np.int64))
+
+
 def sparse_gated_assignment(rows: np.ndarray, cols: np.ndarray, cost: np.ndarray, gate: float):
     """:func:`gated_assignment` of the pairs ``(rows[i], cols[i])`` with ``cost[i] < gate`` (every
     other pair outside the gate), solved per connected component of the pairs' graph: one pair
@@ -98,6 +172,8 @@ def sparse_gated_assignment(rows: np.ndarray, cols: np.ndarray, cost: np.ndarray
     empty = np.zeros(0, np.int64)
     if not len(rows):
         return empty, empty
+    if len(rows) <= _SMALL_PAIRS:
+        return _small_assignment(rows.tolist(), cols.tolist(), cost.tolist(), float(gate))
     r_ids, r_idx = np.unique(rows, return_inverse=True)
     c_ids, c_idx = np.unique(cols, return_inverse=True)
     nr, nc = len(r_ids), len(c_ids)
@@ -174,6 +250,30 @@ def _solve_components(pairs, r_idx, c_idx, cost, label, pair_label, nr, nc, comp
         keep = ~general[np.searchsorted(comps, lab)]
         order, lab = order[keep], lab[keep]
         comps = comps[~general]
+        first = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else first[:0]
+    large = comp_rows[comps] * (comp_rows[comps] + comp_cols[comps]) > _BUFFERED
+    if large.any():          # one by one: their matrices would make the buffer huge
+        bounds = np.r_[first, len(order)]
+        for k in np.flatnonzero(large).tolist():
+            grp = order[bounds[k]:bounds[k + 1]]
+            n, m = int(comp_rows[comps[k]]), int(comp_cols[comps[k]])
+            gr, ir = np.unique(r_idx[grp], return_inverse=True)
+            gc, ic = np.unique(c_idx[grp], return_inverse=True)
+            aug = np.full((n, m + n), gate * (n + 1) + 1.0)
+            aug[ir, ic] = cost[grp]
+            aug[np.arange(n), m + np.arange(n)] = gate
+            a, b = linear_sum_assignment(aug)
+            real = b < m
+            a, b = a[real], b[real]
+            pair = np.zeros((n, m), bool)
+            pair[ir, ic] = True
+            keep = pair[a, b]
+            out_r.append(gr[a[keep]])
+            out_c.append(gc[b[keep]])
+        keep = ~large[np.searchsorted(comps, lab)]
+        order, lab = order[keep], lab[keep]
+        comps = comps[~large]
+        first = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else first[:0]
     if len(comps):
         # One flat buffer holding every component's augmented matrix (n rows, m + n columns:
         # the pairs' costs, big elsewhere, the rows' private miss columns at the gate).

@@ -81,10 +81,12 @@ def _close_pairs(X: np.ndarray, Y: np.ndarray, c: float, step_x=None, step_y=Non
     else:
         A = np.column_stack([X, np.asarray(step_x, float) * (4.0 * c)])
         B = np.column_stack([Y, np.asarray(step_y, float) * (4.0 * c)])
-    found = cKDTree(A).sparse_distance_matrix(cKDTree(B), c * (1.0 + 1e-9),
-                                              output_type="ndarray")
+    # unbalanced trees: built in half the time, the same pairs
+    found = cKDTree(A, balanced_tree=False, compact_nodes=False).sparse_distance_matrix(
+        cKDTree(B, balanced_tree=False, compact_nodes=False), c * (1.0 + 1e-9),
+        output_type="ndarray")
     r, k = found["i"].astype(np.int64), found["j"].astype(np.int64)
-    o = np.lexsort((k, r))
+    o = np.argsort(r * max(len(Y), 1) + k)
     r, k = r[o], k[o]
     diff = X[r] - Y[k]
     D = np.sqrt(np.einsum("ij,ij->i", diff, diff))

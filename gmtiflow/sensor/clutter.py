@@ -23,7 +23,10 @@ over the dwells, so that few draws are thinned away:
   spans as seen from the platform, exact bounds) — or the region's own shape (disc, ring or
   polygon box) when that is smaller;
 * with footprints given as polygons (``fov_polygons``, a library use), the FoV-wide draws fill
-  each footprint polygon's bounding box and a region's draws its own shape.
+  each footprint polygon itself through its fan of triangles from its centroid
+  (:func:`fan_triangles`: exact when the polygon is star-shaped from its centroid, as convex
+  polygons and beam-wide annular sectors are; any other polygon's draws fill its bounding box
+  and are thinned by it), and a region's draws its own shape.
 
 Randomness (DESIGN §2): counter-based draws (:func:`gmtiflow.rng.pair_uniform`) with one key per
 source, ``counter_key(seed, "clutter", <region name>)`` (the FoV-wide source uses the reserved
@@ -82,7 +85,7 @@ SHAPES = ("circle", "ring", "polygon")
 FOV_STREAM = "fov"  # reserved stream name of the FoV-wide false alarms
 
 # Channels of the counter-based draws: (dwell_id, point index, channel).
-_CH_COUNT, _CH_U1, _CH_U2, _CH_RR1, _CH_RR2, _CH_SNR = range(6)
+_CH_COUNT, _CH_U1, _CH_U2, _CH_RR1, _CH_RR2, _CH_SNR, _CH_U3 = range(7)
 _KM2 = 1.0e6  # m² per km²
 
 # The config dataclasses are not frozen: OmegaConf 2.3 cannot merge YAML list items into a list of
@@ -296,8 +299,9 @@ def _poisson_counts(key, dwell_id: np.ndarray, mean: np.ndarray) -> np.ndarray:
     counts = np.zeros(len(dwell_id), dtype=np.int64)
     pos = mean > 0
     if np.any(pos):
-        from scipy import stats   # imported here: scipy.stats costs ~1 s at start-up
-        counts[pos] = stats.poisson.ppf(u[pos], mean[pos]).astype(np.int64)
+        # scipy.stats.poisson.ppf's values from scipy.special: scipy.stats costs ~1 s to import
+        from gmtiflow.sensor.noise import poisson_ppf
+        counts[pos] = poisson_ppf(u[pos], mean[pos]).astype(np.int64)
     return counts
 
 
@@ -335,12 +339,16 @@ def _empty() -> Table:
 def _draw_source(seed: int, name: str, region_index: int, dwell_id: np.ndarray, mean: np.ndarray,
                  place: Callable, keep: Callable, rr: RangeRateConfig, snr: SnrConfig,
                  pfa: float) -> Table:
-    """Poisson counts, placement in the bounding shape, thinning, marks — for one source."""
+    """Poisson counts, placement in the bounding shape, thinning, marks — for one source.
+
+    ``place(u1, u2, batch, u3)`` maps two uniforms per point (``u3()`` gives a third) to
+    positions; ``keep(x, y, batch)`` is the thinning mask."""
     key = rng.counter_key(seed, "clutter", name)
     counts = _poisson_counts(key, dwell_id, mean)
     batch, index = _expand(dwell_id, counts)
     d = dwell_id[batch]
-    x, y = place(rng.pair_uniform(key, d, index, _CH_U1), rng.pair_uniform(key, d, index, _CH_U2), batch)
+    x, y = place(rng.pair_uniform(key, d, index, _CH_U1), rng.pair_uniform(key, d, index, _CH_U2),
+                 batch, lambda: rng.pair_uniform(key, d, index, _CH_U3))
     ok = keep(x, y, batch)
     batch, index, d, x, y = batch[ok], index[ok], d[ok], x[ok], y[ok]
     s = _draw_snr(key, d, index, snr, pfa)
@@ -365,7 +373,7 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
     fov_polygons : (n, k, 2) array or sequence of n (k_i, 2) arrays, optional
         Each dwell's ground footprint in scene ENU metres (e.g. the annular sector between the
         near and far ground ranges and the beam's azimuth edges, as a polygon). Required when
-        ``fov_density_per_km2 > 0`` (it bounds the FoV-wide draws).
+        ``fov_density_per_km2 > 0`` (the FoV-wide draws fill it, see the module doc).
     in_fov : callable ``(dwell_id, x_m, y_m) -> bool array``, optional
         An extra FoV predicate applied to every candidate point (e.g. the sensor's exact range,
         azimuth and grazing limits, or terrain visibility). Called once per source with all the
@@ -429,19 +437,39 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
             cx, cy, g0, g1, a0, span = sectors.T
             fov_area = 0.5 * span * (g1 * g1 - g0 * g0)
 
-            def place_fov(u1, u2, batch):
+            def place_fov(u1, u2, batch, u3=None):
                 # uniform over the annulus: g^2 uniform between g0^2 and g1^2
                 g = np.sqrt(g0[batch] ** 2 + u1 * (g1[batch] ** 2 - g0[batch] ** 2))
                 a = a0[batch] + u2 * span[batch]
                 return cx[batch] + g * np.sin(a), cy[batch] + g * np.cos(a)
+            keep_fov = in_footprint
         else:
-            fov_area = (fx1 - fx0) * (fy1 - fy0)
+            # Each footprint polygon star-shaped from its centroid (a convex one, or the annular
+            # sector of a beam) is cut into the fan of triangles (centroid, edge): a point is
+            # drawn in a triangle chosen by area, uniformly in it — exactly in the polygon, no
+            # thinning by it.  Any other polygon: its bounding box, thinned by the polygon.
+            fan = fan_triangles(polys)
+            star = fan["star"]
+            fov_area = np.where(star, fan["area"], (fx1 - fx0) * (fy1 - fy0))
 
-            def place_fov(u1, u2, batch):
-                return fx0[batch] + u1 * (fx1 - fx0)[batch], fy0[batch] + u2 * (fy1 - fy0)[batch]
+            def place_fov(u1, u2, batch, u3):
+                x, y = fan_point(fan, polys, u1, u2, u3(), batch)
+                box = ~star[batch]
+                if np.any(box):
+                    x[box] = fx0[batch[box]] + u1[box] * (fx1 - fx0)[batch[box]]
+                    y[box] = fy0[batch[box]] + u2[box] * (fy1 - fy0)[batch[box]]
+                return x, y
+
+            def keep_fov(x, y, batch):
+                ok = np.ones(len(x), dtype=bool)
+                box = np.flatnonzero(~star[batch])
+                ok[box] = geo.points_in_polygons(x[box], y[box], polys, batch[box])
+                if in_fov is not None and len(x):
+                    ok &= np.asarray(in_fov(dwell_id[batch], x, y), dtype=bool)
+                return ok
 
         out.append(_draw_source(seed, FOV_STREAM, -1, dwell_id, cfg.fov_density_per_km2 * fov_area / _KM2,
-                                place_fov, in_footprint, cfg.fov_range_rate, cfg.snr, pfa))
+                                place_fov, keep_fov, cfg.fov_range_rate, cfg.snr, pfa))
 
     for j, region in enumerate(cfg.regions):
         if region.density_per_km2 <= 0:
@@ -454,7 +482,7 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
         if region.shape == "polygon":
             area = (bx1 - bx0) * (by1 - by0)
 
-            def place(u1, u2, batch, b=(bx0, by0, bx1, by1)):
+            def place(u1, u2, batch, u3=None, b=(bx0, by0, bx1, by1)):
                 return b[0] + u1 * (b[2] - b[0]), b[1] + u2 * (b[3] - b[1])
 
             def keep(x, y, batch, r=region):
@@ -467,7 +495,7 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
             outer = float(region.radius_m if region.shape == "circle" else region.outer_radius_m)
             area = geo.ring_area_m2(inner, outer)
 
-            def place(u1, u2, batch, c=tuple(region.centre_m), a=inner, b=outer):
+            def place(u1, u2, batch, u3=None, c=tuple(region.centre_m), a=inner, b=outer):
                 return geo.sample_disc(u1, u2, c, a, b)
 
             keep = in_footprint
@@ -479,6 +507,49 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
     if not out:
         return _empty()
     return {name: np.concatenate([t[name] for t in out]) for name in out[0]}
+
+
+def fan_triangles(polys: np.ndarray) -> dict:
+    """The fan of triangles (centroid, v_i, v_i+1) of each polygon of a (n, k, 2) stack.
+
+    Returns ``cx, cy`` (n,) the area centroids, ``area`` (n,) the polygons' areas (m²),
+    ``star`` (n,) bool: every triangle of the fan has the polygon's orientation (to 1e-12 of
+    its area), i.e. the polygon is star-shaped from its centroid and the fan tiles it exactly;
+    ``cum`` (n·k,) the polygons' cumulative triangle areas as fractions, offset by the
+    polygon's index (sorted: the search key of :func:`fan_point`).
+    """
+    v = np.asarray(polys, float)
+    n, k = v.shape[:2]
+    w = np.roll(v, -1, axis=1)
+    cross = v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0]
+    a2 = cross.sum(axis=1)                                   # twice the signed area
+    safe = np.where(a2 != 0.0, a2, 1.0)
+    cx = ((v[..., 0] + w[..., 0]) * cross).sum(axis=1) / (3.0 * safe)
+    cy = ((v[..., 1] + w[..., 1]) * cross).sum(axis=1) / (3.0 * safe)
+    tri = ((v[..., 0] - cx[:, None]) * (w[..., 1] - cy[:, None])
+           - (v[..., 1] - cy[:, None]) * (w[..., 0] - cx[:, None])) * np.sign(a2)[:, None]
+    star = (a2 != 0.0) & np.all(tri >= -1e-12 * np.abs(a2)[:, None], axis=1)
+    tri = np.where(star[:, None], np.maximum(tri, 0.0), 1.0)
+    frac = np.cumsum(tri, axis=1)
+    frac /= frac[:, -1:]
+    frac[:, -1] = 1.0
+    return {"cx": cx, "cy": cy, "area": 0.5 * np.abs(a2), "star": star,
+            "cum": (np.arange(n)[:, None] + frac).ravel()}
+
+
+def fan_point(fan: dict, polys: np.ndarray, u1, u2, u3, batch):
+    """Points uniform in polygons ``polys[batch]`` (star-shaped from their centroids, see
+    :func:`fan_triangles`): ``u1`` picks the triangle by area, ``u2``, ``u3`` place the point
+    in it (√u2 along the apex → edge direction, so the density is uniform)."""
+    k = polys.shape[1]
+    j = np.searchsorted(fan["cum"], batch + u1, side="right")
+    e = np.clip(j - batch * k, 0, k - 1)
+    e2 = (e + 1) % k
+    cx, cy = fan["cx"][batch], fan["cy"][batch]
+    s = np.sqrt(u2)
+    ax, ay = polys[batch, e, 0] - cx, polys[batch, e, 1] - cy
+    bx, by = polys[batch, e2, 0] - cx, polys[batch, e2, 1] - cy
+    return cx + s * (ax + u3 * (bx - ax)), cy + s * (ay + u3 * (by - ay))
 
 
 def _wrap(a):
@@ -577,7 +648,7 @@ def _draw_region_in_sectors(seed, j, region, dwell_id, sectors, boxes, in_footpr
     area = np.where(misses, 0.0, np.where(polar, window_area, own_area))
     centre = tuple(region.centre_m) if region.shape != "polygon" else None
 
-    def place(u1, u2, batch):
+    def place(u1, u2, batch, u3=None):
         p = polar[batch]
         g = np.sqrt(g0[batch] ** 2 + u1 * (g1[batch] ** 2 - g0[batch] ** 2))
         a = a0[batch] + u2 * span[batch]

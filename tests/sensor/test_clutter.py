@@ -153,6 +153,46 @@ def test_fov_density_fills_each_footprint_and_nothing_outside():
     _assert_poisson(np.bincount(t["dwell_id"] - 100, minlength=n), density * area / 1e6)
 
 
+HEXAGON = np.array([[0, 0], [3000, -500], [5000, 1000], [4500, 3500], [1500, 4000], [-800, 2000]], float)
+L_SHAPE = np.array([[0, 0], [4000, 0], [4000, 1000], [1000, 1000], [1000, 4000], [0, 4000]], float)
+
+
+def test_footprint_fans_are_exact_for_star_shaped_polygons_only():
+    sector = cl.annular_sector_polygon([0, 0], 15_000, 30_000, -0.1, 0.1)
+    polys = geo.stack_polygons([sector, HEXAGON, HEXAGON[::-1], L_SHAPE, _box(0, 0, 5, 7)])
+    fan = cl.fan_triangles(polys)
+    assert fan["star"].tolist() == [True, True, True, False, True]
+    for i in (0, 1, 2, 4):
+        assert fan["area"][i] == pytest.approx(geo.polygon_area_m2(polys[i]), rel=1e-12)
+    assert np.all(np.diff(fan["cum"]) >= 0)
+
+
+@pytest.mark.parametrize("shape", ["hexagon", "L"])
+def test_fov_density_in_polygon_footprints_is_uniform_over_each(shape):
+    """FoV-wide draws in polygon footprints: Poisson with mean density x polygon area, every
+    point inside, positions with the law of uniform points in the polygon (two-sample KS
+    against rejection sampling).  The hexagon is drawn through its fan of triangles, the L
+    (not star-shaped from its centroid) in its box and thinned."""
+    poly = HEXAGON if shape == "hexagon" else L_SHAPE
+    n = N_DWELLS
+    shift = np.column_stack([np.linspace(0, 9000, n), np.linspace(0, -3000, n)])
+    footprints = poly[None, :, :] + shift[:, None, :]
+    density = 1.0
+    t = cl.false_alarms(cl.ClutterConfig(fov_density_per_km2=density), 12, np.arange(n), footprints)
+    area = geo.polygon_area_m2(poly)
+    _assert_poisson(_counts(t, n), density * area / 1e6)
+    assert np.all(geo.points_in_polygons(t["x_m"], t["y_m"], footprints, t["dwell_id"]))
+    x = t["x_m"] - shift[t["dwell_id"], 0]
+    y = t["y_m"] - shift[t["dwell_id"], 1]
+    g = np.random.default_rng(3)
+    rx = g.uniform(poly[:, 0].min(), poly[:, 0].max(), 400_000)
+    ry = g.uniform(poly[:, 1].min(), poly[:, 1].max(), 400_000)
+    inside = geo.points_in_polygon(rx, ry, poly)
+    for a, b in ((x, rx[inside]), (y, ry[inside]), (x + y, (rx + ry)[inside]),
+                 (x - y, (rx - ry)[inside])):
+        assert stats.ks_2samp(a, b).pvalue > ALPHA
+
+
 def test_region_outside_every_footprint_gives_nothing():
     cfg = cl.ClutterConfig(regions=[cl.ClutterRegionConfig(name="lake", vertices_m=LAKE, density_per_km2=50.0)])
     t = cl.false_alarms(cfg, 1, np.arange(100), [_box(10_000, 10_000, 20_000, 20_000)] * 100)
@@ -442,3 +482,28 @@ def test_stage_region_draws_are_the_same_whatever_the_chunking():
     assert len(outs[0]["x_m"]) > 100
     for c in ("dwell_id", "x_m", "y_m", "range_rate_mps", "snr_db"):
         assert np.array_equal(outs[0][c], outs[1][c]), c
+
+
+def test_drawing_false_alarms_does_not_import_scipy_stats():
+    """scipy.stats costs ~1 s of import (issue 18: it was most of what clutter cost a run): the
+    Poisson counts come from scipy.special with scipy.stats' values.  Checked in a fresh
+    interpreter, so the test does not depend on what else this process imported."""
+    import subprocess
+    import sys
+    probe = ("import sys, numpy as np\n"
+             "from gmtiflow.sensor import clutter as cl\n"
+             "fp = [cl.annular_sector_polygon([0, 0], 1e4, 2e4, 0.0, 0.2)] * 5\n"
+             "t = cl.false_alarms(cl.ClutterConfig(fov_density_per_km2=2.0), 1, np.arange(5), fp)\n"
+             "assert len(t['x_m']) > 0\n"
+             "print('scipy.stats' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
+
+
+def test_poisson_counts_are_scipy_stats_quantiles_bit_for_bit():
+    g = np.random.default_rng(2)
+    u = g.uniform(size=200_000)
+    mean = 10 ** g.uniform(-4, 6, 200_000)
+    from gmtiflow.sensor.noise import poisson_ppf
+    assert np.array_equal(poisson_ppf(u, mean), stats.poisson.ppf(u, mean))
