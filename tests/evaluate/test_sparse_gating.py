@@ -38,10 +38,12 @@ def test_gated_pairs_are_the_dense_pairs_bit_for_bit(seed):
     gate = 16.27
     nu_all, HPHt, d2_all = kalman.innovations(x, P, H, h, z, R, wrap, gate)
     ti, di = np.nonzero(d2_all < gate)
-    sti, sdi, snu, sd2 = kalman.gated_pairs(x[:, :2], HPHt, z, R, h, wrap, gate)
     assert len(ti) > 20
-    assert np.array_equal(sti, ti) and np.array_equal(sdi, di)
-    assert np.array_equal(sd2, d2_all[ti, di]) and np.array_equal(snu, nu_all[ti, di])
+    for found in (kalman.gated_pairs(x[:, :2], HPHt, z, R, h, wrap, gate),
+                  kalman.dense_gated_pairs(HPHt, z, R, h, wrap, gate)):
+        sti, sdi, snu, sd2 = found
+        assert np.array_equal(sti, ti) and np.array_equal(sdi, di)
+        assert np.array_equal(sd2, d2_all[ti, di]) and np.array_equal(snu, nu_all[ti, di])
 
 
 @pytest.mark.parametrize("seed", range(6))
