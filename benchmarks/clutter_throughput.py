@@ -3,6 +3,7 @@
 Run from the repository root:
 
     python benchmarks/clutter_throughput.py [--quick] [--baseline REV]
+    python benchmarks/clutter_throughput.py --run-share [--repeats 3]
 
 What it measures (issue 18: "false alarms drawn directly in each dwell's footprint, vectorised
 across dwells: cost per false alarm ≤ 5 µs and linear in their number"): the sensor stage of
@@ -25,7 +26,10 @@ linear).  ``--baseline REV`` loads ``gmtiflow/sensor/clutter.py`` as of git revi
 times it too, alternating with the working tree's module run by run (A/B under the same load;
 its false-alarm counts differ only by the draws).  The 1-minute load average is printed with
 every row.  Last, the clutter module alone called with polygon footprints (a library use, not
-the stage's), at ten times the densities, A/B likewise.
+the stage's), at ten times the densities, A/B likewise.  ``--run-share`` instead times whole
+runs (truth, sensor, run.h5) of 1,000 random vehicles over 10 min without clutter, with
+``clutter=urban`` and with 5 FoV-wide false alarms per km² and dwell (the issue's example), and
+prints what clutter adds: all the false alarms cost, /detections rows in run.h5 included.
 """
 from __future__ import annotations
 
@@ -131,6 +135,36 @@ def library_polygons(densities, repeats, impls):
     return rows
 
 
+RUN_SCENE = ["vehicles=random", "vehicles.random.count=1000", "scene.duration_s=600",
+             "vehicles.random.start_time_max_s=500", "cache.enabled=false", "tracker=none",
+             "metrics.enabled=false", "report=none", "export=none", "progress=false"]
+RUN_CASES = {"clutter=none": ["clutter=none"], "clutter=urban": ["clutter=urban"],
+             "FoV-wide 5/km²": ["clutter=none", "clutter.fov_density_per_km2=5"]}
+
+
+def run_share(repeats):
+    """Whole runs (truth, sensor, run.h5; tracker, metrics, report, exports off) of 1,000
+    random vehicles over 10 min, without clutter, with ``clutter=urban`` and with 5 FoV-wide
+    false alarms per km² and dwell: CPU time of the process (all threads), median of
+    ``repeats``, cases alternated; and the false alarms in /detections."""
+    import h5py
+
+    from gmtiflow import pipeline
+    from gmtiflow.compose import compose
+
+    cpu = {k: [] for k in RUN_CASES}
+    fas = {}
+    for _ in range(repeats):
+        for name, extra in RUN_CASES.items():
+            with tempfile.TemporaryDirectory() as d:
+                t0 = time.process_time()
+                path = pipeline.run(compose(RUN_SCENE + extra), d)
+                cpu[name].append(time.process_time() - t0)
+                with h5py.File(path) as f:
+                    fas[name] = int(np.sum(f["detections/truth_id"][:] < 0))
+    return {k: (float(np.median(v)), fas[k], os.getloadavg()[0]) for k, v in cpu.items()}
+
+
 def slope(counts, costs):
     c, t = np.asarray(counts, float), np.asarray(costs, float)
     ok = (c > 0) & (t > 0)
@@ -146,7 +180,22 @@ def main(argv=None) -> int:
                     help="also time gmtiflow/sensor/clutter.py as of this git revision (A/B)")
     ap.add_argument("--quick", action="store_true",
                     help="densities 1 and 10, 10 revisits, 3 repeats")
+    ap.add_argument("--run-share", action="store_true",
+                    help="only clutter's share of whole runs (1,000 vehicles, 10 min)")
     args = ap.parse_args(argv)
+    if args.run_share:
+        rows = run_share(args.repeats)
+        print(f"# Clutter's share of whole runs ({' '.join(RUN_SCENE)}), CPU time of the "
+              f"process, median of {args.repeats}\n")
+        print("| clutter | false alarms in /detections | CPU s | more than clutter=none "
+              "| load |\n|---|---|---|---|---|")
+        t_none, fa_none, _ = rows["clutter=none"]
+        for name, (t, n, load) in rows.items():
+            extra = "" if name == "clutter=none" else (
+                f"{t - t_none:+.2f} s ({100 * (t - t_none) / t:.0f} % of the run; "
+                f"{1e6 * (t - t_none) / max(n - fa_none, 1):.1f} µs per added false alarm)")
+            print(f"| {name} | {n:,} | {t:.2f} | {extra} | {load:.1f} |")
+        return 0
     if args.quick:
         args.densities, args.revisits, args.repeats = [1.0, 10.0], 10, 3
     cfg = SensorConfig(noise_false_alarms=False)

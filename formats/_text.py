@@ -40,23 +40,25 @@ class Cells:
     chars: np.ndarray
     lens: np.ndarray
     start: Union[np.ndarray, int] = 0
+    nul: bool = False
+    """Some cell holds a NUL byte (text never does; :func:`join_rows` pads with NULs)."""
 
     def masked(self, keep: np.ndarray) -> "Cells":
         """The same cells, empty where ``keep`` is False."""
-        return Cells(self.chars, np.where(keep, self.lens, 0), self.start)
+        return Cells(self.chars, np.where(keep, self.lens, 0), self.start, self.nul)
 
     def take(self, rows) -> "Cells":
         """The cells of ``rows`` (indices or a slice), in that order."""
         chars = self.chars if len(self.chars) == 1 else self.chars[rows]
         start = self.start if np.ndim(self.start) == 0 else np.asarray(self.start)[rows]
-        return Cells(chars, self.lens[rows].astype(np.int64), start)
+        return Cells(chars, self.lens[rows], start, self.nul)
 
     def compact(self) -> "Cells":
         """The same cells in less memory (kept whole by :func:`shared_columns`)."""
         if np.ndim(self.start) or not len(self.lens) or self.lens.max() > 255:
             return self
         chars = self.chars if len(self.chars) == 1 else self.chars[:, :int(self.lens.max())]
-        return Cells(chars, self.lens.astype(np.uint8))
+        return Cells(chars, self.lens.astype(np.uint8), 0, self.nul)
 
 
 Field = List[Cells]
@@ -73,7 +75,8 @@ def masked(field: Field, keep: np.ndarray) -> Field:
 def literal(text: Union[str, bytes], n: int) -> Cells:
     """``text`` on each of ``n`` rows."""
     b = text.encode() if isinstance(text, str) else bytes(text)
-    return Cells(np.frombuffer(b, np.uint8).reshape(1, len(b)), np.full(n, len(b), np.int64))
+    return Cells(np.frombuffer(b, np.uint8).reshape(1, len(b)), np.full(n, len(b), np.int64),
+                 0, b"\0" in b)
 
 
 def from_strings(codes: np.ndarray, texts: Sequence[Union[str, bytes]]) -> Cells:
@@ -85,7 +88,7 @@ def from_strings(codes: np.ndarray, texts: Sequence[Union[str, bytes]]) -> Cells
         table[k, :len(t)] = np.frombuffer(t, np.uint8)
     lens = np.array([len(t) for t in enc], np.int64)
     codes = np.asarray(codes, np.int64)
-    return Cells(table[codes], lens[codes])
+    return Cells(table[codes], lens[codes], 0, any(b"\0" in t for t in enc))
 
 
 def choice(flags: np.ndarray, if_true: str, if_false: str) -> Field:
@@ -109,6 +112,17 @@ def ascii_fixed(values: np.ndarray) -> Field:
     chars = np.frombuffer(b.tobytes(), np.uint8).reshape(len(b), w) if len(b) else \
         np.zeros((0, w), np.uint8)
     return [Cells(chars, np.count_nonzero(chars, axis=1).astype(np.int64))]
+
+
+def utc_cells(epoch, time_s) -> Field:
+    """ISO-8601 UTC text of ``epoch + time_s`` (:func:`formats._io.iso_utc`; empty where the
+    time is not finite), made once per run of equal times (a dwell's reports share its time)."""
+    from ._io import iso_utc
+    t = np.asarray(time_s, dtype=np.float64)
+    runs = _repeats(t)
+    if runs is not None:
+        return _expand(ascii_fixed(iso_utc(epoch, t[runs[0]])), runs[1])
+    return ascii_fixed(iso_utc(epoch, t))
 
 
 _GROUPS = np.frombuffer(b"".join(f"{k:03d}".encode() for k in range(1000)), "V3")
@@ -394,9 +408,10 @@ def join_rows(pieces: Sequence[Union[Piece, Field]], n: int):
     """(bytes of ``n`` rows as :func:`join`, byte offset of each row and of the end)."""
     if n == 0:
         return b"", np.zeros(1, np.int64)
-    # (chars, lens, start) per piece; consecutive literal texts merged into one
+    # (chars, lens or None for literal text, start) per piece; consecutive literals merged
     parts: list = []
     text = b""
+    nul = False
     for p in (q for piece in pieces for q in (piece if isinstance(piece, list) else [piece])):
         if isinstance(p, (bytes, str)):
             text += p.encode() if isinstance(p, str) else p
@@ -410,33 +425,54 @@ def join_rows(pieces: Sequence[Union[Piece, Field]], n: int):
         lo = int(st.min()) if st.ndim else int(st)
         hi = int((st + p.lens).max())
         parts.append((p.chars[:, lo:hi], p.lens, st - lo if st.ndim else 0))
+        nul |= p.nul
     if text:
         parts.append((np.frombuffer(text, np.uint8)[None, :], None, 0))
     row_len = np.zeros(n, np.int64)
-    for _, lens, _ in parts:
-        row_len += lens if lens is not None else 0
-    row_len += sum(chars.shape[1] for chars, lens, _ in parts if lens is None)
+    for chars, lens, _ in parts:
+        row_len += chars.shape[1] if lens is None else lens
     offsets = np.concatenate([[0], np.cumsum(row_len)])
     if not parts:
         return b"", offsets
-    # every piece side by side in one matrix, and which of its bytes each row uses
+    nul |= any(lens is None and not chars.all() for chars, lens, _ in parts)
+    # every piece side by side in one matrix, NUL where a row does not use a byte, then the
+    # NULs dropped (text holds none; else a mask of the bytes used)
     width = sum(chars.shape[1] for chars, _, _ in parts)
     big = np.empty((n, width), np.uint8)
-    use = np.empty((n, width), bool)
-    col = np.arange(max(chars.shape[1] for chars, _, _ in parts))
+    use = np.ones((n, width), bool) if nul else None
     o = 0
     for chars, lens, first in parts:
         w = chars.shape[1]
-        big[:, o:o + w] = chars
         if lens is None or (np.ndim(first) == 0 and bool(np.all(lens == w))):
-            use[:, o:o + w] = True
-        elif np.ndim(first) == 0:
-            np.less(col[None, :w], lens[:, None], out=use[:, o:o + w])
+            big[:, o:o + w] = chars
+        elif np.ndim(first) == 0:               # a prefix of each row: masked by a table
+            keep = np.take(_prefix_masks(w), lens, axis=0)
+            if use is not None:
+                use[:, o:o + w] = keep != 0
+            big[:, o:o + w] = np.bitwise_and(chars, keep, out=keep)
         else:
-            f = first[:, None]
-            use[:, o:o + w] = (col[None, :w] >= f) & (col[None, :w] < f + lens[:, None])
+            col = np.arange(w)[None, :]
+            keep = (col >= first[:, None]) & (col < first[:, None] + lens[:, None])
+            big[:, o:o + w] = np.where(keep, chars, np.uint8(0))
+            if use is not None:
+                use[:, o:o + w] = keep
         o += w
-    return big[use].tobytes(), offsets
+    flat = big.reshape(-1)
+    if use is None:
+        return flat[flat != 0].tobytes(), offsets
+    return flat[use.reshape(-1)].tobytes(), offsets
+
+
+_PREFIX_MASKS: dict = {}
+
+
+def _prefix_masks(w: int) -> np.ndarray:
+    """Row k: 0xFF on the first k of ``w`` bytes, 0 after (k = 0 .. w)."""
+    m = _PREFIX_MASKS.get(w)
+    if m is None:
+        m = _PREFIX_MASKS[w] = np.where(np.arange(w)[None, :] < np.arange(w + 1)[:, None],
+                                        255, 0).astype(np.uint8)
+    return m
 
 
 def row_chunks(n: int, rows: int = 1 << 15):

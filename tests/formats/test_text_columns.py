@@ -117,3 +117,14 @@ def test_shared_columns_keep_bounded_memory(monkeypatch):
         assert [k[0] for k in _text._SHARED["columns"]] == ["float"]
         assert _text._SHARED["room"] == 300
     assert _text._SHARED is None
+
+
+def test_join_keeps_nul_bytes_of_the_text():
+    """join_rows pads with NUL bytes and drops them; text that holds a NUL keeps it."""
+    keep = np.array([True, False, True])
+    for text in (b"a\0", b"ab"):
+        cells = _text.from_strings(np.array([0, 1, 0]), [text, b"x"])
+        got = _text.join([_text.masked([cells, b"\0" if text == b"ab" else b","], keep),
+                          _text.float_cells(np.array([1.5, -2.0, 1e-7])), b"\n"], 3)
+        sep = b"\0" if text == b"ab" else b","
+        assert got == text + sep + b"1.5\n-2.0\n" + text + sep + b"1e-07\n"
