@@ -2,14 +2,17 @@
 
 Run from the repository root:
 
-    PYTHONPATH=. python benchmarks/effects_scaling.py
+    PYTHONPATH=. python benchmarks/effects_scaling.py [--quick] [--stage-only]
 
 Merging: n reports at a fixed density, in two layouts — ``dwells`` (n/200 dwells of 200 reports
 each, uniform over 10 km × 0.1 rad, i.e. one report per ~67 cells of 15 m × 5 mrad) and ``one
 dwell`` (all n reports in one dwell whose range extent grows with n). The log-log slope of runtime
-against n is printed; linear cost at fixed density means a slope near 1 (required ≤ 1.1).
-False alarms (the clutter module alone): 100 dwells with a 67.5 km² annular-sector footprint
-each (15-30 km, 0.2 rad), FoV-wide density swept, plus a lake region; runtime per false alarm.
+against n is printed; linear cost at fixed density means a slope near 1 (required ≤ 1.1: the
+exit status is 1 above it, except with ``--quick``, whose sizes are too small to judge).
+False alarms (the clutter module alone, called with polygon footprints: the library path, not
+the sensor stage's): 100 dwells with a 67.5 km² annular-sector footprint each (15-30 km,
+0.2 rad, as a 32-vertex polygon), FoV-wide density swept, plus a lake region; runtime per false
+alarm.  ``benchmarks/clutter_throughput.py`` measures what a run pays for clutter.
 False alarms in the sensor stage (what a run pays): the default sensor over an empty fleet for
 ``--fa-revisits`` revisits, (a) the detector's noise false alarms at P_FA swept and (b) the
 clutter module's FoV-wide density swept, each drawn directly in every dwell's cell, vectorised
@@ -146,7 +149,13 @@ def main(argv=None):
     ap.add_argument("--fa-revisits", type=int, default=20)
     ap.add_argument("--stage-only", action="store_true",
                     help="only the false alarms in the sensor stage")
+    ap.add_argument("--quick", action="store_true",
+                    help="sizes 1,000-10,000, densities 1 and 10, 3 repeats; the merge slope "
+                         "is reported, not enforced")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.sizes, args.densities, args.repeats = [1_000, 3_000, 10_000], [1.0, 10.0], 3
+        args.pfas, args.fa_densities, args.fa_revisits = [1e-5, 1e-4], [1.0, 10.0], 20
     worst = 0.0
     if args.stage_only:
         return _print_stage(args)
@@ -159,14 +168,17 @@ def main(argv=None):
             worst = max(worst, t)
         else:
             print(f"| {layout} | {label} | {n:,} | {t:.4f} | {merged:,} |")
-    print(f"\nworst slope: {worst:.3f} ({'OK' if worst <= 1.1 else 'ABOVE 1.1'})\n")
+    verdict = "OK" if worst <= 1.1 else "ABOVE 1.1"
+    if args.quick:   # up to 10,000 reports a fixed cost and timing noise move a slope by ±0.2
+        verdict += "; --quick: reported, not enforced (the full sizes, to 100,000, enforce it)"
+    print(f"\nworst slope: {worst:.3f} ({verdict})\n")
 
     print("## False alarms (100 dwells, 67.5 km² footprint each, plus a 12.6 km² circular lake at 1/km²)\n")
     print("| FoV density (/km²/dwell) | false alarms | time (s) | µs per false alarm |\n|---|---|---|---|")
     for dens, nd, count, t in bench_clutter(args.densities, args.repeats):
         print(f"| {dens:g} | {count:,} | {t:.4f} | {1e6 * t / max(count, 1):.2f} |")
     _print_stage(args)
-    return 0 if worst <= 1.1 else 1
+    return 0 if worst <= 1.1 or args.quick else 1
 
 
 def _print_stage(args) -> int:

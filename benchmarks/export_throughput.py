@@ -22,6 +22,14 @@ the medians of their CPU times give the ratio.  The machine's load average is pr
 tracks.geojson left out: older writers have none), today's writers against REV's, alternating::
 
     python benchmarks/export_throughput.py --run outputs/x/run.h5 --against 011254f --ab-runs 3
+
+``--run RUN.h5 --stage`` times the export stage itself as the pipeline runs it
+(``gmtiflow.export.export_run`` with the default export config: 4607, XML, detections/dwells/
+tracks CSV, scene/truth/tracks GeoJSON), each time in a fresh process (module imports before
+the clock, lazy imports of the writers inside it, as in a run); with ``--against REV`` it
+alternates with REV's code (``git archive``) and checks that both wrote the same bytes::
+
+    python benchmarks/export_throughput.py --run outputs/x/run.h5 --stage --against main --ab-runs 3
 """
 from __future__ import annotations
 
@@ -98,6 +106,62 @@ def run_file_ab(run_path: Path, rev: str, runs: int) -> None:
             print(f"{name:<16} {size:>12,d} {a:>12.2f} {b:>10.2f} {a / b:>8.1f}x")
 
 
+_STAGE = """
+import json, os, resource, sys, time
+from pathlib import Path
+if sys.argv[1]:
+    sys.path.insert(0, sys.argv[1])
+from gmtiflow import export
+t0, c0 = time.perf_counter(), time.process_time()
+export.export_run(export.ExportConfig(), sys.argv[2], sys.argv[3])
+print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() - c0,
+                  "maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                  "module": export.__file__}))
+"""
+
+
+def reference_tree(rev: str, tmp: Path) -> Path:
+    """gmtiflow (with its formats and conf packages) of git revision ``rev``, importable."""
+    data = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "gmtiflow", "formats", "conf"],
+                          capture_output=True, check=True).stdout
+    with tarfile.open(fileobj=BytesIO(data)) as tar:
+        tar.extractall(tmp, filter="data")
+    (tmp / "gmtiflow" / "formats").symlink_to(tmp / "formats")
+    (tmp / "gmtiflow" / "conf").symlink_to(tmp / "conf")
+    return tmp
+
+
+def stage_ab(run_path: Path, rev, runs: int) -> None:
+    """The export stage of ``run_path`` in fresh processes: today's code (and REV's)."""
+    import json
+    import filecmp
+    with tempfile.TemporaryDirectory() as tmp:
+        trees = {"today": ""}
+        if rev:
+            trees[f"reference {rev}"] = str(reference_tree(rev, Path(tmp) / "ref"))
+        got = {k: [] for k in trees}
+        for _ in range(runs):
+            for label, tree in trees.items():
+                out = Path(tmp) / label.replace(" ", "_")
+                res = subprocess.run([sys.executable, "-c", _STAGE, tree, str(run_path), str(out)],
+                                     capture_output=True, text=True, check=True)
+                r = json.loads(res.stdout.strip().splitlines()[-1])
+                assert (tree or str(ROOT)) in r["module"], r["module"]
+                got[label].append(r)
+                print(f"  {label:<20} wall {r['wall']:5.2f} s  CPU {r['cpu']:5.2f} s  "
+                      f"max RSS {r['maxrss_mb']:6.0f} MB  load {os.getloadavg()[0]:.2f}")
+        for label, rs in got.items():
+            print(f"{label:<22} median wall {np.median([r['wall'] for r in rs]):.2f} s, "
+                  f"CPU {np.median([r['cpu'] for r in rs]):.2f} s")
+        if rev:
+            a, b = (Path(tmp) / k.replace(" ", "_") for k in trees)
+            names = sorted(p.name for p in a.iterdir())
+            same = all(filecmp.cmp(a / nm, b / nm, shallow=False) for nm in names)
+            print(f"files {'identical' if same else 'DIFFER'}: {', '.join(names)}")
+            c = [np.median([r["cpu"] for r in rs]) for rs in got.values()]
+            print(f"CPU speed-up today vs {rev}: {c[1] / c[0]:.2f}x")
+
+
 def ab_4607(rev: str, dwells, dets, meta, runs: int) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         ref = load_reference(rev, Path(tmp))
@@ -130,7 +194,14 @@ def main(argv=None):
     ap.add_argument("--ab-runs", type=int, default=9)
     ap.add_argument("--run", type=Path, metavar="RUN.h5",
                     help="with --against: time the export stage's files of this run file")
+    ap.add_argument("--stage", action="store_true",
+                    help="with --run: time the whole export stage in fresh processes")
     a = ap.parse_args(argv)
+    if a.run is not None and a.stage:
+        print(f"# load average {os.getloadavg()[0]:.2f} ({os.cpu_count()} CPUs); export stage "
+              f"of {a.run}, {a.ab_runs} alternating runs")
+        stage_ab(a.run, a.against, a.ab_runs)
+        return
     if a.run is not None:
         if not a.against:
             ap.error("--run needs --against REV")

@@ -18,6 +18,7 @@ _LAZY = {
     "read_geojson": "geojson", "write_geojson": "geojson",
     "iter_packets": "stanag4607", "read_4607": "stanag4607", "write_4607": "stanag4607",
     "read_xml": "xmldoc", "validate_xml": "xmldoc", "write_xml": "xmldoc",
+    "shared_columns": "_text",
 }
 
 _SUBMODULES = frozenset(p.stem for p in _Path(__file__).parent.iterdir()
@@ -47,5 +48,5 @@ __all__ = [
     "write_xml", "read_xml", "validate_xml",
     "write_csv", "read_csv", "write_detections_csv", "read_detections_csv",
     "write_truth_csv", "read_truth_csv", "write_tracks_csv", "read_tracks_csv",
-    "write_geojson", "read_geojson",
+    "write_geojson", "read_geojson", "shared_columns",
 ]

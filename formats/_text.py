@@ -19,8 +19,9 @@ digits beyond the shortest ones (``repr`` is the shortest string that round-trip
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import List, Sequence, Union
+from typing import Iterator, List, Optional, Sequence, Union
 
 import numpy as np
 
@@ -39,10 +40,25 @@ class Cells:
     chars: np.ndarray
     lens: np.ndarray
     start: Union[np.ndarray, int] = 0
+    nul: bool = False
+    """Some cell holds a NUL byte (text never does; :func:`join_rows` pads with NULs)."""
 
     def masked(self, keep: np.ndarray) -> "Cells":
         """The same cells, empty where ``keep`` is False."""
-        return Cells(self.chars, np.where(keep, self.lens, 0), self.start)
+        return Cells(self.chars, np.where(keep, self.lens, 0), self.start, self.nul)
+
+    def take(self, rows) -> "Cells":
+        """The cells of ``rows`` (indices or a slice), in that order."""
+        chars = self.chars if len(self.chars) == 1 else self.chars[rows]
+        start = self.start if np.ndim(self.start) == 0 else np.asarray(self.start)[rows]
+        return Cells(chars, self.lens[rows], start, self.nul)
+
+    def compact(self) -> "Cells":
+        """The same cells in less memory (kept whole by :func:`shared_columns`)."""
+        if np.ndim(self.start) or not len(self.lens) or self.lens.max() > 255:
+            return self
+        chars = self.chars if len(self.chars) == 1 else self.chars[:, :int(self.lens.max())]
+        return Cells(chars, self.lens.astype(np.uint8), 0, self.nul)
 
 
 Field = List[Cells]
@@ -59,7 +75,8 @@ def masked(field: Field, keep: np.ndarray) -> Field:
 def literal(text: Union[str, bytes], n: int) -> Cells:
     """``text`` on each of ``n`` rows."""
     b = text.encode() if isinstance(text, str) else bytes(text)
-    return Cells(np.frombuffer(b, np.uint8).reshape(1, len(b)), np.full(n, len(b), np.int64))
+    return Cells(np.frombuffer(b, np.uint8).reshape(1, len(b)), np.full(n, len(b), np.int64),
+                 0, b"\0" in b)
 
 
 def from_strings(codes: np.ndarray, texts: Sequence[Union[str, bytes]]) -> Cells:
@@ -71,7 +88,7 @@ def from_strings(codes: np.ndarray, texts: Sequence[Union[str, bytes]]) -> Cells
         table[k, :len(t)] = np.frombuffer(t, np.uint8)
     lens = np.array([len(t) for t in enc], np.int64)
     codes = np.asarray(codes, np.int64)
-    return Cells(table[codes], lens[codes])
+    return Cells(table[codes], lens[codes], 0, any(b"\0" in t for t in enc))
 
 
 def choice(flags: np.ndarray, if_true: str, if_false: str) -> Field:
@@ -95,6 +112,17 @@ def ascii_fixed(values: np.ndarray) -> Field:
     chars = np.frombuffer(b.tobytes(), np.uint8).reshape(len(b), w) if len(b) else \
         np.zeros((0, w), np.uint8)
     return [Cells(chars, np.count_nonzero(chars, axis=1).astype(np.int64))]
+
+
+def utc_cells(epoch, time_s) -> Field:
+    """ISO-8601 UTC text of ``epoch + time_s`` (:func:`formats._io.iso_utc`; empty where the
+    time is not finite), made once per run of equal times (a dwell's reports share its time)."""
+    from ._io import iso_utc
+    t = np.asarray(time_s, dtype=np.float64)
+    runs = _repeats(t)
+    if runs is not None:
+        return _expand(ascii_fixed(iso_utc(epoch, t[runs[0]])), runs[1])
+    return ascii_fixed(iso_utc(epoch, t))
 
 
 _GROUPS = np.frombuffer(b"".join(f"{k:03d}".encode() for k in range(1000)), "V3")
@@ -124,9 +152,83 @@ def _count_digits(mag: np.ndarray, most: int) -> np.ndarray:
 _MINUS_CELL = np.frombuffer(b"-", np.uint8).reshape(1, 1)
 
 
-def int_cells(values) -> Field:
-    """Decimal integers (any int64, unsigned up to 2^64 - 1)."""
+def _repeats(values: np.ndarray):
+    """Where a column repeats its values in runs (a dwell's time on each of its reports, a
+    constant height): (first row of each run, run number of each row), else None.  Runs are
+    told apart by their bits, so 0.0 and -0.0 differ and NaNs of one pattern are one run."""
+    n = len(values)
+    if n < 64:
+        return None
+    bits = values.view(np.int64) if values.dtype.itemsize == 8 else values
+    head = np.empty(n, bool)
+    head[0] = True
+    np.not_equal(bits[1:], bits[:-1], out=head[1:])
+    if np.count_nonzero(head) > n // 2:      # mostly distinct: formatting twice as few rows
+        return None                          # would not pay for the gather
+    return np.flatnonzero(head), np.cumsum(head) - 1
+
+
+def _expand(field: Field, run: np.ndarray) -> Field:
+    return [c.take(run) for c in field]
+
+
+SHARED_MAX_ROWS = 1 << 18
+SHARED_MAX_VALUES = 4_000_000
+_SHARED: Optional[dict] = None
+
+
+@contextmanager
+def shared_columns(max_values: int = SHARED_MAX_VALUES) -> Iterator[None]:
+    """Inside the block, a column given whole to :func:`float_cells` / :func:`int_cells` with
+    ``rows`` is formatted once and its text reused by every later call (the XML, CSV and
+    GeoJSON of one table write the same numbers).  Memory stays bounded: only columns of at
+    most :data:`SHARED_MAX_ROWS` rows are kept, at most ``max_values`` values in all (about 25
+    bytes each); others are formatted a block at a time as without the block.  The columns must
+    not change inside the block (they are known by identity)."""
+    global _SHARED
+    outer = _SHARED
+    _SHARED = {"room": int(max_values), "columns": {}}
+    try:
+        yield
+    finally:
+        _SHARED = outer
+
+
+def _shared(kind: str, values, make):
+    """The whole-column text of ``values`` (``make(values)``) kept by :func:`shared_columns`,
+    or None (no block active, or the column does not fit)."""
+    if _SHARED is None or not isinstance(values, np.ndarray) or values.ndim != 1:
+        return None
+    columns = _SHARED["columns"]
+    hit = columns.get((kind, id(values)))
+    if hit is not None and hit[0] is values:
+        return hit[1]
+    if len(values) > min(SHARED_MAX_ROWS, _SHARED["room"]):
+        return None
+    text = make(values)
+    columns[(kind, id(values))] = (values, text)       # holding values keeps its id unique
+    _SHARED["room"] -= len(values)
+    return text
+
+
+def int_cells(values, rows=None) -> Field:
+    """Decimal integers (any int64, unsigned up to 2^64 - 1); of ``values[rows]`` when ``rows``
+    (indices or a slice) is given, the column's text shared within :func:`shared_columns`."""
+    if rows is not None:
+        whole = _shared("int", values, lambda v: [c.compact() for c in _int_text(v)])
+        if whole is not None:
+            return [c.take(rows) for c in whole]
+        values = np.asarray(values)[rows]
+    return _int_text(values)
+
+
+def _int_text(values) -> Field:
     v = np.asarray(values)
+    if v.dtype.kind not in "iu":
+        v = v.astype(np.int64)
+    runs = _repeats(v)
+    if runs is not None:                     # e.g. a dwell's id on each of its reports
+        return _expand(_int_text(v[runs[0]]), runs[1])
     if v.dtype.kind == "u":
         mag, neg = v.astype(np.uint64), np.zeros(len(v), bool)
     else:
@@ -150,11 +252,51 @@ _EXP_TEXT = [f"e{k:+03d}" for k in range(-400, 401)]          # repr's exponents
 _EXP_CELLS = from_strings(np.arange(801), _EXP_TEXT)
 
 
-def float_cells(values, nan: str = "nan", inf: str = "inf") -> Field:
+@dataclass
+class _Floats:
+    """Text of float64 values with the special ones apart, to be written per format: ``codes``
+    0 = a number (in ``field``), 1 NaN, 2 inf, 3 -inf, 4 0.0, 5 -0.0, 6 + k ``other[k]``."""
+
+    field: Field
+    codes: Optional[np.ndarray] = None
+    other: Sequence[str] = ()
+
+    def take(self, rows) -> "_Floats":
+        return _Floats([c.take(rows) for c in self.field],
+                       None if self.codes is None else self.codes[rows], self.other)
+
+    def compact(self) -> "_Floats":
+        codes = self.codes
+        if codes is not None and len(self.other) < 250:
+            codes = codes.astype(np.uint8)
+        return _Floats([c.compact() for c in self.field], codes, self.other)
+
+    def text(self, nan: str, inf: str) -> Field:
+        if self.codes is None:
+            return list(self.field)
+        neg_inf = inf if inf == "null" else "-" + inf
+        return self.field + [from_strings(self.codes, ["", nan, inf, neg_inf, "0.0", "-0.0",
+                                                       *self.other])]
+
+
+def float_cells(values, nan: str = "nan", inf: str = "inf", rows=None) -> Field:
     """Decimal text of float64 values that reads back exactly (module docstring).  NaN is
     ``nan``, ±inf ``inf``/``-inf`` (give ``nan="null", inf="null"`` for JSON, where the sign is
-    dropped too)."""
+    dropped too).  With ``rows`` (indices or a slice): the text of ``values[rows]``, the
+    column's text shared within :func:`shared_columns`."""
+    if rows is not None:
+        whole = _shared("float", values, lambda v: _float_text(v).compact())
+        if whole is not None:
+            return whole.take(rows).text(nan, inf)
+        values = np.asarray(values)[rows]
+    return _float_text(values).text(nan, inf)
+
+
+def _float_text(values) -> _Floats:
     x = np.asarray(values, dtype=np.float64)
+    runs = _repeats(x)
+    if runs is not None:                     # e.g. a dwell's time on each of its reports
+        return _float_text(x[runs[0]]).take(runs[1])
     n = len(x)
     a = np.abs(x)
     normal = np.isfinite(x) & (a >= np.finfo(np.float64).tiny)
@@ -208,21 +350,20 @@ def float_cells(values, nan: str = "nan", inf: str = "inf") -> Field:
     if sci.any():
         code = np.clip(e10 + 400, 0, 800)
         field.append(Cells(_EXP_CELLS.chars[code], np.where(sci, _EXP_CELLS.lens[code], 0)))
-    special = np.flatnonzero(~ok)
-    if len(special):       # zeros, NaN, inf, and what the proof did not cover
-        texts = []
-        for v in x[special].tolist():
-            if v != v:
-                texts.append(nan)
-            elif v in (np.inf, -np.inf):
-                texts.append(inf if (v > 0 or inf == "null") else "-" + inf)
-            else:
-                texts.append(repr(v))
-        uniq, inv = np.unique(np.array(texts, dtype=object).astype(str), return_inverse=True)
-        codes = np.zeros(n, np.int64)
-        codes[special] = inv.reshape(-1) + 1
-        field.append(from_strings(codes, [""] + uniq.tolist()))
-    return field
+    special = ~ok
+    if not special.any():
+        return _Floats(field)
+    # zeros, NaN, inf (masks), and what the proof did not cover (repr)
+    codes = np.select([np.isnan(x), x == np.inf, x == -np.inf, (x == 0) & ~np.signbit(x),
+                       x == 0], [1, 2, 3, 4, 5], 0)
+    other = np.flatnonzero(special & (codes == 0))
+    texts: list = []
+    if len(other):
+        uniq, inv = np.unique(np.array([repr(v) for v in x[other].tolist()]),
+                              return_inverse=True)
+        codes[other] = inv.reshape(-1) + 6
+        texts = uniq.tolist()
+    return _Floats(field, codes, texts)
 
 
 _W = 22                                         # widest body: "0.000" + 17 digits
@@ -267,39 +408,71 @@ def join_rows(pieces: Sequence[Union[Piece, Field]], n: int):
     """(bytes of ``n`` rows as :func:`join`, byte offset of each row and of the end)."""
     if n == 0:
         return b"", np.zeros(1, np.int64)
-    mats, sels = [], []
-    flat: list = []
-    for p in pieces:
-        flat.extend(p if isinstance(p, list) else [p])
-    row_len = np.zeros(n, np.int64)
-    for p in flat:
+    # (chars, lens or None for literal text, start) per piece; consecutive literals merged
+    parts: list = []
+    text = b""
+    nul = False
+    for p in (q for piece in pieces for q in (piece if isinstance(piece, list) else [piece])):
         if isinstance(p, (bytes, str)):
-            b = p.encode() if isinstance(p, str) else p
-            if not b:
-                continue
-            mats.append(np.broadcast_to(np.frombuffer(b, np.uint8), (n, len(b))))
-            sels.append(np.ones((n, len(b)), bool))
-            row_len += len(b)
-        else:
-            if not p.lens.any():                # e.g. no negative values: no sign piece
-                continue
-            st = np.asarray(p.start)
-            lo = int(st.min()) if st.ndim else int(st)
-            hi = int((st + p.lens).max())
-            chars = p.chars[:, lo:hi]              # only the columns some row uses
-            col = np.arange(hi - lo)[None, :]
-            mats.append(np.broadcast_to(chars, (n, hi - lo)))
-            if st.ndim:
-                first = (st - lo)[:, None]
-                sels.append((col >= first) & (col < first + p.lens[:, None]))
-            else:
-                sels.append(col < p.lens[:, None])
-            row_len += p.lens
+            text += p.encode() if isinstance(p, str) else p
+            continue
+        if text:
+            parts.append((np.frombuffer(text, np.uint8)[None, :], None, 0))
+            text = b""
+        if not p.lens.any():                    # e.g. no negative values: no sign piece
+            continue
+        st = np.asarray(p.start)
+        lo = int(st.min()) if st.ndim else int(st)
+        hi = int((st + p.lens).max())
+        parts.append((p.chars[:, lo:hi], p.lens, st - lo if st.ndim else 0))
+        nul |= p.nul
+    if text:
+        parts.append((np.frombuffer(text, np.uint8)[None, :], None, 0))
+    row_len = np.zeros(n, np.int64)
+    for chars, lens, _ in parts:
+        row_len += chars.shape[1] if lens is None else lens
     offsets = np.concatenate([[0], np.cumsum(row_len)])
-    if not mats:
+    if not parts:
         return b"", offsets
-    big = np.concatenate(mats, axis=1)
-    return big[np.concatenate(sels, axis=1)].tobytes(), offsets
+    nul |= any(lens is None and not chars.all() for chars, lens, _ in parts)
+    # every piece side by side in one matrix, NUL where a row does not use a byte, then the
+    # NULs dropped (text holds none; else a mask of the bytes used)
+    width = sum(chars.shape[1] for chars, _, _ in parts)
+    big = np.empty((n, width), np.uint8)
+    use = np.ones((n, width), bool) if nul else None
+    o = 0
+    for chars, lens, first in parts:
+        w = chars.shape[1]
+        if lens is None or (np.ndim(first) == 0 and bool(np.all(lens == w))):
+            big[:, o:o + w] = chars
+        elif np.ndim(first) == 0:               # a prefix of each row: masked by a table
+            keep = np.take(_prefix_masks(w), lens, axis=0)
+            if use is not None:
+                use[:, o:o + w] = keep != 0
+            big[:, o:o + w] = np.bitwise_and(chars, keep, out=keep)
+        else:
+            col = np.arange(w)[None, :]
+            keep = (col >= first[:, None]) & (col < first[:, None] + lens[:, None])
+            big[:, o:o + w] = np.where(keep, chars, np.uint8(0))
+            if use is not None:
+                use[:, o:o + w] = keep
+        o += w
+    flat = big.reshape(-1)
+    if use is None:
+        return flat[flat != 0].tobytes(), offsets
+    return flat[use.reshape(-1)].tobytes(), offsets
+
+
+_PREFIX_MASKS: dict = {}
+
+
+def _prefix_masks(w: int) -> np.ndarray:
+    """Row k: 0xFF on the first k of ``w`` bytes, 0 after (k = 0 .. w)."""
+    m = _PREFIX_MASKS.get(w)
+    if m is None:
+        m = _PREFIX_MASKS[w] = np.where(np.arange(w)[None, :] < np.arange(w + 1)[:, None],
+                                        255, 0).astype(np.uint8)
+    return m
 
 
 def row_chunks(n: int, rows: int = 1 << 15):

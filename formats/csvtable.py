@@ -30,7 +30,7 @@ from typing import Mapping
 import numpy as np
 
 from . import _text as _cells
-from ._io import (iso_utc, n_rows, parse_epoch, read_source, source_name,
+from ._io import (n_rows, parse_epoch, read_source, source_name,
                   write_chunks)
 from .errors import FormatError, where
 
@@ -91,13 +91,17 @@ def _kind(kind: str) -> dict:
     return COLUMNS[kind]
 
 
-def _field(col: np.ndarray, kind: str) -> _cells.Field:
+def _field(col, kind: str, rows) -> _cells.Field:
+    """The text of ``col[rows]`` (the whole column is given, so that the formats of one table
+    format it once: :func:`formats._text.shared_columns`)."""
     col = np.asarray(col)
     if kind == B:
-        return _cells.choice(col.astype(bool), "True", "False")
+        return _cells.choice(col[rows].astype(bool), "True", "False")
     if kind in (I, U8):
-        return _cells.int_cells(col.astype(np.int64))
-    return _cells.float_cells(col.astype(np.float64))     # 'nan', 'inf', '-inf' as repr writes
+        if col.dtype.kind == "i" or (col.dtype.kind in "ub" and col.dtype.itemsize < 8):
+            return _cells.int_cells(col, rows)
+        return _cells.int_cells(col[rows].astype(np.int64))
+    return _cells.float_cells(col, rows=rows)     # 'nan', 'inf', '-inf' as repr writes
 
 
 def _prepare(table: Mapping[str, np.ndarray], kind: str, epoch_utc: str):
@@ -127,9 +131,9 @@ def iter_csv(table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str,
     t = np.asarray(table["time_s"], dtype=np.float64)
     for a, b in _cells.row_chunks(len(order), rows):
         sel = order[a:b]
-        pieces: list = [_cells.ascii_fixed(iso_utc(epoch, t[sel]))]
+        pieces: list = [_cells.utc_cells(epoch, t[sel])]
         for c in names:
-            pieces += [",", _field(np.asarray(table[c])[sel], cols[c])]
+            pieces += [",", _field(table[c], cols[c], sel)]
         pieces.append("\n")
         yield _cells.join(pieces, b - a)
 

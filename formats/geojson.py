@@ -36,7 +36,7 @@ from typing import Iterator, Mapping, Sequence
 import numpy as np
 
 from . import _text as _cells
-from ._io import iso_utc, n_rows, parse_epoch, read_source, source_name, write_chunks
+from ._io import n_rows, parse_epoch, read_source, source_name, write_chunks
 from .csvtable import COLUMNS
 from .errors import FormatError, where
 
@@ -68,19 +68,27 @@ def _need(table, cols, what):
                          "geodetic first, e.g. with gmtiflow.frames)")
 
 
-def _json_field(col: np.ndarray) -> _cells.Field:
-    """JSON text of a column: numbers exact (NaN and inf as null), booleans, quoted strings."""
+def _json_field(col: np.ndarray, rows=None) -> _cells.Field:
+    """JSON text of a column (of ``col[rows]`` when ``rows`` is given: the whole column is
+    passed so that the formats of one table format it once, :func:`formats._text.shared_columns`):
+    numbers exact (NaN and inf as null), booleans, quoted strings."""
     col = np.asarray(col)
     if col.dtype.kind == "b":
-        return _cells.choice(col, "true", "false")
+        return _cells.choice(col if rows is None else col[rows], "true", "false")
     if col.dtype.kind in "iu":
-        return _cells.int_cells(col)
+        return _cells.int_cells(col, rows)
     if col.dtype.kind == "f":
-        return _cells.float_cells(col, nan="null", inf="null")
-    return _cells.strings(col, quote=json.dumps)
+        return _cells.float_cells(col, nan="null", inf="null", rows=rows)
+    return _cells.strings(col if rows is None else col[rows], quote=json.dumps)
 
 
 _ROWS = 1 << 14                        # features formatted at a time (bounded memory)
+
+
+def _floats(col):
+    """``col`` as float64 (the same array when it is one already, so its text can be shared)."""
+    col = np.asarray(col)
+    return col if col.dtype == np.float64 else col.astype(np.float64)
 
 
 def _detection_blocks(dets: Mapping[str, np.ndarray], epoch) -> Iterator[bytes]:
@@ -91,26 +99,29 @@ def _detection_blocks(dets: Mapping[str, np.ndarray], epoch) -> Iterator[bytes]:
     names = [f",{json.dumps(c)}:" for c in props]
     for a, b in _cells.row_chunks(n, _ROWS):
         m = b - a
-        lon = np.asarray(dets["lon_deg"], np.float64)[a:b]
-        lat = np.asarray(dets["lat_deg"], np.float64)[a:b]
+        rows = slice(a, b)
+        lon = np.asarray(dets["lon_deg"], np.float64)[rows]
+        lat = np.asarray(dets["lat_deg"], np.float64)[rows]
         located = np.isfinite(lon) & np.isfinite(lat)   # RFC 7946 §3.2: else a null geometry
-        h = np.asarray(dets["height_m"], np.float64)[a:b] if "height_m" in dets else None
+        h = np.asarray(dets["height_m"], np.float64)[rows] if "height_m" in dets else None
         point = _cells.literal('{"type":"Point","coordinates":[', m)
         comma = _cells.literal(",", m)
         pieces: list = ['{"type":"Feature","geometry":',
                         _cells.literal("null", m).masked(~located), point.masked(located),
-                        _cells.masked(_json_field(lon), located), comma.masked(located),
-                        _cells.masked(_json_field(lat), located)]
+                        _cells.masked(_json_field(_floats(dets["lon_deg"]), rows), located),
+                        comma.masked(located),
+                        _cells.masked(_json_field(_floats(dets["lat_deg"]), rows), located)]
         if h is not None:
             has_h = located & np.isfinite(h)
-            pieces += [comma.masked(has_h), _cells.masked(_json_field(h), has_h)]
+            pieces += [comma.masked(has_h),
+                       _cells.masked(_json_field(_floats(dets["height_m"]), rows), has_h)]
         pieces += [_cells.literal("]}", m).masked(located),
                    ',"properties":{"kind":"detection"']
         for c, nm in zip(props, names):
-            pieces += [nm, _json_field(np.asarray(dets[c])[a:b])]
+            pieces += [nm, _json_field(dets[c], rows)]
         if epoch is not None and "time_s" in dets:
-            pieces += [',"time_utc":"', _cells.ascii_fixed(
-                iso_utc(epoch, np.asarray(dets["time_s"], np.float64)[a:b])), '"']
+            pieces += [',"time_utc":"', _cells.utc_cells(
+                epoch, np.asarray(dets["time_s"], np.float64)[a:b]), '"']
         pieces.append("}},\n")
         yield _cells.join(pieces, m)[:-2]
 
@@ -145,36 +156,45 @@ def _line_blocks(truth: Mapping[str, np.ndarray], kind: str = "truth") -> Iterat
         last = np.zeros(m, bool)
         last[v_end - 1] = True
         sep = _cells.choice(last, "", ",")
-        col = {c: np.asarray(truth[c])[sel] for c in truth}
-        pos = ["[", _json_field(col["lon_deg"].astype(np.float64)), ",",
-               _json_field(col["lat_deg"].astype(np.float64))]
-        if "height_m" in col:
-            hh = col["height_m"].astype(np.float64)
-            fin = np.isfinite(hh)
-            pos += [_cells.literal(",", m).masked(fin), _cells.masked(_json_field(hh), fin)]
+        pos = ["[", _json_field(_floats(truth["lon_deg"]), sel), ",",
+               _json_field(_floats(truth["lat_deg"]), sel)]
+        if "height_m" in truth:
+            fin = np.isfinite(np.asarray(truth["height_m"], np.float64)[sel])
+            pos += [_cells.literal(",", m).masked(fin),
+                    _cells.masked(_json_field(_floats(truth["height_m"]), sel), fin)]
         coords, c_off = _cells.join_rows(pos + ["]", sep], m)
-        lists = {}
+        lists = []
         for c in per_vertex:
-            x = col[c]
+            x = np.asarray(truth[c])
             if x.dtype.kind == "b":           # GDAL reads lists of integers, not of booleans
-                x = x.astype(np.int64)
-            lists[c] = _cells.join_rows([_json_field(x), sep], m)
+                field = _json_field(x[sel].astype(np.int64))
+            else:
+                field = _json_field(x, sel)
+            blob, off = _cells.join_rows([field, sep], m)
+            lists.append((f",{json.dumps(c)}:[".encode(), blob, off.tolist()))
+        # the features, assembled from slices of the formatted blocks
+        first = sel[v_start]
+        head = [f'{{"kind":"{kind}","{id_col}":{int(v)}'.encode()
+                for v in np.asarray(truth[id_col])[first].tolist()]
+        for c in static:
+            if c in truth:
+                head = [h + f',"{c}":{int(v)}'.encode()
+                        for h, v in zip(head, np.asarray(truth[c])[first].tolist())]
+        c_off = c_off.tolist()
         out = []
-        for k in range(g1 - g0):
-            i, j = int(v_start[k]), int(v_end[k])
-            single = j - i == 1
-            geom = (b'{"type":"Point","coordinates":' + coords[c_off[i]:c_off[j]] + b"}" if single
-                    else b'{"type":"LineString","coordinates":[' + coords[c_off[i]:c_off[j]] + b"]}")
-            p = (f'{{"kind":"{kind}","{id_col}":'.encode()
-                 + str(int(col[id_col][i])).encode())
-            for c in static:
-                if c in col:
-                    p += f',"{c}":'.encode() + str(int(col[c][i])).encode()
-            for c in per_vertex:
-                blob, off = lists[c]
-                p += b"," + json.dumps(c).encode() + b":[" + blob[off[i]:off[j]] + b"]"
-            out.append(b'{"type":"Feature","geometry":' + geom + b',"properties":' + p + b"}}")
-        yield b",\n".join(out)
+        put = out.append
+        for k, (i, j) in enumerate(zip(v_start.tolist(), v_end.tolist())):
+            put(b',\n{"type":"Feature","geometry":{"type":"Point","coordinates":' if j - i == 1
+                else b',\n{"type":"Feature","geometry":{"type":"LineString","coordinates":[')
+            put(coords[c_off[i]:c_off[j]])
+            put(b'},"properties":' if j - i == 1 else b']},"properties":')
+            put(head[k])
+            for key, blob, off in lists:
+                put(key)
+                put(blob[off[i]:off[j]])
+                put(b"]")
+            put(b"}}")
+        yield b"".join(out)[2:]
 
 
 def _coords(lat, lon, h):

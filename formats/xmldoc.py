@@ -37,7 +37,7 @@ import numpy as np
 from lxml import etree
 
 from . import _text as _cells
-from ._io import iso_utc, n_rows, source_name, write_chunks
+from ._io import n_rows, source_name, write_chunks
 from .errors import FormatError, where
 from .stanag4607 import resolve_meta
 
@@ -93,23 +93,25 @@ def _fmt(x: float) -> str:
     return repr(float(x))
 
 
-def _attr_field(name: str, col: np.ndarray, kind: str) -> _cells.Field:
-    """' name="value"' per row (nothing where the value is NaN), a column at a time: doubles
-    exact (:mod:`formats._text`), infinities as INF/-INF."""
+def _attr_field(name: str, col: np.ndarray, kind: str, rows) -> _cells.Field:
+    """' name="value"' of ``col[rows]`` (nothing where the value is NaN), a column at a time:
+    doubles exact (:mod:`formats._text`), infinities as INF/-INF."""
     col = np.asarray(col)
-    n = len(col)
+    sub = col[rows]
+    n = len(sub)
     if kind == _BOOL:
-        return _cells.choice(col.astype(bool), f' {name}="true"', f' {name}="false"')
+        return _cells.choice(sub.astype(bool), f' {name}="true"', f' {name}="false"')
     pre, end = _cells.literal(f' {name}="', n), _cells.literal('"', n)
     if kind in (_INT, _U8):
         if col.dtype.kind == "f":
-            ok = np.isfinite(col)
-            value = _cells.int_cells(np.where(ok, col, 0).astype(np.int64))
+            ok = np.isfinite(sub)
+            value = _cells.int_cells(np.where(ok, sub, 0).astype(np.int64))
             return _cells.masked([pre] + value + [end], ok)
-        return [pre] + _cells.int_cells(col.astype(np.int64)) + [end]
-    x = col.astype(np.float64)
-    ok = ~np.isnan(x)
-    return _cells.masked([pre] + _cells.float_cells(x, inf="INF") + [end], ok)
+        if col.dtype.kind == "i" or (col.dtype.kind in "ub" and col.dtype.itemsize < 8):
+            return [pre] + _cells.int_cells(col, rows) + [end]
+        return [pre] + _cells.int_cells(sub.astype(np.int64)) + [end]
+    ok = ~np.isnan(sub.astype(np.float64))
+    return _cells.masked([pre] + _cells.float_cells(col, inf="INF", rows=rows) + [end], ok)
 
 
 # Value ranges the XSD restricts (checked before writing so every written file validates).
@@ -133,9 +135,9 @@ def _check_ranges(table, what):
                              f"[{lo}, {hi}] (row {int(np.flatnonzero(bad)[0])})")
 
 
-def _attrs(table: Mapping[str, np.ndarray], columns: dict, skip=()) -> list:
+def _attrs(table: Mapping[str, np.ndarray], columns: dict, rows, skip=()) -> list:
     return [f for name, kind in columns.items() if name in table and name not in skip
-            for f in _attr_field(name, table[name], kind)]
+            for f in _attr_field(name, table[name], kind, rows)]
 
 
 def iter_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarray],
@@ -220,13 +222,13 @@ def iter_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarr
         a, b = int(starts[g0]), int(starts[g1])
         empty = counts[g0:g1] == 0
         opening, o_off = _cells.join_rows(
-            ["  <Dwell"] + _attrs({c: v[dsel] for c, v in dcols.items()}, DWELL_COLUMNS)
-            + [' timeUtc="', _cells.ascii_fixed(iso_utc(epoch, dcols["time_s"][dsel].astype(float))),
+            ["  <Dwell"] + _attrs(dcols, DWELL_COLUMNS, dsel)
+            + [' timeUtc="', _cells.utc_cells(epoch, dcols["time_s"][dsel]),
                '"', _cells.choice(empty, "/>\n", ">\n")], k)
         tsel = t_order[a:b]
         reports, r_off = _cells.join_rows(
-            ["    <TargetReport"] + _attrs({c: v[tsel] for c, v in tcols.items()},
-                                           DETECTION_COLUMNS, skip=("dwell_id",)) + ["/>\n"],
+            ["    <TargetReport"] + _attrs(tcols, DETECTION_COLUMNS, tsel, skip=("dwell_id",))
+            + ["/>\n"],
             b - a)
         parts = []
         for i in range(k):

@@ -162,18 +162,41 @@ class RunTables:
     tables: Dict[str, Table]
 
 
-def load_run(run_path) -> RunTables:
-    """Read the tables the exports use from a complete run file (StoreError if it is not one)."""
+EXPORT_TABLES = ("dwells", "detections", "truth", "tracks", "platform", "roads/nodes",
+                 "roads/edges")
+"""Every run-file table an export reads."""
+
+
+def tables_for(plan) -> tuple:
+    """The run-file tables the exports of ``plan`` (:func:`planned_files`) read: a 4607-only
+    run does not decompress /truth."""
+    need = set()
+    for fmt, _ in plan:
+        if fmt in ("stanag4607", "xml"):
+            need |= {"dwells", "detections", "platform"}
+        elif fmt.startswith("csv:"):
+            need.add(fmt[4:])
+        elif fmt == "geojson":
+            need |= {"detections", "roads/nodes", "roads/edges"}
+        elif fmt.startswith("geojson:"):
+            need.add(fmt[8:])
+        else:
+            return EXPORT_TABLES
+    return tuple(name for name in EXPORT_TABLES if name in need)
+
+
+def load_run(run_path, tables=EXPORT_TABLES) -> RunTables:
+    """Read the ``tables`` the exports use (those the file has) from a complete run file
+    (StoreError if it is not one)."""
     from gmtiflow.store import open_run, read_attrs, read_table, read_text   # h5py: lazy
     run_path = Path(run_path)
     with open_run(run_path, require_columns=True) as f:
         attrs = read_attrs(f)
-        tables = {name: read_table(f, name)
-                  for name in ("dwells", "detections", "truth", "tracks", "platform",
-                               "roads/nodes", "roads/edges")
-                  if name in f}
+        tables = {name: read_table(f, name) for name in tables if name in f}
         try:
-            config = OmegaConf.to_container(OmegaConf.create(read_text(f, "config"))) \
+            # open_run checked /config already
+            config = OmegaConf.to_container(OmegaConf.create(read_text(f, "config",
+                                                                       check=False))) \
                 if "config" in f else {}
         except Exception:           # a foreign or hand-edited /config: use no config values
             config = {}
@@ -491,7 +514,8 @@ def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:
         if det is not None:
             ok = np.isfinite(np.asarray(det["lat_deg"], float)) & \
                 np.isfinite(np.asarray(det["lon_deg"], float))
-            det = {k: np.asarray(v)[ok] for k, v in det.items()}
+            if not ok.all():        # else the same columns as XML and CSV: formatted once
+                det = {k: np.asarray(v)[ok] for k, v in det.items()}
         nodes = edges = None
         if cfg.geojson_roads and "roads/nodes" in t:
             nodes = with_geodetic(t["roads/nodes"], run.origin)
@@ -579,24 +603,26 @@ def export_run(cfg: ExportConfig, run_path, out_dir=None) -> List[Path]:
     plan = planned_files(cfg)
     if not plan:
         return []
-    run = load_run(run_path)
+    run = load_run(run_path, tables_for(plan))
     if cfg.blind:
         run = blind_run(run)
     out_dir = Path(out_dir) if out_dir is not None else Path(run_path).parent
     out_dir.mkdir(parents=True, exist_ok=True)
     written: List[Path] = []
+    from gmtiflow import formats
     try:
-        for fmt, name in progress(plan, "export", "file"):   # on a terminal, after 2 s
-            if fmt in ("csv:tracks", "geojson:tracks") and "tracks" not in run.tables:
-                log.info("no /tracks in %s: %s not written", run.path, name)
-                continue
-            if fmt == "geojson:truth" and "truth" not in run.tables:
-                log.info("no /truth in %s: truth.geojson not written", run.path)
-                continue
-            path = out_dir / name
-            write_format(fmt, run, cfg, path)
-            written.append(path)
-            log.info("export: wrote %s (%d bytes)", path, path.stat().st_size)
+        with formats.shared_columns():     # each column's text made once for every format
+            for fmt, name in progress(plan, "export", "file"):   # on a terminal, after 2 s
+                if fmt in ("csv:tracks", "geojson:tracks") and "tracks" not in run.tables:
+                    log.info("no /tracks in %s: %s not written", run.path, name)
+                    continue
+                if fmt == "geojson:truth" and "truth" not in run.tables:
+                    log.info("no /truth in %s: truth.geojson not written", run.path)
+                    continue
+                path = out_dir / name
+                write_format(fmt, run, cfg, path)
+                written.append(path)
+                log.info("export: wrote %s (%d bytes)", path, path.stat().st_size)
     except BaseException:
         for path in written:
             try:

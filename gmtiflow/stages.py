@@ -18,8 +18,6 @@ from gmtiflow import rundir
 from gmtiflow.coverage import sensors_table
 from gmtiflow.config import AppConfig, SensorSlot
 from gmtiflow.errors import GmtiflowError
-from gmtiflow.evaluate import evaluate as evaluate_tracks
-from gmtiflow.evaluate import track as run_tracker
 from gmtiflow.export import export_run, open_live_export
 from gmtiflow.report import build_run_report
 from gmtiflow.scene.platform import Platform
@@ -330,6 +328,7 @@ def track(state: RunState):
     dwells = state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID})
     for name in ("looks", "detection_ancestors"):
         state.sinks[name].close()
+    from gmtiflow.evaluate import track as run_tracker    # imported when run (scipy)
     return run_tracker(cfg.tracker, detections, dwells, cfg.seed,
                  origin=state.values["scene"][0].origin, epoch_utc=cfg.scene.epoch_utc,
                  duration_s=cfg.scene.duration_s)
@@ -350,6 +349,7 @@ def evaluate(state: RunState):
     dwells = state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID})
     # Scored up to the last dwell of any sensor (docs/evaluation.md, "Time base").
     last_dwell_s = float(np.max(dwells["time_s"])) if len(dwells["time_s"]) else None
+    from gmtiflow.evaluate import evaluate as evaluate_tracks   # scipy: only when scored
     metrics = evaluate_tracks(cfg.metrics, state.values["truth_table"], state.values["track"],
                               looks, state.values["truth"].vehicles,
                               {c: np.asarray(v)[first] for c, v in platform.items()},

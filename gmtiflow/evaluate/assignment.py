@@ -7,6 +7,8 @@ Pairs outside the gate get a cost larger than any gated solution and are never r
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
@@ -42,44 +44,266 @@ def gated_assignment(cost: np.ndarray, gate: float):
     return rows_in[r[keep]].astype(np.int64), cols_in[c[keep]].astype(np.int64)
 
 
+#: Relative margin by which the best pair of a star component (one row or one column) must beat
+#: the second best for it to be taken without ``linear_sum_assignment``: far above the solver's
+#: rounding, so the solver would return that pair too; closer calls go to the solver.
+_STAR_MARGIN = 1e-9
+
+#: Up to this many pairs the connected components are found by a union-find in Python (cheaper
+#: than building a scipy.sparse graph for a dwell's handful of pairs); above, by scipy.
+_SMALL_GRAPH = 256
+
+#: Components whose augmented matrix has up to this many entries share one buffer; larger ones
+#: are built one at a time.
+_BUFFERED = 1024
+
+
+def _components(r_idx: np.ndarray, c_idx: np.ndarray, nr: int, nc: int):
+    """Component label (0, 1, ...) of every row node (first ``nr``) and column node (next
+    ``nc``) of the bipartite graph with edges ``(r_idx[i], c_idx[i])``."""
+    if len(r_idx) > _SMALL_GRAPH:
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        graph = coo_matrix((np.ones(len(r_idx)), (r_idx, nr + c_idx)),
+                           shape=(nr + nc, nr + nc))
+        return connected_components(graph, directed=False)
+    parent = list(range(nr + nc))
+    for a, b in zip(r_idx.tolist(), (c_idx + nr).tolist()):
+        while parent[a] != a:
+            a = parent[a]
+        while parent[b] != b:
+            b = parent[b]
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    roots = []
+    for x in range(nr + nc):
+        y = x
+        while parent[y] != y:
+            y = parent[y]
+        parent[x] = y
+        roots.append(y)
+    uniq, label = np.unique(np.asarray(roots, np.int64), return_inverse=True)
+    return len(uniq), label
+
+
+#: Up to this many pairs (a dwell's typical handful) :func:`sparse_gated_assignment` runs in
+#: plain Python (:func:`_small_assignment`): numpy's per-call cost dominates there.
+_SMALL_PAIRS = 48
+
+
+def _small_assignment(rows: list, cols: list, cost: list, gate: float):
+    """:func:`sparse_gated_assignment` of a few pairs (Python lists), the same decisions made
+    the same way: components by union-find, a single pair taken, a star's clear cheapest pair
+    taken, every other component solved on the matrix :func:`gated_assignment` builds."""
+    n_pairs = len(rows)
+    if len(set(rows)) == n_pairs and len(set(cols)) == n_pairs:
+        o = sorted(range(n_pairs), key=rows.__getitem__)
+        return (np.array([rows[i] for i in o], np.int64),
+                np.array([cols[i] for i in o], np.int64))
+    parent = {}
+
+    def root(x):
+        while parent.setdefault(x, x) != x:
+            x = parent[x]
+        return x
+    for r, c in zip(rows, cols):
+        a, b = root((0, r)), root((1, c))
+        if a != b:
+            parent[b] = a
+    comps = {}
+    for i, r in enumerate(rows):
+        comps.setdefault(root((0, r)), []).append(i)
+    out = []
+    for idx in comps.values():
+        if len(idx) == 1:
+            out.append((rows[idx[0]], cols[idx[0]]))
+            continue
+        rs = sorted({rows[i] for i in idx})
+        cs = sorted({cols[i] for i in idx})
+        costs = [cost[i] for i in idx]
+        if not all(math.isfinite(c) and c < gate for c in costs):   # out of the gate: general
+            sub = np.full((len(rs), len(cs)), np.inf)
+            rpos = {r: k for k, r in enumerate(rs)}
+            cpos = {c: k for k, c in enumerate(cs)}
+            for i in idx:
+                sub[rpos[rows[i]], cpos[cols[i]]] = cost[i]
+            a, b = gated_assignment(sub, gate)
+            out.extend((rs[x], cs[y]) for x, y in zip(a.tolist(), b.tolist()))
+            continue
+        if len(rs) == 1 or len(cs) == 1:
+            o = sorted(range(len(idx)), key=costs.__getitem__)
+            best, second = costs[o[0]], costs[o[1]]
+            scale = max(abs(best), abs(second), abs(gate))
+            if second - best > _STAR_MARGIN * scale:
+                out.append((rows[idx[o[0]]], cols[idx[o[0]]]))
+                continue
+        n, m = len(rs), len(cs)
+        rpos = {r: k for k, r in enumerate(rs)}
+        cpos = {c: k for k, c in enumerate(cs)}
+        aug = np.full((n, m + n), gate * (n + 1) + 1.0)
+        pair = set()
+        for i in idx:
+            aug[rpos[rows[i]], cpos[cols[i]]] = cost[i]
+            pair.add((rpos[rows[i]], cpos[cols[i]]))
+        diag = np.arange(n)
+        aug[diag, m + diag] = gate
+        _, picked = linear_sum_assignment(aug)
+        out.extend((rs[x], cs[y]) for x, y in enumerate(picked.tolist())
+                   if y < m and (x, y) in pair)
+    out.sort()
+    return (np.array([r for r, _ in out], np.int64), np.array([c for _, c in out], np.int64))
+
+
 def sparse_gated_assignment(rows: np.ndarray, cols: np.ndarray, cost: np.ndarray, gate: float):
     """:func:`gated_assignment` of the pairs ``(rows[i], cols[i])`` with ``cost[i] < gate`` (every
     other pair outside the gate), solved per connected component of the pairs' graph: one pair
     alone is assigned at once, larger components go through :func:`gated_assignment` on their
     own rows and columns.  The optimum is the dense one (components share no gated pair, and
     the dense problem never takes an out-of-gate pair); cost linear in the pairs for sparse
-    gates.  Returns ``(rows, cols)`` sorted by row."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    gates.  Returns ``(rows, cols)`` sorted by row.
+
+    Speed (the result is the same): a *star* component (one row, or one column, all its pairs
+    inside the gate) takes its cheapest pair, found for all stars at once, when it beats the
+    second cheapest by a clear margin; the matrices :func:`gated_assignment` would build for the
+    other components are built at once, from the pairs (no per-component ``np.unique``), and
+    each is solved by one ``linear_sum_assignment``."""
     rows, cols = np.asarray(rows, np.int64), np.asarray(cols, np.int64)
     cost = np.asarray(cost, float)
     empty = np.zeros(0, np.int64)
     if not len(rows):
         return empty, empty
-    if len(np.unique(rows)) == len(rows) and len(np.unique(cols)) == len(cols):
-        o = np.argsort(rows, kind="stable")      # every pair its own component
-        return rows[o], cols[o]
+    if len(rows) <= _SMALL_PAIRS:
+        return _small_assignment(rows.tolist(), cols.tolist(), cost.tolist(), float(gate))
     r_ids, r_idx = np.unique(rows, return_inverse=True)
     c_ids, c_idx = np.unique(cols, return_inverse=True)
     nr, nc = len(r_ids), len(c_ids)
-    graph = coo_matrix((np.ones(len(rows)), (r_idx, nr + c_idx)), shape=(nr + nc, nr + nc))
-    _, label = connected_components(graph, directed=False)
+    if nr == len(rows) and nc == len(cols):
+        o = np.argsort(rows, kind="stable")      # every pair its own component
+        return rows[o], cols[o]
+    n_comp, label = _components(r_idx, c_idx, nr, nc)
     pair_label = label[r_idx]
-    n_pairs = np.bincount(pair_label, minlength=label.max() + 1)
+    n_pairs = np.bincount(pair_label, minlength=n_comp)
     single = n_pairs[pair_label] == 1
     out_r, out_c = [r_ids[r_idx[single]]], [c_ids[c_idx[single]]]
     multi = np.flatnonzero(~single)
     if len(multi):
-        order = multi[np.argsort(pair_label[multi], kind="stable")]
-        bounds = np.flatnonzero(np.diff(pair_label[order])) + 1
-        for grp in np.split(order, bounds):
+        comp_rows = np.bincount(label[:nr], minlength=n_comp)
+        comp_cols = np.bincount(label[nr:], minlength=n_comp)
+        inside = np.isfinite(cost) & (cost < gate)
+        comp_out = np.bincount(pair_label, weights=~inside, minlength=n_comp) > 0
+        # Stars whose pairs are all inside: the cheapest pair, when clearly the cheapest.
+        star = ((comp_rows == 1) | (comp_cols == 1)) & ~comp_out
+        solved = np.zeros(n_comp, bool)
+        sp = multi[star[pair_label[multi]]]
+        if len(sp):
+            o = sp[np.lexsort((cost[sp], pair_label[sp]))]
+            lab = pair_label[o]
+            first = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]])
+            best, second = cost[o[first]], cost[o[first + 1]]       # a star has >= 2 pairs
+            scale = np.maximum(np.maximum(np.abs(best), np.abs(second)), abs(float(gate)))
+            clear = second - best > _STAR_MARGIN * scale
+            win = o[first[clear]]
+            solved[lab[first[clear]]] = True
+            out_r.append(r_ids[r_idx[win]])
+            out_c.append(c_ids[c_idx[win]])
+        rest = multi[~solved[pair_label[multi]]]
+        if len(rest):
+            r, c = _solve_components(rest, r_idx, c_idx, cost, label, pair_label, nr, nc,
+                                     comp_rows, comp_cols, comp_out, float(gate))
+            out_r.append(r_ids[r])
+            out_c.append(c_ids[c])
+    rr, cc = np.concatenate(out_r), np.concatenate(out_c)
+    o = np.argsort(rr, kind="stable")
+    return rr[o], cc[o]
+
+
+def _solve_components(pairs, r_idx, c_idx, cost, label, pair_label, nr, nc, comp_rows,
+                      comp_cols, comp_out, gate):
+    """The assigned (row node, column node) pairs of the components of ``pairs`` (pair indices),
+    each solved as :func:`gated_assignment` solves it."""
+    # Each component's rows and columns numbered in increasing index (as np.unique gives them
+    # to gated_assignment), for all components at once.
+    lab_r, lab_c = label[:nr], label[nr:]
+    local_r = np.empty(nr, np.int64)
+    o = np.lexsort((np.arange(nr), lab_r))
+    local_r[o] = np.arange(nr) - np.searchsorted(lab_r[o], lab_r[o])
+    local_c = np.empty(nc, np.int64)
+    o = np.lexsort((np.arange(nc), lab_c))
+    local_c[o] = np.arange(nc) - np.searchsorted(lab_c[o], lab_c[o])
+    order = pairs[np.argsort(pair_label[pairs], kind="stable")]
+    lab = pair_label[order]
+    first = np.r_[0, np.flatnonzero(lab[1:] != lab[:-1]) + 1]
+    comps = lab[first]
+    out_r, out_c = [], []
+    general = comp_out[comps]       # an out-of-gate pair: gated_assignment decides what is left
+    if general.any():
+        bounds = np.r_[first, len(order)]
+        for k in np.flatnonzero(general).tolist():
+            grp = order[bounds[k]:bounds[k + 1]]
             gr, ir = np.unique(r_idx[grp], return_inverse=True)
             gc, ic = np.unique(c_idx[grp], return_inverse=True)
             sub = np.full((len(gr), len(gc)), np.inf)
             sub[ir, ic] = cost[grp]
             a, b = gated_assignment(sub, gate)
-            out_r.append(r_ids[gr[a]])
-            out_c.append(c_ids[gc[b]])
-    rr, cc = np.concatenate(out_r), np.concatenate(out_c)
-    o = np.argsort(rr, kind="stable")
-    return rr[o], cc[o]
+            out_r.append(gr[a])
+            out_c.append(gc[b])
+        keep = ~general[np.searchsorted(comps, lab)]
+        order, lab = order[keep], lab[keep]
+        comps = comps[~general]
+        first = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else first[:0]
+    large = comp_rows[comps] * (comp_rows[comps] + comp_cols[comps]) > _BUFFERED
+    if large.any():          # one by one: their matrices would make the buffer huge
+        bounds = np.r_[first, len(order)]
+        for k in np.flatnonzero(large).tolist():
+            grp = order[bounds[k]:bounds[k + 1]]
+            n, m = int(comp_rows[comps[k]]), int(comp_cols[comps[k]])
+            gr, ir = np.unique(r_idx[grp], return_inverse=True)
+            gc, ic = np.unique(c_idx[grp], return_inverse=True)
+            aug = np.full((n, m + n), gate * (n + 1) + 1.0)
+            aug[ir, ic] = cost[grp]
+            aug[np.arange(n), m + np.arange(n)] = gate
+            a, b = linear_sum_assignment(aug)
+            real = b < m
+            a, b = a[real], b[real]
+            pair = np.zeros((n, m), bool)
+            pair[ir, ic] = True
+            keep = pair[a, b]
+            out_r.append(gr[a[keep]])
+            out_c.append(gc[b[keep]])
+        keep = ~large[np.searchsorted(comps, lab)]
+        order, lab = order[keep], lab[keep]
+        comps = comps[~large]
+        first = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else first[:0]
+    if len(comps):
+        # One flat buffer holding every component's augmented matrix (n rows, m + n columns:
+        # the pairs' costs, big elsewhere, the rows' private miss columns at the gate).
+        n, m = comp_rows[comps], comp_cols[comps]
+        width = m + n
+        size = n * width
+        start = np.r_[0, np.cumsum(size)[:-1]]
+        big = gate * (n + 1) + 1.0
+        buf = np.repeat(big, size)
+        k_of_pair = np.searchsorted(comps, lab)
+        lr, lc = local_r[r_idx[order]], local_c[c_idx[order]]
+        buf[start[k_of_pair] + lr * width[k_of_pair] + lc] = cost[order]
+        k_row = np.repeat(np.arange(len(comps)), n)
+        row = np.arange(len(k_row)) - np.repeat(np.r_[0, np.cumsum(n)[:-1]], n)
+        buf[start[k_row] + row * width[k_row] + m[k_row] + row] = gate
+        picked = [linear_sum_assignment(buf[s:s + z].reshape(a, w))[1]
+                  for s, z, a, w in zip(start.tolist(), size.tolist(), n.tolist(),
+                                        width.tolist())]
+        col = np.concatenate(picked)            # per component row, its column (rows in order)
+        # Back to nodes: the component's rows / columns in increasing index.
+        node_r = np.empty(len(k_row), np.int64)
+        row_base = np.r_[0, np.cumsum(n)[:-1]]
+        node_r[row_base[k_of_pair] + lr] = r_idx[order]
+        col_base = np.r_[0, np.cumsum(m)[:-1]]
+        node_c = np.empty(int(m.sum()), np.int64)
+        node_c[col_base[k_of_pair] + lc] = c_idx[order]
+        real = col < m[k_row]
+        ok = np.flatnonzero(real)
+        ok = ok[buf[start[k_row[ok]] + row[ok] * width[k_row[ok]] + col[ok]]
+                < big[k_row[ok]]]   # a gated pair, not a filler (never picked: costs more)
+        out_r.append(node_r[ok])
+        out_c.append(node_c[col_base[k_row[ok]] + col[ok]])
+    return np.concatenate(out_r), np.concatenate(out_c)

@@ -57,11 +57,14 @@ def idtp(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray]
                   np.asarray(truth_at["step"], float) * lift], axis=1)
     b = np.stack([tracks_at["x_m"], tracks_at["y_m"],
                   np.asarray(tracks_at["step"], float) * lift], axis=1)
-    coo = cKDTree(a).sparse_distance_matrix(cKDTree(b), max_distance=g, output_type="coo_matrix")
-    close = coo.data < g
+    # unbalanced trees: built in half the time, the same pairs
+    found = cKDTree(a, balanced_tree=False, compact_nodes=False).sparse_distance_matrix(
+        cKDTree(b, balanced_tree=False, compact_nodes=False), max_distance=g,
+        output_type="ndarray")
+    close = found["v"] < g
     if not close.any():
         return 0
-    r, c = coo.row[close], coo.col[close]
+    r, c = found["i"][close], found["j"][close]
     vid = np.asarray(truth_at["vehicle_id"], np.int64)[r]
     tid = np.asarray(tracks_at["track_id"], np.int64)[c]
     pairs, counts = unique_pairs(vid, tid, return_counts=True)

@@ -96,20 +96,22 @@ def blind_gap_events(looks: Mapping[str, np.ndarray], min_gap_looks: int = 1) ->
     v, t = v[o], t[o]
     outcome = np.asarray(looks["outcome"]).astype(np.int64)[o]
     s, e = _runs(outcome != OUTCOME_DETECTED, v)
-    keep, kinds, ends = [], [], []
-    for a, b in zip(s, e):
-        seg = outcome[a:b + 1]
-        blind = seg[np.isin(seg, list(BLIND_OUTCOMES))]
-        if len(blind) < min_gap_looks:
-            continue
-        codes, counts = np.unique(blind, return_counts=True)
-        kinds.append(BLIND_OUTCOMES[int(codes[np.argmax(counts)])])
-        keep.append(a)
-        nxt = b + 1
-        ends.append(t[nxt] if nxt < len(v) and v[nxt] == v[b] else np.nan)
-    keep = np.asarray(keep, np.int64)
-    return {"vehicle_id": v[keep], "kind": np.asarray(kinds, dtype=str).reshape(-1),
-            "start_s": t[keep], "end_s": np.asarray(ends, float)}
+    # Per run, the looks of each blind outcome (cumulative counts: no loop over runs).
+    codes = sorted(BLIND_OUTCOMES)
+    counts = np.zeros((len(codes), len(s)), np.int64)
+    for i, code in enumerate(codes):
+        cum = np.concatenate([[0], np.cumsum(outcome == code)])
+        counts[i] = cum[e + 1] - cum[s]
+    n_blind = counts.sum(axis=0)
+    ok = n_blind >= max(min_gap_looks, 1)
+    s, e, counts = s[ok], e[ok], counts[:, ok]
+    names = np.array([BLIND_OUTCOMES[c] for c in codes], dtype=object)
+    kinds = names[np.argmax(counts, axis=0)].tolist()      # ties: the lowest code
+    nxt = np.minimum(e + 1, max(len(v) - 1, 0))
+    follows = (e + 1 < len(v)) & (v[nxt] == v[e])
+    ends = np.where(follows, t[nxt], np.nan)
+    return {"vehicle_id": v[s], "kind": np.asarray(kinds, dtype=str).reshape(-1),
+            "start_s": t[s], "end_s": np.asarray(ends, float)}
 
 
 def score_events(events: Mapping[str, np.ndarray], assoc_vehicle: np.ndarray,

@@ -89,7 +89,32 @@ def position_covariance(los_az_rad, sigma_along_m, sigma_cross_m) -> np.ndarray:
 
 def predicted_range_rate(x: np.ndarray, z_m: np.ndarray, platform_pos: np.ndarray,
                          platform_vel: np.ndarray):
-    """Range rate ``h(x)`` (n,) and its Jacobian row (n, 4) w.r.t. ``[x, y, vx, vy]``."""
+    """Range rate ``h(x)`` (n,) and its Jacobian row (n, 4) w.r.t. ``[x, y, vx, vy]``.
+
+    Written out per component (no (n, 3) stacks): ``|d|`` sums the squares in the order
+    ``np.linalg.norm`` does and ``d·w`` in the order ``np.einsum("ni,ni->n")`` does, so the
+    values are those of the stacked form bit for bit (``tests/evaluate/test_kalman.py``)."""
+    d0 = x[:, 0] - platform_pos[0]
+    d1 = x[:, 1] - platform_pos[1]
+    d2 = np.asarray(z_m, float) - platform_pos[2]
+    w0 = x[:, 2] - platform_vel[0]
+    w1 = x[:, 3] - platform_vel[1]
+    w2 = -platform_vel[2]
+    r = np.sqrt((d0 * d0 + d1 * d1) + d2 * d2)
+    r = np.where(r > 0.0, r, 1.0)
+    dw = (d0 * w0 + d2 * w2) + d1 * w1
+    h = dw / r
+    r3 = r ** 3
+    J = np.empty((len(x), 4))
+    J[:, 0] = w0 / r - dw * d0 / r3
+    J[:, 1] = w1 / r - dw * d1 / r3
+    J[:, 2] = d0 / r
+    J[:, 3] = d1 / r
+    return h, J
+
+
+def _predicted_range_rate_stacked(x, z_m, platform_pos, platform_vel):
+    """The stacked form :func:`predicted_range_rate` reproduces (kept for its test)."""
     d = np.stack([x[:, 0] - platform_pos[0], x[:, 1] - platform_pos[1],
                   np.asarray(z_m, float) - platform_pos[2]], axis=-1)
     w = np.stack([x[:, 2] - platform_vel[0], x[:, 3] - platform_vel[1],

@@ -68,6 +68,66 @@ def ospa_gospa(X: np.ndarray, Y: np.ndarray, c: float, p: float) -> dict:
         inside = D[r, k] < c
         rows, cols = r[inside], k[inside]
         loc = float(C[rows, cols].sum())
+    return _result(m, n, rows, cols, loc, capped_sum, cp, p)
+
+
+def _close_pairs(X: np.ndarray, Y: np.ndarray, c: float, step_x=None, step_y=None):
+    """The (row of X, row of Y) pairs closer than ``c`` (and of one step when ``step_x``,
+    ``step_y`` are given: one k-d tree search for all steps, the step lifted into a third
+    coordinate 4c apart), sorted by row then column, and their distances."""
+    from scipy.spatial import cKDTree
+    if step_x is None:
+        A, B = X, Y
+    else:
+        A = np.column_stack([X, np.asarray(step_x, float) * (4.0 * c)])
+        B = np.column_stack([Y, np.asarray(step_y, float) * (4.0 * c)])
+    # unbalanced trees: built in half the time, the same pairs
+    found = cKDTree(A, balanced_tree=False, compact_nodes=False).sparse_distance_matrix(
+        cKDTree(B, balanced_tree=False, compact_nodes=False), c * (1.0 + 1e-9),
+        output_type="ndarray")
+    r, k = found["i"].astype(np.int64), found["j"].astype(np.int64)
+    o = np.argsort(r * max(len(Y), 1) + k)
+    r, k = r[o], k[o]
+    diff = X[r] - Y[k]
+    D = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+    inside = D < c
+    return r[inside], k[inside], D[inside]
+
+
+def _sparse_sums(X: np.ndarray, Y: np.ndarray, c: float, p: float):
+    """The assigned pairs closer than ``c``, their sum and OSPA's capped sum, without the dense
+    (m, n) matrix: pairs closer than ``c`` from a k-d tree, one optimal assignment per connected
+    component (minimising Σ(d^p − c^p) over the pairs, which is the dense problem: a pair at or
+    beyond ``c`` costs c^p, what leaving both unassigned costs); every other assigned row adds
+    c^p."""
+    from gmtiflow.evaluate.assignment import sparse_gated_assignment
+    m, n = len(X), len(Y)
+    r, k, D = _close_pairs(X, Y, c)
+    C = D ** p
+    cp = _cp(c, p)
+    rows, cols = sparse_gated_assignment(r, k, C, cp)
+    at = np.searchsorted(r * n + k, rows * n + cols)
+    return (rows, cols) + _sums(m, n, rows, C[at], cp)
+
+
+def _cp(c: float, p: float) -> float:
+    """c^p as the dense path's ``np.minimum(D, c) ** p`` gives it."""
+    return float((np.full(1, c) ** p)[0])
+
+
+def _sums(m: int, n: int, rows: np.ndarray, C_assigned: np.ndarray, cp: float):
+    """(localisation, OSPA's capped sum) of a step from its assigned rows and their costs."""
+    loc = float(C_assigned.sum())
+    if m <= n:       # every truth row is assigned: its pair's term, else c^p, in row order
+        terms = np.full(m, cp)
+        terms[rows] = C_assigned
+    else:            # n of the truths are assigned: the pairs' terms and n − k times c^p
+        terms = np.concatenate([C_assigned, np.full(n - len(rows), cp)])
+    return loc, float(terms.sum())
+
+
+def _result(m: int, n: int, rows, cols, loc: float, capped_sum: float, cp: float, p: float):
+    """:func:`ospa_gospa`'s dict from a step's assignment (``cp``: c^p as Python computes it)."""
     n_ass = len(rows)
     missed = cp / 2.0 * (m - n_ass)
     false = cp / 2.0 * (n - n_ass)
@@ -78,38 +138,6 @@ def ospa_gospa(X: np.ndarray, Y: np.ndarray, c: float, p: float) -> dict:
             "n_assigned": n_ass, "rows": rows, "cols": cols}
 
 
-def _sparse_sums(X: np.ndarray, Y: np.ndarray, c: float, p: float):
-    """The assigned pairs closer than ``c``, their sum and OSPA's capped sum, without the dense
-    (m, n) matrix: pairs closer than ``c`` from a k-d tree, one optimal assignment per connected
-    component (minimising Σ(d^p − c^p) over the pairs, which is the dense problem: a pair at or
-    beyond ``c`` costs c^p, what leaving both unassigned costs); every other assigned row adds
-    c^p."""
-    from scipy.spatial import cKDTree
-
-    from gmtiflow.evaluate.assignment import sparse_gated_assignment
-    m, n = len(X), len(Y)
-    hits = cKDTree(Y).query_ball_point(X, c * (1.0 + 1e-9))
-    counts = np.fromiter((len(h) for h in hits), np.int64, m)
-    r = np.repeat(np.arange(m, dtype=np.int64), counts)
-    k = (np.concatenate([np.sort(np.asarray(h, np.int64)) for h in hits]) if counts.sum()
-         else np.zeros(0, np.int64))
-    diff = X[r] - Y[k]
-    D = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-    inside = D < c
-    r, k, D = r[inside], k[inside], D[inside]
-    C = D ** p
-    cp_arr = np.full(1, c) ** p             # c^p as the dense path's np.minimum(D, c) ** p gives it
-    rows, cols = sparse_gated_assignment(r, k, C, cp_arr[0])
-    at = np.searchsorted(r * n + k, rows * n + cols)
-    loc = float(C[at].sum())
-    if m <= n:       # every truth row is assigned: its pair's term, else c^p, in row order
-        terms = np.full(m, cp_arr[0])
-        terms[rows] = C[at]
-    else:            # n of the truths are assigned: the pairs' terms and n − k times c^p
-        terms = np.concatenate([C[at], np.full(n - len(rows), cp_arr[0])])
-    return rows, cols, loc, float(terms.sum())
-
-
 def series(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
            grid: np.ndarray, c: float, p: float) -> Table:
     """OSPA/GOSPA at every grid step from the outputs of :mod:`gmtiflow.evaluate.align`.
@@ -117,25 +145,52 @@ def series(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarra
     Columns: time_s, ospa_m, gospa_m, gospa_localisation, gospa_missed, gospa_false (the
     p-th power sums, unit m^p), n_truth, n_tracks, n_assigned.
 
-    ``truth_at`` and ``tracks_at`` are sorted by ``step``; one assignment per step.
+    ``truth_at`` and ``tracks_at`` are sorted by ``step``.  Each step is :func:`ospa_gospa` of
+    its objects; the steps above :data:`DENSE_PAIRS` pairs are solved together (one k-d tree
+    search and one :func:`~gmtiflow.evaluate.assignment.sparse_gated_assignment` for all of
+    them: their components never span two steps), with the same pairs and sums.
     """
+    from gmtiflow.evaluate.assignment import sparse_gated_assignment
     n = len(grid)
+    c, p = float(c), float(p)
     tb = np.searchsorted(truth_at["step"], np.arange(n + 1))
     kb = np.searchsorted(tracks_at["step"], np.arange(n + 1))
-    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1)
-    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1)
+    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1).astype(float)
+    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1).astype(float)
     out = {name: np.zeros(n) for name in ("ospa_m", "gospa_m", "gospa_localisation",
                                           "gospa_missed", "gospa_false")}
     n_truth = np.diff(tb).astype(np.int64)
     n_tracks = np.diff(kb).astype(np.int64)
     n_ass = np.zeros(n, np.int64)
+    big = n_truth * n_tracks > DENSE_PAIRS
+    cp = _cp(c, p)
+    if big.any():
+        in_x = np.repeat(big, n_truth)
+        in_y = np.repeat(big, n_tracks)
+        xi, yi = np.flatnonzero(in_x), np.flatnonzero(in_y)
+        r, k, D = _close_pairs(X[xi], Y[yi], c, np.asarray(truth_at["step"])[xi],
+                               np.asarray(tracks_at["step"])[yi])
+        r, k = xi[r], yi[k]                 # global rows, still sorted by (row, column)
+        C = D ** p
+        rows, cols = sparse_gated_assignment(r, k, C, cp)
+        ny = max(len(Y), 1)
+        at = np.searchsorted(r * ny + k, rows * ny + cols)
+        C_ass = C[at]
+        ab = np.searchsorted(rows, tb)      # the assigned rows of each step
     for s in range(n):
-        r = ospa_gospa(X[tb[s]:tb[s + 1]], Y[kb[s]:kb[s + 1]], c, p)
-        out["ospa_m"][s] = r["ospa"]
-        out["gospa_m"][s] = r["gospa"]
-        out["gospa_localisation"][s] = r["localisation"]
-        out["gospa_missed"][s] = r["missed"]
-        out["gospa_false"][s] = r["false"]
-        n_ass[s] = r["n_assigned"]
+        if big[s]:
+            lo, hi = ab[s], ab[s + 1]
+            rs = rows[lo:hi] - tb[s]
+            res = _result(int(n_truth[s]), int(n_tracks[s]), rs, cols[lo:hi] - kb[s],
+                          *_sums(int(n_truth[s]), int(n_tracks[s]), rs, C_ass[lo:hi], cp),
+                          c ** p, p)
+        else:
+            res = ospa_gospa(X[tb[s]:tb[s + 1]], Y[kb[s]:kb[s + 1]], c, p)
+        out["ospa_m"][s] = res["ospa"]
+        out["gospa_m"][s] = res["gospa"]
+        out["gospa_localisation"][s] = res["localisation"]
+        out["gospa_missed"][s] = res["missed"]
+        out["gospa_false"][s] = res["false"]
+        n_ass[s] = res["n_assigned"]
     return {"time_s": np.asarray(grid, float), **out, "n_truth": n_truth, "n_tracks": n_tracks,
             "n_assigned": n_ass}

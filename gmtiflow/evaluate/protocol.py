@@ -354,25 +354,40 @@ def load_tracker(target: str, params: Optional[Mapping[str, Any]] = None):
     return tracker
 
 
-def _as_table(result, batch_time: Optional[float], who: str) -> Optional[Dict[str, np.ndarray]]:
-    """A tracker's report as a dict of 1-D arrays with ``time_s`` (None when empty)."""
+def _text(message) -> str:
+    """An error message's place, given as text or as a function making it (only on error)."""
+    return message() if callable(message) else message
+
+
+def _as_table(result, batch_time: Optional[float], who) -> Optional[Dict[str, np.ndarray]]:
+    """A tracker's report as a dict of 1-D arrays with ``time_s`` (None when empty).  ``who``
+    (text, or a function giving it) names the report in error messages."""
     if result is None:
         return None
+    if isinstance(result, dict) and _plain_columns(result):
+        n = len(next(iter(result.values()))) if result else 0
+        if n == 0:
+            return None
+        if "time_s" not in result:
+            if batch_time is None:
+                raise TrackerError(f"{_text(who)} returned rows without a time_s column")
+            return {**result, "time_s": np.full(n, batch_time)}
+        return dict(result)
     if hasattr(result, "to_dict") and hasattr(result, "columns"):   # pandas DataFrame
         result = {c: np.asarray(result[c]) for c in result.columns}
     if not isinstance(result, Mapping):
-        raise TrackerError(f"{who} returned {type(result).__name__}; expected a table (a "
+        raise TrackerError(f"{_text(who)} returned {type(result).__name__}; expected a table (a "
                            f"mapping of columns such as track_id, x_m, y_m) or None")
     out = {str(k): np.atleast_1d(np.asarray(v)) for k, v in result.items()}
     lengths = {k: len(v) for k, v in out.items()}
     if len(set(lengths.values())) > 1:
-        raise TrackerError(f"{who} returned columns of different lengths: {lengths}")
+        raise TrackerError(f"{_text(who)} returned columns of different lengths: {lengths}")
     n = next(iter(lengths.values()), 0)
     if n == 0:
         return None
     if "time_s" not in out:
         if batch_time is None:
-            raise TrackerError(f"{who} returned rows without a time_s column")
+            raise TrackerError(f"{_text(who)} returned rows without a time_s column")
         out["time_s"] = np.full(n, batch_time)
     return out
 
@@ -389,13 +404,29 @@ def _where(batch: Batch) -> str:
     return f"{where} (t = {batch.time_s:.3f} s, batch {batch.index})"
 
 
-def _call(tracker, method: str, arg, where: str):
+def _plain_columns(result: dict) -> bool:
+    """Whether ``result`` is already what :func:`_as_table` makes of it: str keys, 1-D numpy
+    arrays of one length (the baseline's reports; then it is used as it is)."""
+    n = -1
+    for k, v in result.items():
+        if type(k) is not str or type(v) is not np.ndarray or v.ndim != 1:
+            return False
+        if n < 0:
+            n = len(v)
+        elif len(v) != n:
+            return False
+    return True
+
+
+def _call(tracker, method: str, arg, where):
+    """``tracker.method(arg)``; an exception in it becomes a TrackerError naming ``where`` (text,
+    or a function giving it)."""
     try:
         return getattr(tracker, method)(*(() if arg is None else (arg,)))
     except GmtiflowError:
         raise
     except Exception as exc:
-        raise TrackerError(f"tracker {_name(tracker)}.{method}() raised at {where}: "
+        raise TrackerError(f"tracker {_name(tracker)}.{method}() raised at {_text(where)}: "
                            f"{type(exc).__name__}: {exc}") from exc
 
 
@@ -439,10 +470,10 @@ def run_tracker(tracker, prepared: Iterable[Batch], scene: SceneInfo,
     _call(tracker, "reset", scene, "reset (before the first dwell)")
     parts = []
     for batch in prepared:
-        res = _call(tracker, "update", batch, _where(batch))
+        res = _call(tracker, "update", batch, lambda: _where(batch))
         if res is not None:
-            parts.append(_as_table(res, batch.time_s, f"tracker {who}.update() at "
-                                                      f"{_where(batch)}"))
+            parts.append(_as_table(res, batch.time_s,
+                                   lambda: f"tracker {who}.update() at {_where(batch)}"))
     res = _call(tracker, "finish", None, "finish (after the last dwell)")
     if res is not None:
         parts.append(_as_table(res, None, f"tracker {who}.finish()"))

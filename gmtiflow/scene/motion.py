@@ -351,24 +351,23 @@ def _bridge_scalar(x0, x1, kappa, f):
 
 def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.ndarray,
              rec: list) -> Profiles:
-    """The recorded steps (per step: active ids, a, tau, label, s_end, v_end, bridge, σξ at
-    the step's end) as flat profiles."""
-    ids = np.concatenate([r[0] for r in rec]) if rec else np.zeros(0, np.int64)
+    """The recorded steps as flat profiles: per record (profile ids, local steps, a, tau, label,
+    bridge, s_end, v_end, σξ at the step's end), in any order."""
+    def cat(c, dtype):
+        return np.concatenate([r[c] for r in rec]) if rec else np.zeros(0, dtype)
+
+    ids = cat(0, np.int64)
+    k = cat(1, np.int64)
     n_p = np.bincount(ids, minlength=P).astype(np.int64)
     off = np.concatenate([[0], np.cumsum(n_p)]).astype(np.int64)
-    # record j is local step j of every profile active then (all profiles start at step 0)
-    k = np.concatenate([np.full(len(r[0]), j, np.int64) for j, r in enumerate(rec)]) \
-        if rec else np.zeros(0, np.int64)
     i = off[ids] + k
     n = int(off[-1])
-    cat = lambda c, dtype: (np.concatenate([r[c] for r in rec]) if rec  # noqa: E731
-                            else np.zeros(0, dtype))
     a = np.empty(n)
     tau = np.empty(n)
     mode = np.empty(n, np.uint8)
     bridge = np.empty(n, bool)
-    a[i], tau[i], mode[i], bridge[i] = (cat(1, float), cat(2, float), cat(3, np.uint8),
-                                        cat(6, bool))
+    a[i], tau[i], mode[i], bridge[i] = (cat(2, float), cat(3, float), cat(4, np.uint8),
+                                        cat(5, bool))
     s = np.empty(n + P)
     v = np.empty(n + P)
     w = np.empty(n + P)
@@ -376,20 +375,86 @@ def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.n
     s[first] = 0.0
     v[first] = v0
     w[first] = 0.0
-    s[i + ids + 1] = cat(4, float)
-    v[i + ids + 1] = cat(5, float)
-    w[i + ids + 1] = cat(7, float)
+    s[i + ids + 1] = cat(6, float)
+    v[i + ids + 1] = cat(7, float)
+    w[i + ids + 1] = cat(8, float)
     return Profiles(dt_s=dt, n_steps_p=n_p, horizon_steps=horizon, step_offset=off,
                     s_flat=s, v_flat=v, a_flat=a, tau_flat=tau, mode_flat=mode, noise_flat=w,
                     bridge_flat=bridge, kappa=kappa)
 
 
-def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -> Profiles:
+#: Most passes of the fixed-point iteration of one window of tracking steps (module doc).
+MAX_SWEEPS = 6
+
+
+def _leading_true(ok: np.ndarray) -> np.ndarray:
+    """Per row, the number of leading True values of a 2-D bool array."""
+    pad = np.zeros((ok.shape[0], 1), bool)
+    return np.argmin(np.concatenate([ok, pad], axis=1), axis=1)
+
+
+def _first_true(x: np.ndarray) -> np.ndarray:
+    """Per row, the index of the first True (the row length if none)."""
+    pad = np.ones((x.shape[0], 1), bool)
+    return np.argmax(np.concatenate([x, pad], axis=1), axis=1)
+
+
+def _track_speeds(v0, v_des, amax, dmax, dt):
+    """Start speeds (n, W) of W tracking steps from ``v0`` (n,) for the desired speeds
+    ``v_des`` (n, W), as the step loop makes them.  A step within its acceleration limits
+    ends at v_des (the speeds are within a factor 2, so v + ((v_des - v)/dt)*dt rounds to
+    v_des whatever v); a run of clipped steps adds a dt step by step (a sequential sum) until
+    the speed is within reach of v_des again.  ``amax``, ``dmax``: (n, 1).  A guess: the
+    caller checks it step by step."""
+    n, w = v_des.shape
+    V = np.empty((n, w))
+    V[:, 0] = v0
+    V[:, 1:] = v_des[:, :-1]
+    settled = np.zeros(n, np.int64)           # columns before it are final
+    t = np.arange(w)
+    for _ in range(4):
+        raw = (v_des - V) / dt
+        clipped = ((raw > amax) | (raw < -dmax)) & (t >= settled[:, None])
+        clipped[:, -1] = False                # its end is not a start speed in the window
+        # runs start at a clipped step after a free one (or at the first unsettled column)
+        start = clipped & ~np.concatenate([np.zeros((n, 1), bool), clipped[:, :-1]], axis=1)
+        rows, c = np.nonzero(start)
+        if not rows.size:
+            break
+        am, dm = amax[rows], dmax[rows]
+        inc = np.clip(raw[rows, c][:, None], -dm, am) * dt
+        col = np.minimum(c[:, None] + t, w - 1)
+        chain = np.broadcast_to(inc, (rows.size, w)).copy()
+        chain[:, 0] = V[rows, c]
+        chain = np.maximum(np.add.accumulate(chain, axis=1), 0.0)   # speed at column c + t
+        rr = (v_des[rows[:, None], col] - chain) / dt
+        inside = c[:, None] + t < w
+        e = _first_true((rr <= am) & (rr >= -dm) & (t >= 1) & inside)  # the run's last step
+        # a run that starts within an earlier run of its row (as guessed) waits for a later pass
+        key = rows * (2 * w + 2)
+        end = np.maximum.accumulate(key + c + e)
+        prev_end = np.concatenate([[-1], end[:-1]])
+        ok = key + c > prev_end
+        put = (t >= 1) & (t <= e[:, None]) & inside & ok[:, None]
+        V[np.broadcast_to(rows[:, None], put.shape)[put], col[put]] = chain[put]
+        settled_new = np.full(n, w, np.int64)
+        np.minimum.at(settled_new, rows[~ok], c[~ok])
+        settled = settled_new
+        if ok.all():
+            break
+    return V
+
+
+def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
+                      windows: bool = True) -> Profiles:
     """Run the fleet's speed profiles, each for its own horizon or until done (module docstring).
 
-    ``progress`` shows a tqdm bar over the steps (on a terminal only)."""
+    ``progress`` shows a tqdm bar over the steps (on a terminal only).  ``windows=False``
+    takes every step one at a time (the reference the windows must reproduce bit for bit;
+    tests)."""
     P = len(inp.length_m)
     dt = float(dt_s)
+    W = NOISE_BLOCK_STEPS
     horizon = np.asarray(inp.horizon_steps, dtype=np.int64)
     K = int(horizon.max()) if P else 0
 
@@ -398,6 +463,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
                                         * 2.0 + 2.0)))
     seg_prof = np.repeat(np.arange(P), np.diff(inp.seg_offset))
     seg_key = inp.seg_start_m + seg_prof * span
+    seg_target = np.asarray(inp.seg_target_mps)
     stop_flat = np.concatenate([inp.stop_m, [np.inf]])
 
     # Anticipation of lower cruise speeds ahead (speed limits, speed-change points): entering
@@ -420,56 +486,229 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
             cap_t[a0:a1 - 1] = tb[best]
             cap_s[a0:a1 - 1] = sb[best]
 
-    # Per-profile state and constants of the active set (compacted as profiles leave it).
+    # Per-profile constants (indexed by profile id).
     rho = np.asarray(inp.noise_rho, float)
     kappa = 2.0 * (1.0 - rho)
-    act = {
-        "pid": np.arange(P, dtype=np.int64),
-        "amax": inp.max_accel_mps2, "dmax": inp.max_decel_mps2, "d_cap": d_cap_all,
-        "sigma": inp.speed_noise_mps, "rho": rho, "rho_c": np.sqrt(1.0 - rho * rho),
-        # ∫_0^1 δ df = (σξ_k + σξ_{k+1})/2 · c1 (_bridge at f = 1: q = 1, the B term is 0)
-        "c1": _bridge(np.ones(P), np.ones(P), kappa, 1.0)[2],
-        "p_stop": inp.p_stop, "q_wait": inp.q_wait, "max_wait": inp.max_wait_steps,
-        "length": inp.length_m, "horizon": horizon,
-        "first_seg": inp.seg_offset[:-1], "last_seg": inp.seg_offset[1:] - 1,
-        "prof_base": np.arange(P) * span, "look_a": 0.5 * inp.max_accel_mps2 * dt * dt,
-        "stop_ptr": inp.stop_offset[:-1].copy(), "stop_end": inp.stop_offset[1:],
-        "s": np.zeros(P), "v": np.asarray(inp.v0_mps, float).copy(),
-        "state": np.full(P, TRACK, dtype=np.int64), "wait_left": np.zeros(P, dtype=np.int64),
-        "xi": np.zeros(P),
-    }
+    rho_c = np.sqrt(1.0 - rho * rho)
+    # ∫_0^1 δ df = (σξ_k + σξ_{k+1})/2 · c1 (_bridge at f = 1: q = 1, the B term is 0)
+    c1 = _bridge(np.ones(P), np.ones(P), kappa, 1.0)[2]
+    amax_all, dmax_all = inp.max_accel_mps2, inp.max_decel_mps2
+    sigma_all, p_stop_all = inp.speed_noise_mps, inp.p_stop
+    first_seg, last_seg = inp.seg_offset[:-1], inp.seg_offset[1:] - 1
+    prof_base = np.arange(P) * span
+    look_a_all = 0.5 * inp.max_accel_mps2 * dt * dt
+    stop_end_all = inp.stop_offset[1:]
+    length_all = inp.length_m
     points = len(inp.stop_m) > 0      # without stop points their logic is skipped
-    block: Optional[tuple] = None
+
+    # Per-profile state: local step k (profiles run in their own local time, each at its own
+    # pace through the rounds below), position, speed, state machine.
+    k_at = np.zeros(P, np.int64)
+    s_at = np.zeros(P)
+    v_at = np.asarray(inp.v0_mps, float).copy()
+    state_at = np.full(P, TRACK, dtype=np.int64)
+    wait_at = np.zeros(P, dtype=np.int64)
+    stop_ptr_at = inp.stop_offset[:-1].copy()
+    done = np.zeros(P, bool)
+
+    # Noise of two blocks of W steps per profile: column c holds local step base + c - 1
+    # (column 0: the step before, for ξ_{k-1}).  ξ is a function of the draws alone, so it is
+    # computed when a block is drawn (the same sequential recurrence as a step loop).
+    xi_buf = np.zeros((P, 2 * W + 1))
+    us_buf = np.ones((P, 2 * W + 1))
+    uw_buf = np.full((P, 2 * W + 1), 0.5)
+    base = np.zeros(P, np.int64)
+
+    def fill(pids, blocks, col0):
+        """Draw block ``blocks[i]`` of profile ``pids[i]`` into columns col0 .. col0 + W - 1."""
+        if not pids.size:
+            return
+        normal = np.zeros((W, pids.size))
+        for b in np.unique(blocks):
+            sel = np.flatnonzero(blocks == b)
+            nrm, us, uw = inp.noise(pids[sel], int(b) * W, W)
+            r = nrm.shape[0]
+            normal[:r, sel] = nrm
+            us_buf[pids[sel], col0:col0 + r] = us.T
+            uw_buf[pids[sel], col0:col0 + r] = uw.T
+        rh = rho[pids]
+        xi = rho_c[pids] * normal                  # ξ_k = ρ ξ_{k-1} + √(1-ρ²) n_k, in order
+        prev = xi_buf[pids, col0 - 1]
+        xi[0] = np.where(blocks == 0, normal[0], rh * prev + xi[0])
+        tmp = np.empty(pids.size)
+        for r in range(1, W):
+            np.multiply(rh, xi[r - 1], out=tmp)
+            np.add(tmp, xi[r], out=xi[r])
+        xi_buf[pids, col0:col0 + W] = xi.T
+
+    ar = np.arange(W)
     rec = []
-    from tqdm import tqdm     # imported here: start-up time of the CLI
-    for k in tqdm(range(K), desc="truth", unit="step", leave=False,
-                  disable=None if progress else True, mininterval=0.5):
-        if act["pid"].size == 0:
-            break
-        r = k % NOISE_BLOCK_STEPS
-        if r == 0:
-            block = inp.noise(act["pid"], k, NOISE_BLOCK_STEPS)
-        normal, u_stop, u_wait = (b[r] for b in block)
-        s, v, state, wait_left = act["s"], act["v"], act["state"], act["wait_left"]
-        amax, dmax, stop_ptr, stop_end = act["amax"], act["dmax"], act["stop_ptr"], act["stop_end"]
+
+    def speculate(ids):
+        """A window of up to W tracking steps for each of profiles ``ids`` (all in TRACK), all
+        steps at once: from a guess of the start position and speed of every step, one pass
+        computes every step as :func:`general` does; the steps whose start state is exactly
+        (bit for bit) the previous step's end are right, and are taken up to the first random
+        stop or stop point (left to :func:`general`) or the profile's end.  Until that is the
+        whole window, the guess is improved from the pass (speeds by the step recurrence in v
+        alone, positions by the same additions as the steps make) and the pass repeated, for
+        the rows still short.  Returns how many steps each profile took."""
+        n = ids.size
+        kk = k_at[ids]
+        cols = (kk - base[ids] + 1)[:, None] + ar
+        rows = ids[:, None]
+        sig_a = sigma_all[ids][:, None]
+        x1_a = sig_a * xi_buf[rows, cols]
+        x0_a = sig_a * xi_buf[rows, cols - 1]
+        step_a = kk[:, None] + ar
+        ev0_a = us_buf[rows, cols] < p_stop_all[ids][:, None]
+        last_a = step_a + 1 >= horizon[ids][:, None]
+        per = {"amx": amax_all, "dmx": dmax_all, "dcap": d_cap_all, "fseg": first_seg,
+               "lseg": last_seg, "pbase": prof_base, "c1": c1, "look_a": look_a_all,
+               "length": length_all}
+        per = {key: val[ids][:, None] for key, val in per.items()}
+        if points:
+            sp, se = stop_ptr_at[ids], stop_end_all[ids]
+            per["nxt"] = np.where(sp < se, stop_flat[np.minimum(sp, len(stop_flat) - 1)],
+                                  np.inf)[:, None]
+        s0_a, v0_a = s_at[ids], v_at[ids]
+        S_a = s0_a[:, None] + (v0_a * dt)[:, None] * ar
+        S_a[:, 0] = s0_a
+        V_a = np.repeat(v0_a[:, None], W, axis=1)
+        m_out = np.zeros(n, np.int64)
+        out = {name: np.empty((n, W)) for name in ("a", "raw", "s_end", "v_end")}
+        out["free"] = np.empty((n, W), bool)
+        todo = np.arange(n)
+        S, V, x0, x1, step, sig, s0, v0 = S_a, V_a, x0_a, x1_a, step_a, sig_a, s0_a, v0_a
+        c = per
+        ev0, last0 = ev0_a, last_a
+
+        def desired(S, V):
+            j = np.clip(np.searchsorted(seg_key, S + c["pbase"], side="right") - 1,
+                        c["fseg"], c["lseg"])
+            target = seg_target[j]
+            with np.errstate(invalid="ignore"):
+                ahead = np.maximum(cap_s[j] - (S + V * dt), 0.0)
+            cap = np.sqrt(cap_t[j] ** 2 + 2.0 * c["dcap"] * ahead)
+            noisy = target + x1
+            return target, noisy, np.maximum(np.minimum(noisy, cap), 0.0)
+
+        target, noisy, v_des = desired(S, V)
+        for sweep in range(MAX_SWEEPS):
+            amx, dmx = c["amx"], c["dmx"]
+            # The steps for these desired speeds: start speeds by the step recurrence in v
+            # alone, then every step's kinematics as general() computes them, and positions
+            # by the very additions the steps make (so s_end[i] = S[i + 1] exactly).
+            V = _track_speeds(v0, v_des, amx, dmx, dt)
+            raw = (v_des - V) / dt
+            a = np.clip(raw, -dmx, amx)
+            v_end = np.maximum(V + a * dt, 0.0)
+            free = ((raw <= amx) & (raw >= -dmx) & (v_des == noisy) & (sig > 0)
+                    & (np.abs(V - (target + x0)) <= 1e-9 * np.maximum(V, 1.0))
+                    & (np.minimum(V, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
+                                                                          np.abs(x1)))
+                    & (step > 0))
+            x = np.empty((todo.size, 4 * W + 1))
+            x[:, 0] = s0
+            x[:, 1::4] = V * dt
+            x[:, 2::4] = 0.5 * a * dt * dt
+            x[:, 3::4] = v_end * (dt - dt)
+            x[:, 4::4] = np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0)
+            S_full = np.add.accumulate(x, axis=1)[:, ::4]
+            S, s_end = S_full[:, :-1], S_full[:, 1:]
+            # Right: step 0 (its start state is exact) and every step after a right one whose
+            # start speed is the previous step's end and whose desired speed at its start
+            # state is the one used (the position needs no check: it is built that way).
+            t2, n2, v2 = desired(S, V)
+            same = (v2 == v_des) & (t2 == target)
+            ok = same[:, 1:] & (V[:, 1:] == v_end[:, :-1])
+            n_exact = np.where(same[:, 0], 1 + _leading_true(ok), 0)
+            ev = ev0 & (V > 0)
+            if points:
+                v_up = V + amx * dt
+                reach = S + V * dt + c["look_a"] + v_up * v_up / (2.0 * dmx) >= c["nxt"]
+                ev |= reach & (c["nxt"] - S > 0)
+            cand = np.minimum(_first_true(ev), _first_true(last0 | (s_end >= c["length"])) + 1)
+            m = np.minimum(n_exact, cand)
+            fin = (m == cand) | (sweep == MAX_SWEEPS - 1)
+            r = todo[fin]
+            m_out[r] = m[fin]
+            for name, val in (("a", a), ("raw", raw), ("s_end", s_end), ("v_end", v_end),
+                              ("free", free)):
+                out[name][r] = val[fin]
+            if fin.all():
+                break
+            # the rows still short: again, with the desired speeds at this pass's states
+            keep = ~fin
+            todo = todo[keep]
+            target, noisy, v_des = t2[keep], n2[keep], v2[keep]
+            s0, v0, x0, x1 = s0[keep], v0[keep], x0[keep], x1[keep]
+            step, sig, ev0, last0 = step[keep], sig[keep], ev0[keep], last0[keep]
+            c = {key: val[keep] for key, val in c.items()}
+        m = m_out
+        took = ar < m[:, None]
+        if took.any():
+            raw, amx, dmx = out["raw"], per["amx"], per["dmx"]
+            label = np.where(raw > amx, MODE_ACCEL, np.where(raw < -dmx, MODE_DECEL,
+                                                              MODE_CRUISE))
+            rec.append((np.broadcast_to(rows, took.shape)[took], step_a[took], out["a"][took],
+                        np.full(int(took.sum()), dt), label[took], out["free"][took],
+                        out["s_end"][took], out["v_end"][took], x1_a[took]))
+            moved = m > 0
+            r, last = np.flatnonzero(moved), m[moved] - 1
+            mid = ids[moved]
+            s_at[mid] = out["s_end"][r, last]
+            v_at[mid] = out["v_end"][r, last]
+            k_at[mid] += m[moved]
+            done[mid] = (out["s_end"][r, last] >= length_all[mid]) | last_a[r, last]
+        return m
+
+    def wait(ids):
+        """Profiles at rest with whole steps of their wait left: those steps at once."""
+        kk = k_at[ids]
+        m = np.minimum(np.minimum(wait_at[ids], horizon[ids] - kk), W)
+        took = ar < m[:, None]
+        cols = (kk - base[ids] + 1)[:, None] + ar
+        rows = np.broadcast_to(ids[:, None], took.shape)
+        n = int(took.sum())
+        sig = np.broadcast_to(sigma_all[ids][:, None], took.shape)
+        rec.append((rows[took], (kk[:, None] + ar)[took], np.zeros(n), np.full(n, dt),
+                    np.full(n, MODE_STOPPED, np.uint8), np.zeros(n, bool),
+                    np.broadcast_to(s_at[ids][:, None], took.shape)[took], np.zeros(n),
+                    sig[took] * xi_buf[rows, cols][took]))
+        wait_at[ids] -= m
+        k_at[ids] += m
+        v_at[ids] = 0.0
+        done[ids] = k_at[ids] >= horizon[ids]
+
+    def general(ids):
+        """One step of profiles ``ids`` (each at its own local step), any state: the state
+        machine of the module doc, step by step."""
+        kk = k_at[ids]
+        col = kk - base[ids] + 1
+        xi, xi_prev = xi_buf[ids, col], xi_buf[ids, col - 1]
+        u_stop, u_wait = us_buf[ids, col], uw_buf[ids, col]
+        s, v, state, wait_left = s_at[ids], v_at[ids], state_at[ids], wait_at[ids]
+        amax, dmax = amax_all[ids], dmax_all[ids]
+        stop_ptr, stop_end = stop_ptr_at[ids], stop_end_all[ids]
         # -- target cruise speed of the segment under each vehicle
-        j = np.searchsorted(seg_key, s + act["prof_base"], side="right") - 1
-        j = np.clip(j, act["first_seg"], act["last_seg"])
-        target = inp.seg_target_mps[j]
+        j = np.searchsorted(seg_key, s + prof_base[ids], side="right") - 1
+        j = np.clip(j, first_seg[ids], last_seg[ids])
+        target = seg_target[j]
         # -- state transitions at the step start
         stopped = state == STOPPED
         release = stopped & (wait_left <= 0)
         state[release] = TRACK
         wait_left[stopped & ~release] -= 1
         moving = state != STOPPED
-        rand_stop = moving & (state == TRACK) & (v > 0) & (u_stop < act["p_stop"])
+        rand_stop = moving & (state == TRACK) & (v > 0) & (u_stop < p_stop_all[ids])
         state[rand_stop] = BRAKE_RANDOM
         if points:
             next_stop = np.where(stop_ptr < stop_end,
                                  stop_flat[np.minimum(stop_ptr, len(stop_flat) - 1)], np.inf)
             dist = next_stop - s
             v_up = v + amax * dt
-            reach = s + v * dt + act["look_a"] + v_up * v_up / (2.0 * dmax) >= next_stop
+            reach = s + v * dt + look_a_all[ids] + v_up * v_up / (2.0 * dmax) >= next_stop
             b_rand = v * v / (2.0 * dmax)
             to_point = (moving & (state != BRAKE_POINT) & reach & (dist > 0)
                         & ~((state == BRAKE_RANDOM) & (b_rand < dist)))
@@ -492,14 +731,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
         tr = state == TRACK
         with np.errstate(invalid="ignore"):
             ahead = np.maximum(cap_s[j] - (s + v * dt), 0.0)
-        cap = np.sqrt(cap_t[j] ** 2 + 2.0 * act["d_cap"] * ahead)
-        xi_prev = act["xi"]
-        if k == 0:
-            xi = normal.copy()
-        else:
-            xi = act["rho"] * xi_prev + act["rho_c"] * normal
-        act["xi"] = xi
-        sigma = act["sigma"]
+        cap = np.sqrt(cap_t[j] ** 2 + 2.0 * d_cap_all[ids] * ahead)
+        sigma = sigma_all[ids]
         noisy = target + sigma * xi
         v_des = np.maximum(np.minimum(noisy, cap), 0.0)
         raw = (v_des - v) / dt
@@ -532,36 +765,70 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False) -
         s_end = s + v * tau + 0.5 * a * tau * tau + v_end * (dt - tau)
         if points:
             s_end = np.where(stops & bp, next_stop, s_end)
-        free = np.zeros(n_act, bool)
-        if k > 0:
-            # free cruise from the free target c + σξ_k to c + σξ_{k+1}: the speed bridge
-            x0, x1 = sigma * xi_prev, sigma * xi
-            free = (tr & (label == MODE_CRUISE) & (v_des == noisy) & (sigma > 0)
-                    & ~stops & (np.abs(v - (target + x0)) <= 1e-9 * np.maximum(v, 1.0))
-                    & (np.minimum(v, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
-                                                                          np.abs(x1))))
-            if free.any():
-                s_end = np.where(free, s_end + 0.5 * (x0 + x1) * act["c1"] * dt, s_end)
+        # free cruise from the free target c + σξ_k to c + σξ_{k+1}: the speed bridge
+        x0, x1 = sigma * xi_prev, sigma * xi
+        free = (tr & (label == MODE_CRUISE) & (v_des == noisy) & (sigma > 0)
+                & ~stops & (np.abs(v - (target + x0)) <= 1e-9 * np.maximum(v, 1.0))
+                & (np.minimum(v, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
+                                                                      np.abs(x1)))
+                & (kk > 0))
+        if free.any():
+            s_end = np.where(free, s_end + 0.5 * (x0 + x1) * c1[ids] * dt, s_end)
         still = state == STOPPED
         a = np.where(still, 0.0, a)
         v_end = np.where(still, 0.0, v_end)
         s_end = np.where(still, s, s_end)
         # -- vehicles come to rest: draw the geometric wait, advance past a reached stop point
         if stops.any():
-            q = act["q_wait"][stops]
+            q = inp.q_wait[ids][stops]
             q_safe = np.where(q >= 1.0, 0.5, q)
             w = np.where(q >= 1.0, 1.0, np.ceil(np.log(u_wait[stops]) / np.log1p(-q_safe)))
             w = np.maximum(w, 1.0)
-            w = np.minimum(w, act["max_wait"][stops]).astype(np.int64)
+            w = np.minimum(w, inp.max_wait_steps[ids][stops]).astype(np.int64)
             wait_left[stops] = w
             state[stops] = STOPPED
             if points:
                 stop_ptr[stops & bp] += 1
-        rec.append((act["pid"], a, tau, label, s_end, v_end, free, sigma * xi))
-        act["s"], act["v"] = s_end, v_end
+        rec.append((ids, kk, a, tau, label, free, s_end, v_end, x1))
+        s_at[ids], v_at[ids], state_at[ids], wait_at[ids] = s_end, v_end, state, wait_left
+        stop_ptr_at[ids] = stop_ptr
+        k_at[ids] = kk + 1
         # -- profiles that are done or at their horizon leave the active set
-        keep = (s_end < act["length"]) & (act["horizon"] > k + 1)
-        if not keep.all():
-            act = {name: x[keep] for name, x in act.items()}
-            block = tuple(b[:, keep] for b in block)
+        done[ids] = ~((s_end < length_all[ids]) & (horizon[ids] > kk + 1))
+
+    from tqdm import tqdm     # imported here: start-up time of the CLI
+    bar = tqdm(total=K, desc="truth", unit="step", leave=False,
+               disable=None if progress else True, mininterval=0.5)
+    act = np.arange(P)
+    fill(act, np.zeros(P, np.int64), 1)
+    more = act[horizon > W]
+    fill(more, np.ones(more.size, np.int64), W + 1)
+    shown = 0
+    while act.size:
+        # slide the noise window of the profiles that entered their second block
+        sh = act[k_at[act] - base[act] >= W]
+        if sh.size:
+            for buf in (xi_buf, us_buf, uw_buf):
+                buf[sh, :W + 1] = buf[sh, W:]
+            base[sh] += W
+            need = sh[horizon[sh] > base[sh] + W]
+            fill(need, base[need] // W + 1, W + 1)
+        st = state_at[act]
+        moved = np.zeros(act.size, bool)
+        tr = np.flatnonzero(st == TRACK) if windows else np.zeros(0, np.int64)
+        if tr.size:
+            moved[tr] = speculate(act[tr]) > 0
+        wt = np.flatnonzero((st == STOPPED) & (wait_at[act] > 0) & windows)
+        if wt.size:
+            wait(act[wt])
+            moved[wt] = True
+        rest = act[~moved]
+        if rest.size:
+            general(rest)
+        act = act[~done[act]]
+        if act.size and progress:
+            low = int(k_at[act].min())
+            bar.update(max(low - shown, 0))
+            shown = max(shown, low)
+    bar.close()
     return _flatten(P, dt, np.asarray(inp.v0_mps, float), horizon, kappa, rec)

@@ -10,20 +10,34 @@ CPI) and per km² of ground. Nothing is reported outside the FoV.
 
 How "nothing outside the FoV" stays exactly Poisson: for each source and dwell we draw a Poisson
 count with mean ``density × area(bounding shape)``, place the points uniformly in the bounding
-shape (the disc, the ring, the polygon's bounding box, or the footprint's bounding box for the
-FoV-wide density), and keep only the points inside the shape *and* inside the dwell's footprint
+shape, and keep only the points inside the source's shape *and* inside the dwell's footprint
 (*thinning*). A thinned Poisson process is Poisson, so the count kept is Poisson with mean
 ``density × area(shape ∩ FoV)`` and the kept points are uniform over ``shape ∩ FoV`` — without
-ever computing polygon intersections.
+ever computing polygon intersections.  The bounding shape is drawn in directly, vectorised
+over the dwells, so that few draws are thinned away:
+
+* with footprints given as annular sectors (``fov_sectors``, what the sensor stage passes: the
+  platform-centred ring sector holding each dwell's beam cell), the FoV-wide draws fill each
+  dwell's sector (ground range² and azimuth uniform), and a region's draws fill its *window* in
+  the sector (:func:`region_windows`: the sector cut to the ground ranges and azimuths the region
+  spans as seen from the platform, exact bounds) — or the region's own shape (disc, ring or
+  polygon box) when that is smaller;
+* with footprints given as polygons (``fov_polygons``, a library use), the FoV-wide draws fill
+  each footprint polygon itself through its fan of triangles from its centroid
+  (:func:`fan_triangles`: exact when the polygon is star-shaped from its centroid, as convex
+  polygons and beam-wide annular sectors are; any other polygon's draws fill its bounding box
+  and are thinned by it), and a region's draws its own shape.
 
 Randomness (DESIGN §2): counter-based draws (:func:`gmtiflow.rng.pair_uniform`) with one key per
 source, ``counter_key(seed, "clutter", <region name>)`` (the FoV-wide source uses the reserved
 name ``"fov"``), and counters ``(dwell_id, point index, channel)``. Hence a region's false
 alarms depend only on the seed, its name, its own parameters and the dwell (and the footprint
 that thins them): adding, removing or reordering other regions leaves them bit-identical, and
-target detections (other keys) are untouched. For regions, widening a footprint only adds
-points (region draws do not depend on the footprint); the FoV-wide draws are placed in the
-footprint's bounding box and so change with it.
+target detections (other keys) are untouched.  A dwell's draws depend on its own footprint only
+(the bounding shape is computed per dwell), never on the chunk of dwells it is drawn with.  With
+``fov_polygons`` a region's draws do not depend on the footprint (widening it only adds points);
+the FoV-wide draws fill the footprint's bounding box, and with ``fov_sectors`` both fill the
+dwell's sector or window, so they change with it.
 
 Range rate
 ----------
@@ -71,7 +85,7 @@ SHAPES = ("circle", "ring", "polygon")
 FOV_STREAM = "fov"  # reserved stream name of the FoV-wide false alarms
 
 # Channels of the counter-based draws: (dwell_id, point index, channel).
-_CH_COUNT, _CH_U1, _CH_U2, _CH_RR1, _CH_RR2, _CH_SNR = range(6)
+_CH_COUNT, _CH_U1, _CH_U2, _CH_RR1, _CH_RR2, _CH_SNR, _CH_U3 = range(7)
 _KM2 = 1.0e6  # m² per km²
 
 # The config dataclasses are not frozen: OmegaConf 2.3 cannot merge YAML list items into a list of
@@ -285,8 +299,9 @@ def _poisson_counts(key, dwell_id: np.ndarray, mean: np.ndarray) -> np.ndarray:
     counts = np.zeros(len(dwell_id), dtype=np.int64)
     pos = mean > 0
     if np.any(pos):
-        from scipy import stats   # imported here: scipy.stats costs ~1 s at start-up
-        counts[pos] = stats.poisson.ppf(u[pos], mean[pos]).astype(np.int64)
+        # scipy.stats.poisson.ppf's values from scipy.special: scipy.stats costs ~1 s to import
+        from gmtiflow.sensor.noise import poisson_ppf
+        counts[pos] = poisson_ppf(u[pos], mean[pos]).astype(np.int64)
     return counts
 
 
@@ -324,12 +339,16 @@ def _empty() -> Table:
 def _draw_source(seed: int, name: str, region_index: int, dwell_id: np.ndarray, mean: np.ndarray,
                  place: Callable, keep: Callable, rr: RangeRateConfig, snr: SnrConfig,
                  pfa: float) -> Table:
-    """Poisson counts, placement in the bounding shape, thinning, marks — for one source."""
+    """Poisson counts, placement in the bounding shape, thinning, marks — for one source.
+
+    ``place(u1, u2, batch, u3)`` maps two uniforms per point (``u3()`` gives a third) to
+    positions; ``keep(x, y, batch)`` is the thinning mask."""
     key = rng.counter_key(seed, "clutter", name)
     counts = _poisson_counts(key, dwell_id, mean)
     batch, index = _expand(dwell_id, counts)
     d = dwell_id[batch]
-    x, y = place(rng.pair_uniform(key, d, index, _CH_U1), rng.pair_uniform(key, d, index, _CH_U2), batch)
+    x, y = place(rng.pair_uniform(key, d, index, _CH_U1), rng.pair_uniform(key, d, index, _CH_U2),
+                 batch, lambda: rng.pair_uniform(key, d, index, _CH_U3))
     ok = keep(x, y, batch)
     batch, index, d, x, y = batch[ok], index[ok], d[ok], x[ok], y[ok]
     s = _draw_snr(key, d, index, snr, pfa)
@@ -354,7 +373,7 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
     fov_polygons : (n, k, 2) array or sequence of n (k_i, 2) arrays, optional
         Each dwell's ground footprint in scene ENU metres (e.g. the annular sector between the
         near and far ground ranges and the beam's azimuth edges, as a polygon). Required when
-        ``fov_density_per_km2 > 0`` (it bounds the FoV-wide draws).
+        ``fov_density_per_km2 > 0`` (the FoV-wide draws fill it, see the module doc).
     in_fov : callable ``(dwell_id, x_m, y_m) -> bool array``, optional
         An extra FoV predicate applied to every candidate point (e.g. the sensor's exact range,
         azimuth and grazing limits, or terrain visibility). Called once per source with all the
@@ -362,8 +381,10 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
     fov_sectors : (n, 6) array ``x_m, y_m, g_min_m, g_max_m, az_start_rad, span_rad``, optional
         Instead of ``fov_polygons``: an annular sector per dwell (centre, ground ranges, world
         azimuths clockwise from north) containing its footprint, with ``in_fov`` the exact
-        footprint test.  FoV-wide false alarms are drawn uniformly in the sector itself (no
-        polygon built or tested, no bounding-box rejection; what the sensor stage uses).
+        footprint test.  FoV-wide false alarms are drawn uniformly in the sector itself, a
+        region's in its window in the sector (:func:`region_windows`) or in its own shape,
+        whichever is smaller (no polygon built or tested, no bounding-box rejection; what the
+        sensor stage uses).
     pfa : float
         The detector's false-alarm probability (``sensor.pfa``): the threshold of the
         ``exceedance`` SNR.
@@ -416,28 +437,52 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
             cx, cy, g0, g1, a0, span = sectors.T
             fov_area = 0.5 * span * (g1 * g1 - g0 * g0)
 
-            def place_fov(u1, u2, batch):
+            def place_fov(u1, u2, batch, u3=None):
                 # uniform over the annulus: g^2 uniform between g0^2 and g1^2
                 g = np.sqrt(g0[batch] ** 2 + u1 * (g1[batch] ** 2 - g0[batch] ** 2))
                 a = a0[batch] + u2 * span[batch]
                 return cx[batch] + g * np.sin(a), cy[batch] + g * np.cos(a)
+            keep_fov = in_footprint
         else:
-            fov_area = (fx1 - fx0) * (fy1 - fy0)
+            # Each footprint polygon star-shaped from its centroid (a convex one, or the annular
+            # sector of a beam) is cut into the fan of triangles (centroid, edge): a point is
+            # drawn in a triangle chosen by area, uniformly in it — exactly in the polygon, no
+            # thinning by it.  Any other polygon: its bounding box, thinned by the polygon.
+            fan = fan_triangles(polys)
+            star = fan["star"]
+            fov_area = np.where(star, fan["area"], (fx1 - fx0) * (fy1 - fy0))
 
-            def place_fov(u1, u2, batch):
-                return fx0[batch] + u1 * (fx1 - fx0)[batch], fy0[batch] + u2 * (fy1 - fy0)[batch]
+            def place_fov(u1, u2, batch, u3):
+                x, y = fan_point(fan, polys, u1, u2, u3(), batch)
+                box = ~star[batch]
+                if np.any(box):
+                    x[box] = fx0[batch[box]] + u1[box] * (fx1 - fx0)[batch[box]]
+                    y[box] = fy0[batch[box]] + u2[box] * (fy1 - fy0)[batch[box]]
+                return x, y
+
+            def keep_fov(x, y, batch):
+                ok = np.ones(len(x), dtype=bool)
+                box = np.flatnonzero(~star[batch])
+                ok[box] = geo.points_in_polygons(x[box], y[box], polys, batch[box])
+                if in_fov is not None and len(x):
+                    ok &= np.asarray(in_fov(dwell_id[batch], x, y), dtype=bool)
+                return ok
 
         out.append(_draw_source(seed, FOV_STREAM, -1, dwell_id, cfg.fov_density_per_km2 * fov_area / _KM2,
-                                place_fov, in_footprint, cfg.fov_range_rate, cfg.snr, pfa))
+                                place_fov, keep_fov, cfg.fov_range_rate, cfg.snr, pfa))
 
     for j, region in enumerate(cfg.regions):
         if region.density_per_km2 <= 0:
+            continue
+        if sectors is not None:
+            out.append(_draw_region_in_sectors(seed, j, region, dwell_id, sectors,
+                                               (fx0, fy0, fx1, fy1), in_footprint, cfg.snr, pfa))
             continue
         bx0, by0, bx1, by1 = region.bbox()
         if region.shape == "polygon":
             area = (bx1 - bx0) * (by1 - by0)
 
-            def place(u1, u2, batch, b=(bx0, by0, bx1, by1)):
+            def place(u1, u2, batch, u3=None, b=(bx0, by0, bx1, by1)):
                 return b[0] + u1 * (b[2] - b[0]), b[1] + u2 * (b[3] - b[1])
 
             def keep(x, y, batch, r=region):
@@ -450,7 +495,7 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
             outer = float(region.radius_m if region.shape == "circle" else region.outer_radius_m)
             area = geo.ring_area_m2(inner, outer)
 
-            def place(u1, u2, batch, c=tuple(region.centre_m), a=inner, b=outer):
+            def place(u1, u2, batch, u3=None, c=tuple(region.centre_m), a=inner, b=outer):
                 return geo.sample_disc(u1, u2, c, a, b)
 
             keep = in_footprint
@@ -462,6 +507,170 @@ def false_alarms(cfg: ClutterConfig, seed: int, dwell_id, fov_polygons=None,
     if not out:
         return _empty()
     return {name: np.concatenate([t[name] for t in out]) for name in out[0]}
+
+
+def fan_triangles(polys: np.ndarray) -> dict:
+    """The fan of triangles (centroid, v_i, v_i+1) of each polygon of a (n, k, 2) stack.
+
+    Returns ``cx, cy`` (n,) the area centroids, ``area`` (n,) the polygons' areas (m²),
+    ``star`` (n,) bool: every triangle of the fan has the polygon's orientation (to 1e-12 of
+    its area), i.e. the polygon is star-shaped from its centroid and the fan tiles it exactly;
+    ``cum`` (n·k,) the polygons' cumulative triangle areas as fractions, offset by the
+    polygon's index (sorted: the search key of :func:`fan_point`).
+    """
+    v = np.asarray(polys, float)
+    n, k = v.shape[:2]
+    w = np.roll(v, -1, axis=1)
+    cross = v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0]
+    a2 = cross.sum(axis=1)                                   # twice the signed area
+    safe = np.where(a2 != 0.0, a2, 1.0)
+    cx = ((v[..., 0] + w[..., 0]) * cross).sum(axis=1) / (3.0 * safe)
+    cy = ((v[..., 1] + w[..., 1]) * cross).sum(axis=1) / (3.0 * safe)
+    tri = ((v[..., 0] - cx[:, None]) * (w[..., 1] - cy[:, None])
+           - (v[..., 1] - cy[:, None]) * (w[..., 0] - cx[:, None])) * np.sign(a2)[:, None]
+    star = (a2 != 0.0) & np.all(tri >= -1e-12 * np.abs(a2)[:, None], axis=1)
+    tri = np.where(star[:, None], np.maximum(tri, 0.0), 1.0)
+    frac = np.cumsum(tri, axis=1)
+    frac /= frac[:, -1:]
+    frac[:, -1] = 1.0
+    return {"cx": cx, "cy": cy, "area": 0.5 * np.abs(a2), "star": star,
+            "cum": (np.arange(n)[:, None] + frac).ravel()}
+
+
+def fan_point(fan: dict, polys: np.ndarray, u1, u2, u3, batch):
+    """Points uniform in polygons ``polys[batch]`` (star-shaped from their centroids, see
+    :func:`fan_triangles`): ``u1`` picks the triangle by area, ``u2``, ``u3`` place the point
+    in it (√u2 along the apex → edge direction, so the density is uniform)."""
+    k = polys.shape[1]
+    j = np.searchsorted(fan["cum"], batch + u1, side="right")
+    e = np.clip(j - batch * k, 0, k - 1)
+    e2 = (e + 1) % k
+    cx, cy = fan["cx"][batch], fan["cy"][batch]
+    s = np.sqrt(u2)
+    ax, ay = polys[batch, e, 0] - cx, polys[batch, e, 1] - cy
+    bx, by = polys[batch, e2, 0] - cx, polys[batch, e2, 1] - cy
+    return cx + s * (ax + u3 * (bx - ax)), cy + s * (ay + u3 * (by - ay))
+
+
+def _wrap(a):
+    """Angles wrapped to [−π, π)."""
+    return np.mod(a + np.pi, 2.0 * np.pi) - np.pi
+
+
+def region_windows(region: ClutterRegionConfig, sectors: np.ndarray):
+    """Per dwell, the part of its annular sector that can hold points of ``region``.
+
+    ``sectors`` (n, 6) ``x, y, g_min, g_max, az_start, span`` as in :func:`false_alarms`.
+    Returns ``(g0, g1, a0, span)`` arrays: an annular sector (same centre) containing
+    ``region ∩ sector``, the sector cut to the region's ground ranges and azimuths seen from the
+    sector's centre; ``span = 0`` where they cannot meet.  Exact bounds, no sampling:
+
+    * ranges: the farthest point of a polygon is a vertex, the nearest (centre outside it) lies on
+      an edge; a circle or ring at distance D spans D − R … D + R (0 … when the centre is inside);
+    * azimuths (centre outside the region): every ray to a polygon's point crosses its boundary,
+      so the polygon's directions are the union of its edges' (each < π wide, the centre being
+      on no edge); a disc at distance D > R spans its centre's azimuth ± asin(R/D).  With the
+      centre inside the region (or within a metre of its boundary) every azimuth of the sector
+      stays.
+    """
+    cx, cy, g0, g1, a0, span = np.asarray(sectors, float).T
+    half = 0.5 * span
+    psi = a0 + half                                      # each sector's central azimuth
+    if region.shape == "polygon":
+        v = geo.as_polygon(region.vertices_m)
+        dx = v[None, :, 0] - cx[:, None]
+        dy = v[None, :, 1] - cy[:, None]
+        far = np.hypot(dx, dy).max(axis=1)
+        ex, ey = np.roll(dx, -1, axis=1) - dx, np.roll(dy, -1, axis=1) - dy
+        t = np.clip(-(dx * ex + dy * ey) / (ex * ex + ey * ey), 0.0, 1.0)
+        near = np.hypot(dx + t * ex, dy + t * ey).min(axis=1)
+        inside = region.contains(cx, cy)
+        around = inside | (near < 1.0)
+        near = np.where(inside, 0.0, near)
+        rel = _wrap(np.arctan2(dx, dy) - psi[:, None])   # vertex azimuths about psi
+        turn = _wrap(np.roll(rel, -1, axis=1) - rel)     # each edge's signed angular width
+        lo_e, hi_e = np.minimum(rel, rel + turn), np.maximum(rel, rel + turn)
+    else:
+        ccx, ccy = float(region.centre_m[0]), float(region.centre_m[1])
+        outer = float(region.radius_m if region.shape == "circle" else region.outer_radius_m)
+        inner = 0.0 if region.shape == "circle" else float(region.inner_radius_m)
+        dist = np.hypot(ccx - cx, ccy - cy)
+        far = dist + outer
+        near = np.maximum(np.maximum(dist - outer, inner - dist), 0.0)
+        around = dist <= outer * (1.0 + 1e-9) + 1.0
+        rel = _wrap(np.arctan2(ccx - cx, ccy - cy) - psi)[:, None]
+        w = np.arcsin(np.minimum(outer / np.maximum(dist, 1e-300), 1.0))[:, None]
+        lo_e, hi_e = rel - w, rel + w
+    # The edges' (or the disc's) azimuth intervals cut to the sector [−half, half] around psi;
+    # an interval reaching past ±π is also tried one turn round.
+    lo = np.full(len(cx), np.inf)
+    hi = np.full(len(cx), -np.inf)
+    h = half[:, None]
+    for shift in (0.0, 2.0 * np.pi, -2.0 * np.pi):
+        l = np.maximum(lo_e + shift, -h)
+        u = np.minimum(hi_e + shift, h)
+        ok = u >= l
+        lo = np.minimum(lo, np.where(ok, l, np.inf).min(axis=1))
+        hi = np.maximum(hi, np.where(ok, u, -np.inf).max(axis=1))
+    lo = np.where(around, -half, lo)
+    hi = np.where(around, half, hi)
+    # a hair of margin against rounding (the exact tests thin the draws anyway)
+    lo = np.maximum(lo - 1e-9, -half)
+    hi = np.minimum(hi + 1e-9, half)
+    w0 = np.maximum(g0, near * (1.0 - 1e-12) - 1e-6)
+    w1 = np.minimum(g1, far * (1.0 + 1e-12) + 1e-6)
+    empty = ~((hi > lo) & (w1 > w0))
+    w_span = np.where(empty, 0.0, hi - lo)
+    return (np.where(empty, g0, w0), np.where(empty, g0, w1), psi + np.where(empty, 0.0, lo),
+            w_span)
+
+
+def _draw_region_in_sectors(seed, j, region, dwell_id, sectors, boxes, in_footprint, snr_default,
+                            pfa) -> Table:
+    """One region's false alarms for dwells whose footprints come as annular sectors: per dwell,
+    candidates drawn in the smaller of the region's own bounding shape (disc, ring or polygon
+    box) and its window in the dwell's sector (:func:`region_windows`), then thinned by the
+    region and the exact footprint test."""
+    cx, cy = sectors[:, 0], sectors[:, 1]
+    g0, g1, a0, span = region_windows(region, sectors)
+    window_area = 0.5 * span * (g1 * g1 - g0 * g0)
+    bx0, by0, bx1, by1 = region.bbox()
+    fx0, fy0, fx1, fy1 = boxes
+    if region.shape == "polygon":
+        own_area = (bx1 - bx0) * (by1 - by0)
+        inner = outer = 0.0
+    else:
+        inner = 0.0 if region.shape == "circle" else float(region.inner_radius_m)
+        outer = float(region.radius_m if region.shape == "circle" else region.outer_radius_m)
+        own_area = geo.ring_area_m2(inner, outer)
+    misses = (fx1 < bx0) | (fx0 > bx1) | (fy1 < by0) | (fy0 > by1) | (span <= 0.0)
+    polar = window_area < own_area
+    area = np.where(misses, 0.0, np.where(polar, window_area, own_area))
+    centre = tuple(region.centre_m) if region.shape != "polygon" else None
+
+    def place(u1, u2, batch, u3=None):
+        p = polar[batch]
+        g = np.sqrt(g0[batch] ** 2 + u1 * (g1[batch] ** 2 - g0[batch] ** 2))
+        a = a0[batch] + u2 * span[batch]
+        x, y = cx[batch] + g * np.sin(a), cy[batch] + g * np.cos(a)
+        if np.all(p):
+            return x, y
+        if centre is None:
+            xo, yo = bx0 + u1 * (bx1 - bx0), by0 + u2 * (by1 - by0)
+        else:
+            xo, yo = geo.sample_disc(u1, u2, centre, inner, outer)
+        return np.where(p, x, xo), np.where(p, y, yo)
+
+    def keep(x, y, batch):
+        inside = region.contains(x, y)
+        if centre is not None:          # points drawn in the disc or ring itself are in it
+            inside |= ~polar[batch]
+        ok = np.zeros(len(x), dtype=bool)
+        ok[inside] = in_footprint(x[inside], y[inside], batch[inside])
+        return ok
+
+    return _draw_source(seed, region.name, j, dwell_id, region.density_per_km2 * area / _KM2,
+                        place, keep, region.range_rate, region.snr or snr_default, pfa)
 
 
 def sector_boxes(sectors: np.ndarray, n_arc: int = 16):

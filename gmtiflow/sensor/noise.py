@@ -45,7 +45,6 @@ Vectorised over every false alarm of a chunk: no per-dwell Python work.
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
 
 from gmtiflow import frames, rng
 from gmtiflow.sensor import antenna, detect, geolocate, measurement, scan, visibility
@@ -60,6 +59,19 @@ def _world_azimuth(dx, dy):
     return np.mod(np.arctan2(dx, dy), 2.0 * np.pi)
 
 
+def poisson_ppf(q, mean) -> np.ndarray:
+    """The Poisson quantile: the least k with P(N ≤ k) ≥ q, for 0 < q < 1 and mean > 0.
+
+    ``scipy.stats.poisson.ppf`` computed as it does (the same values, bit for bit), from
+    ``scipy.special`` alone: scipy.stats costs ~1 s to import, scipy.special a tenth of it.
+    k = ⌈pdtrik(q, μ)⌉ (the continuous inverse), one lower when the CDF there already reaches q.
+    """
+    from scipy import special
+    vals = np.ceil(special.pdtrik(q, mean))
+    vals1 = np.maximum(vals - 1, 0)
+    return np.where(special.pdtr(vals1, mean) >= q, vals1, vals)
+
+
 def poisson_counts(key, dwell_id: np.ndarray, mean) -> np.ndarray:
     """One Poisson count per dwell by inversion of a counter-based uniform (exactly Poisson)."""
     u = rng.pair_uniform(key, dwell_id, 0, _CH_COUNT)
@@ -67,7 +79,7 @@ def poisson_counts(key, dwell_id: np.ndarray, mean) -> np.ndarray:
     counts = np.zeros(len(dwell_id), dtype=np.int64)
     pos = mean > 0
     if np.any(pos):
-        counts[pos] = stats.poisson.ppf(u[pos], mean[pos]).astype(np.int64)
+        counts[pos] = poisson_ppf(u[pos], mean[pos]).astype(np.int64)
     return counts
 
 

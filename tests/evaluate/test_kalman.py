@@ -24,6 +24,20 @@ def test_range_rate_jacobian_matches_finite_differences():
     assert h[0] == pytest.approx(5.0)
 
 
+def test_range_rate_written_out_is_the_stacked_form_bit_for_bit():
+    # the per-component arithmetic must add in numpy's order (norm: (0+1)+2, einsum: (0+2)+1);
+    # magnitudes over many decades make a different order show in the last bits
+    rng = np.random.default_rng(3)
+    for n in (0, 1, 7, 1000):
+        x = rng.normal(0, 1, (n, 4)) * 10.0 ** rng.integers(-2, 6, (n, 4))
+        z = rng.normal(0, 100, n)
+        pp = rng.normal(0, 1, 3) * 10.0 ** rng.integers(0, 6, 3)
+        pv = rng.normal(0, 100, 3)
+        h, J = kalman.predicted_range_rate(x, z, pp, pv)
+        h0, J0 = kalman._predicted_range_rate_stacked(x, z, pp, pv)
+        assert np.array_equal(h, h0) and np.array_equal(J, J0)
+
+
 def test_position_covariance_is_along_and_across_the_los():
     # LOS to the north-east (45°): along = (1,1)/√2
     R = kalman.position_covariance(np.array([np.pi / 4]), np.array([20.0]), np.array([5.0]))[0]

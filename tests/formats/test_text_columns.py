@@ -75,3 +75,56 @@ def test_without_extended_precision_every_value_falls_back_to_repr(monkeypatch):
     monkeypatch.setattr(_text, "_LD_EXTENDED", False)
     x = np.array(EDGES + [np.nan, -np.inf])
     assert lines(_text.float_cells(x), len(x)) == [repr(v) for v in x.tolist()]
+
+
+def test_runs_of_equal_values_are_formatted_once_with_their_own_signs():
+    """A column that repeats its values (a dwell's time on each report) is formatted per run;
+    0.0 and -0.0 compare equal but are different runs."""
+    x = np.repeat(np.array([0.0, -0.0, 0.0, 1.5, np.nan, -np.inf, 1e-300, -7.25]), 40)
+    assert lines(_text.float_cells(x), len(x)) == [repr(v) for v in x.tolist()]
+    i = np.repeat(np.array([3, -3, 0, 2 ** 63 - 1, -2 ** 63]), 30)
+    assert lines(_text.int_cells(i), len(i)) == [str(v) for v in i.tolist()]
+
+
+def test_shared_columns_give_each_formats_text_of_any_rows():
+    """Within shared_columns a column is formatted once, whole, and its rows taken from that:
+    the text is the same as formatting the rows alone, for each format's NaN/inf words."""
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=3000) * 10.0 ** rng.integers(-8, 20, 3000)
+    x[rng.random(3000) < 0.2] = np.nan
+    x[rng.random(3000) < 0.1] = -np.inf
+    x[rng.random(3000) < 0.1] = -0.0
+    ids = rng.integers(-10 ** 9, 10 ** 9, 3000)
+    picks = [rng.permutation(3000)[:1000], slice(17, 2500), np.arange(3000)]
+    with _text.shared_columns():
+        for rows in picks:
+            for words in ({}, {"nan": "null", "inf": "null"}, {"inf": "INF"}):
+                want = lines(_text.float_cells(x[rows], **words), len(x[rows]))
+                assert lines(_text.float_cells(x, rows=rows, **words), len(x[rows])) == want
+            assert lines(_text.int_cells(ids, rows), len(ids[rows])) == \
+                [str(v) for v in ids[rows].tolist()]
+        assert len(_text._SHARED["columns"]) == 2           # each column formatted once
+
+
+def test_shared_columns_keep_bounded_memory(monkeypatch):
+    """Columns longer than SHARED_MAX_ROWS, or beyond the budget of values, are not kept."""
+    monkeypatch.setattr(_text, "SHARED_MAX_ROWS", 500)
+    small, big = np.arange(400.0) + 0.5, np.arange(600.0) + 0.25
+    with _text.shared_columns(max_values=700):
+        assert lines(_text.float_cells(big, rows=slice(0, 3)), 3) == ["0.25", "1.25", "2.25"]
+        _text.float_cells(small, rows=slice(0, 3))
+        _text.float_cells(small + 1, rows=slice(0, 3))               # over the budget
+        assert [k[0] for k in _text._SHARED["columns"]] == ["float"]
+        assert _text._SHARED["room"] == 300
+    assert _text._SHARED is None
+
+
+def test_join_keeps_nul_bytes_of_the_text():
+    """join_rows pads with NUL bytes and drops them; text that holds a NUL keeps it."""
+    keep = np.array([True, False, True])
+    for text in (b"a\0", b"ab"):
+        cells = _text.from_strings(np.array([0, 1, 0]), [text, b"x"])
+        got = _text.join([_text.masked([cells, b"\0" if text == b"ab" else b","], keep),
+                          _text.float_cells(np.array([1.5, -2.0, 1e-7])), b"\n"], 3)
+        sep = b"\0" if text == b"ab" else b","
+        assert got == text + sep + b"1.5\n-2.0\n" + text + sep + b"1e-07\n"

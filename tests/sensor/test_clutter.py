@@ -11,6 +11,11 @@ from scipy import stats
 from gmtiflow.errors import ConfigError
 from gmtiflow.sensor import clutter as cl
 from gmtiflow.sensor import regions as geo
+from gmtiflow.sensor import scan
+from gmtiflow.sensor.config import SensorConfig
+from gmtiflow.sensor.effects import FalseAlarms
+from gmtiflow.sensor.model import simulate
+from sensor_fakes import ORIGIN, FlatTerrain, LevelPlatform, grid_fleet
 
 CONF = Path(__file__).resolve().parents[2] / "conf" / "clutter"
 LAKE = [[1500, 1500], [3500, 1200], [4200, 2500], [3000, 3500], [1600, 3000]]
@@ -146,6 +151,46 @@ def test_fov_density_fills_each_footprint_and_nothing_outside():
     frac = np.mean(geo.points_in_polygon(xs, ys, fp0) & geo.points_in_polygon(xs, ys, cut))
     area = frac * (np.ptp(fp0[:, 0]) * np.ptp(fp0[:, 1]))
     _assert_poisson(np.bincount(t["dwell_id"] - 100, minlength=n), density * area / 1e6)
+
+
+HEXAGON = np.array([[0, 0], [3000, -500], [5000, 1000], [4500, 3500], [1500, 4000], [-800, 2000]], float)
+L_SHAPE = np.array([[0, 0], [4000, 0], [4000, 1000], [1000, 1000], [1000, 4000], [0, 4000]], float)
+
+
+def test_footprint_fans_are_exact_for_star_shaped_polygons_only():
+    sector = cl.annular_sector_polygon([0, 0], 15_000, 30_000, -0.1, 0.1)
+    polys = geo.stack_polygons([sector, HEXAGON, HEXAGON[::-1], L_SHAPE, _box(0, 0, 5, 7)])
+    fan = cl.fan_triangles(polys)
+    assert fan["star"].tolist() == [True, True, True, False, True]
+    for i in (0, 1, 2, 4):
+        assert fan["area"][i] == pytest.approx(geo.polygon_area_m2(polys[i]), rel=1e-12)
+    assert np.all(np.diff(fan["cum"]) >= 0)
+
+
+@pytest.mark.parametrize("shape", ["hexagon", "L"])
+def test_fov_density_in_polygon_footprints_is_uniform_over_each(shape):
+    """FoV-wide draws in polygon footprints: Poisson with mean density x polygon area, every
+    point inside, positions with the law of uniform points in the polygon (two-sample KS
+    against rejection sampling).  The hexagon is drawn through its fan of triangles, the L
+    (not star-shaped from its centroid) in its box and thinned."""
+    poly = HEXAGON if shape == "hexagon" else L_SHAPE
+    n = N_DWELLS
+    shift = np.column_stack([np.linspace(0, 9000, n), np.linspace(0, -3000, n)])
+    footprints = poly[None, :, :] + shift[:, None, :]
+    density = 1.0
+    t = cl.false_alarms(cl.ClutterConfig(fov_density_per_km2=density), 12, np.arange(n), footprints)
+    area = geo.polygon_area_m2(poly)
+    _assert_poisson(_counts(t, n), density * area / 1e6)
+    assert np.all(geo.points_in_polygons(t["x_m"], t["y_m"], footprints, t["dwell_id"]))
+    x = t["x_m"] - shift[t["dwell_id"], 0]
+    y = t["y_m"] - shift[t["dwell_id"], 1]
+    g = np.random.default_rng(3)
+    rx = g.uniform(poly[:, 0].min(), poly[:, 0].max(), 400_000)
+    ry = g.uniform(poly[:, 1].min(), poly[:, 1].max(), 400_000)
+    inside = geo.points_in_polygon(rx, ry, poly)
+    for a, b in ((x, rx[inside]), (y, ry[inside]), (x + y, (rx + ry)[inside]),
+                 (x - y, (rx - ry)[inside])):
+        assert stats.ks_2samp(a, b).pvalue > ALPHA
 
 
 def test_region_outside_every_footprint_gives_nothing():
@@ -306,3 +351,159 @@ def test_fov_density_drawn_directly_in_annular_sectors():
     bx0, by0, bx1, by1 = cl.sector_boxes(sectors)
     assert np.all((t["x_m"] >= bx0[t["dwell_id"]]) & (t["x_m"] <= bx1[t["dwell_id"]]))
     assert np.all((t["y_m"] >= by0[t["dwell_id"]]) & (t["y_m"] <= by1[t["dwell_id"]]))
+
+
+# ---------------------------------------------------------------- regions drawn in the sectors
+
+# Regions around the default fake scene (platform flying west along y = -30 km at 6 km, looking
+# north at the origin): a concave polygon cut by the footprints, one that holds the platform, a
+# C-shaped one wrapped round the platform (its azimuths span more than pi), a disc and a ring.
+CONCAVE = [[-9000, -6000], [7000, -8000], [9000, 2000], [1000, -2000], [-3000, 6000], [-8000, 1000]]
+AROUND = [[-20_000, -40_000], [20_000, -40_000], [20_000, -4_000], [-20_000, -4_000]]
+C_SHAPE = [[-15_000, -45_000], [15_000, -45_000], [15_000, -5_000], [-2_000, -5_000],
+           [-2_000, -8_000], [12_000, -8_000], [12_000, -42_000], [-12_000, -42_000],
+           [-12_000, -18_000], [-15_000, -18_000]]
+STAGE_REGIONS = [
+    cl.ClutterRegionConfig(name="concave", vertices_m=CONCAVE),
+    cl.ClutterRegionConfig(name="around", vertices_m=AROUND),
+    cl.ClutterRegionConfig(name="c-shape", vertices_m=C_SHAPE),
+    cl.ClutterRegionConfig(name="disc", shape="circle", centre_m=[1500.0, -2500.0], radius_m=3000.0),
+    cl.ClutterRegionConfig(name="ring", shape="ring", centre_m=[-2000.0, 0.0], inner_radius_m=1500.0,
+                           outer_radius_m=4000.0),
+]
+
+
+def _points_outside_windows(region, sectors, m, g):
+    """Count of points of region ∩ sector (m quasi-uniform draws per sector) that fall outside
+    the region's window in the sector, and the count of points in region ∩ sector."""
+    cx, cy, g0, g1, a0, span = sectors.T
+    w0, w1, b0, bspan = cl.region_windows(region, sectors)
+    assert np.all((w0 >= g0) & (w1 <= g1) & (b0 >= a0 - 1e-12) & (b0 + bspan <= a0 + span + 1e-12))
+    n = len(sectors)
+    u1, u2 = g.uniform(size=(n, m)), g.uniform(size=(n, m))
+    r = np.sqrt(g0[:, None] ** 2 + u1 * (g1 ** 2 - g0 ** 2)[:, None])
+    a = a0[:, None] + u2 * span[:, None]
+    x, y = cx[:, None] + r * np.sin(a), cy[:, None] + r * np.cos(a)
+    inside = region.contains(x.ravel(), y.ravel()).reshape(n, m)
+    in_window = ((r >= w0[:, None]) & (r <= w1[:, None]) & (a >= b0[:, None])
+                 & (a <= (b0 + bspan)[:, None]))
+    return int(np.sum(inside & ~in_window)), int(inside.sum())
+
+
+@pytest.mark.parametrize("region", STAGE_REGIONS, ids=lambda r: r.name)
+def test_region_windows_hold_every_point_of_region_and_sector(region):
+    """The window a region's draws use in a dwell's sector contains all of region ∩ sector
+    (checked on a dense uniform cover of random sectors), and is no larger than the sector."""
+    g = np.random.default_rng(5)
+    n = 600
+    cx, cy = g.uniform(-25_000, 25_000, n), g.uniform(-45_000, 10_000, n)
+    g0 = g.uniform(0.0, 20_000, n)
+    g1 = g0 + g.uniform(500.0, 30_000, n)
+    a0 = g.uniform(-np.pi, np.pi, n)
+    span = g.uniform(0.001, 1.2, n)
+    sectors = np.column_stack([cx, cy, g0, g1, a0, span])
+    missed, hits = _points_outside_windows(region, sectors, 4000, g)
+    assert hits > 10_000 and missed == 0
+    # and the windows cut the sectors (which reach far beyond every region)
+    w0, w1, _, bspan = cl.region_windows(region, sectors)
+    area = lambda s0, s1, sp: 0.5 * sp * (s1 ** 2 - s0 ** 2)  # noqa: E731
+    assert area(w0, w1, bspan).sum() < 0.9 * area(g0, g1, span).sum()
+    assert np.sum(bspan == 0) > 10
+
+
+@pytest.mark.parametrize("reverse", [False, True], ids=["ccw", "cw"])
+def test_region_windows_with_an_edge_grazing_the_sector_centre(reverse):
+    """An edge passing metres from the sector's centre subtends almost pi, from behind the
+    sector to inside it: its azimuth interval must be taken the right way round (either
+    winding of the polygon).  A strip 5 m wide, so that both its long edges do (any direction
+    into a region crosses its boundary twice: one edge taken wrongly would go unnoticed)."""
+    strip = [[-10_000, 0], [10_000, 0], [10_000, 5], [-10_000, 5]]
+    region = cl.ClutterRegionConfig(name="strip", vertices_m=strip[::-1] if reverse else strip)
+    g = np.random.default_rng(6)
+    n = 400
+    cx = g.uniform(-3000, 3000, n)
+    cy = -g.uniform(1.0, 20.0, n)                      # just below the strip's lower edge
+    psi = np.where(g.uniform(size=n) < 0.5, 0.5, -0.5) * np.pi + g.normal(0, 0.05, n)
+    span = g.uniform(0.02, 0.4, n)
+    sectors = np.column_stack([cx, cy, np.zeros(n), np.full(n, 3000.0), psi - span / 2, span])
+    missed, hits = _points_outside_windows(region, sectors, 4000, g)
+    assert hits > 10_000 and missed == 0
+
+
+def _stage_false_alarms(ccfg, duration_s=40.0):
+    cfg = SensorConfig(noise_false_alarms=False)
+    out = simulate(cfg, grid_fleet(0), LevelPlatform(), FlatTerrain(), 3, duration_s, ORIGIN,
+                   effects=[FalseAlarms(cfg, ccfg, 3)])
+    return out["detections"], out["dwells"]
+
+
+@pytest.mark.parametrize("region", STAGE_REGIONS, ids=lambda r: r.name)
+def test_region_in_the_stage_matches_the_fov_density_on_the_region(region):
+    """In the sensor stage a region at density d gives what the FoV-wide density d gives on the
+    region: the FoV-wide points inside it are Poisson with mean d x area(region ∩ cells), so the
+    two counts are independent Poisson with the same mean (given their sum, one is binomial
+    with p = 1/2), and the positions have the same law (two-sample KS on x and y).  Nothing
+    falls outside the region or outside its dwell's cell (the world azimuth of a level
+    platform's cell, the slant-range window)."""
+    density = 20.0
+    fov, dw = _stage_false_alarms(cl.ClutterConfig(fov_density_per_km2=density))
+    reg_cfg = cl.ClutterRegionConfig(**{**vars(region), "density_per_km2": density})
+    det, dw2 = _stage_false_alarms(cl.ClutterConfig(regions=[reg_cfg]))
+    assert np.array_equal(dw["dwell_id"], dw2["dwell_id"])
+    ref = region.contains(fov["x_m"], fov["y_m"])
+    a, b = len(det["x_m"]), int(ref.sum())
+    assert b > 500, b
+    assert stats.binomtest(a, a + b, 0.5).pvalue > ALPHA, (a, b)
+    assert np.all(region.contains(det["x_m"], det["y_m"]))
+    for c in ("x_m", "y_m"):
+        assert stats.ks_2samp(det[c], fov[c][ref]).pvalue > ALPHA, c
+    cfg_range = (20_000.0, 36_000.0)
+    assert np.all((det["range_m"] >= cfg_range[0]) & (det["range_m"] <= cfg_range[1]))
+    # inside the dwell's cell: the scan angle's sine within the beam's cell (level flight
+    # heading west, so the antenna's scan axis is horizontal, as in test_noise.py)
+    k = det["dwell_id"] - dw["dwell_id"][0]
+    half = np.sin(np.radians(10.0)) / scan.n_dwells(SensorConfig())
+    u_b = np.sin(dw["beam_scan_rad"][k])
+    to_world = dw["beam_az_rad"][k] - dw["beam_scan_rad"][k]
+    los = np.array([det["x_m"] - dw["platform_x_m"][k], det["y_m"] - dw["platform_y_m"][k]])
+    sin_scan = (los[0] * np.cos(to_world) - los[1] * np.sin(to_world)) / np.hypot(*los)
+    assert np.all(np.abs(sin_scan - u_b) <= half + 1e-9)
+
+
+def test_stage_region_draws_are_the_same_whatever_the_chunking():
+    """A dwell's draws depend on its own sector only: chunks of one revisit or of all give the
+    same false alarms, bit for bit."""
+    cfg = SensorConfig(noise_false_alarms=False)
+    ccfg = cl.ClutterConfig(fov_density_per_km2=0.5, regions=[
+        cl.ClutterRegionConfig(**{**vars(r), "density_per_km2": 3.0}) for r in STAGE_REGIONS[:1]])
+    outs = [simulate(cfg, grid_fleet(0), LevelPlatform(), FlatTerrain(), 3, 30.0, ORIGIN,
+                     effects=[FalseAlarms(cfg, ccfg, 3)], chunk_pairs=n)["detections"]
+            for n in (1, 10 ** 9)]
+    assert len(outs[0]["x_m"]) > 100
+    for c in ("dwell_id", "x_m", "y_m", "range_rate_mps", "snr_db"):
+        assert np.array_equal(outs[0][c], outs[1][c]), c
+
+
+def test_drawing_false_alarms_does_not_import_scipy_stats():
+    """scipy.stats costs ~1 s of import (issue 18: it was most of what clutter cost a run): the
+    Poisson counts come from scipy.special with scipy.stats' values.  Checked in a fresh
+    interpreter, so the test does not depend on what else this process imported."""
+    import subprocess
+    import sys
+    probe = ("import sys, numpy as np\n"
+             "from gmtiflow.sensor import clutter as cl\n"
+             "fp = [cl.annular_sector_polygon([0, 0], 1e4, 2e4, 0.0, 0.2)] * 5\n"
+             "t = cl.false_alarms(cl.ClutterConfig(fov_density_per_km2=2.0), 1, np.arange(5), fp)\n"
+             "assert len(t['x_m']) > 0\n"
+             "print('scipy.stats' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
+
+
+def test_poisson_counts_are_scipy_stats_quantiles_bit_for_bit():
+    g = np.random.default_rng(2)
+    u = g.uniform(size=200_000)
+    mean = 10 ** g.uniform(-4, 6, 200_000)
+    from gmtiflow.sensor.noise import poisson_ppf
+    assert np.array_equal(poisson_ppf(u, mean), stats.poisson.ppf(u, mean))

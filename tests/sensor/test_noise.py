@@ -12,7 +12,7 @@ import pytest
 from scipy import stats
 
 from gmtiflow.errors import ConfigError
-from gmtiflow.sensor import clutter, scan
+from gmtiflow.sensor import clutter, noise, scan
 from gmtiflow.sensor.config import C_MPS, SensorConfig
 from gmtiflow.sensor.effects import FalseAlarms, Merging, NoiseFalseAlarms, build_effects
 from gmtiflow.sensor.model import simulate
@@ -246,3 +246,21 @@ def test_altitude_extremes_false_alarms_within_horizon_and_fov(altitude_m):
         assert abs(len(d) - mean) < _count_bound(mean) + 0.01 * mean
     if altitude_m == 20_000.0:   # slant 5..20 km cannot reach the ground: only 20..30 km does
         assert np.all(det["range_m"] >= 20_000.0)
+
+
+def test_poisson_ppf_is_scipy_stats_poisson_ppf_exactly():
+    """The scipy.special form of the Poisson quantile gives scipy.stats' values bit for bit
+    (dwell counts, and with them every false alarm, do not change), near the CDF's steps too."""
+    g = np.random.default_rng(5)
+    mean = np.concatenate([g.uniform(1e-6, 0.01, 2000), g.uniform(0.01, 3.0, 4000),
+                           g.uniform(3.0, 500.0, 4000)])
+    q = g.uniform(0.0, 1.0, mean.size)
+    q[:200] = 1e-300
+    q[200:400] = 1.0 - 2.0 ** -53
+    k = g.integers(0, 30, 3000)
+    q[400:3400] = stats.poisson.cdf(k, mean[400:3400])     # exactly on a step
+    q = np.clip(q, 1e-300, 1.0 - 2.0 ** -53)
+    got = noise.poisson_ppf(q, mean)
+    want = stats.poisson.ppf(q, mean)
+    assert np.array_equal(got, want)
+    assert got.min() >= 0 and np.all(np.isfinite(got))
