@@ -25,7 +25,9 @@ the count grows; the log-log slope of cost against count over the densities is p
 linear).  ``--baseline REV`` loads ``gmtiflow/sensor/clutter.py`` as of git revision REV and
 times it too, alternating with the working tree's module run by run (A/B under the same load;
 its false-alarm counts differ only by the draws).  The 1-minute load average is printed with
-every row.  Last, the clutter module alone called with polygon footprints (a library use, not
+every row.  Then the FoV-wide density under a platform banked −15° (a turn's attitude), the
+sectors from the cells' geolocated edges against sectors padded by the bank angle (as before),
+alternated.  Last, the clutter module alone called with polygon footprints (a library use, not
 the stage's), at ten times the densities, A/B likewise.  ``--run-share`` instead times whole
 runs (truth, sensor, run.h5) of 1,000 random vehicles over 10 min without clutter, with
 ``clutter=urban`` and with 5 FoV-wide false alarms per km² and dwell (the issue's example), and
@@ -109,6 +111,56 @@ def run_once(cfg, ccfg, duration_s):
     t0 = time.process_time()
     out = simulate(cfg, _NoFleet(), _Platform(), _Flat(), 3, duration_s, ORIGIN, effects=effects)
     return time.process_time() - t0, len(out["detections"]["det_id"])
+
+
+BANK_DEG = -15.0
+
+
+class _Banked(_Platform):
+    """The benchmark's platform with a constant bank (a turn's attitude, without the turn)."""
+
+    def state_at(self, time_s):
+        s = super().state_at(time_s)
+        s["bank_rad"] = np.full(len(s["x_m"]), np.radians(BANK_DEG))
+        return s
+
+
+class _BankPad(fx.FalseAlarms):
+    """FalseAlarms with the sectors padded by the bank angle (as before the tilted cells'
+    azimuths were geolocated): the A side of the banked comparison."""
+
+    def _tilted_cell_azimuths(self, ctx, rows, lo, hi, to_world, margin):
+        a0, span = super()._tilted_cell_azimuths(ctx, rows, lo, hi, to_world, margin)
+        return a0, np.full_like(span, np.nan)
+
+
+def banked(densities, repeats, duration_s):
+    """FoV-wide false alarms under a platform banked BANK_DEG: the sectors from the cells'
+    geolocated edges against sectors padded by the bank angle, alternated; CPU time less the
+    banked run without clutter, median of ``repeats``."""
+    cfg = SensorConfig(noise_false_alarms=False)
+
+    def once(effect):
+        t0 = time.process_time()
+        out = simulate(cfg, _NoFleet(), _Banked(), _Flat(), 3, duration_s, ORIGIN,
+                       effects=[] if effect is None else [effect])
+        return time.process_time() - t0, len(out["detections"]["det_id"])
+
+    rows = []
+    for dens in densities:
+        ccfg = cl.ClutterConfig(fov_density_per_km2=dens)
+        base, per, counts = [], {"geolocated edges": [], "bank pad (before)": []}, {}
+        for _ in range(repeats):
+            base.append(once(None)[0])
+            for name, kind in (("geolocated edges", fx.FalseAlarms), ("bank pad (before)", _BankPad)):
+                t, n = once(kind(cfg, ccfg, 3))
+                per[name].append(t)
+                counts[name] = n
+        t0 = float(np.median(base))
+        for name in per:
+            rows.append((name, dens, counts[name], float(np.median(per[name])) - t0,
+                         os.getloadavg()[0]))
+    return rows
 
 
 def library_polygons(densities, repeats, impls):
@@ -259,6 +311,18 @@ def main(argv=None) -> int:
             for (dens, _, tn, _), (_, _, to, _) in zip(new, old):
                 print(f"| {label} | {dens:g} | {to / tn:.1f}× |" if tn > 0 else
                       f"| {label} | {dens:g} | (new below timing noise) |")
+    bank_rows = banked(args.densities, args.repeats, duration)
+    print(f"\n## FoV-wide false alarms, platform banked {BANK_DEG:g}° (sensor stage, same "
+          f"dwells)\n")
+    print("| sectors | density (/km²/dwell) | false alarms | CPU s (less empty run) "
+          "| µs CPU per false alarm | load |\n|---|---|---|---|---|---|")
+    for name, dens, n, t, load in bank_rows:
+        print(f"| {name} | {dens:g} | {n:,} | {t:.4f} | {1e6 * t / max(n, 1):.2f} | {load:.1f} |")
+        if name == "geolocated edges" and n >= 1000:
+            worst = max(worst, 1e6 * t / n)
+    for name in ("geolocated edges", "bank pad (before)"):
+        mine = [r for r in bank_rows if r[0] == name]
+        print(f"| {name} | **log-log slope** | | | **{slope([r[2] for r in mine], [r[3] for r in mine]):.2f}** | |")
     lib = library_polygons([d * 10 for d in args.densities], args.repeats, impls)
     print("\n## The clutter module alone, with polygon footprints (a library use; the stage "
           "passes sectors)\n\n100 dwells of a 67.5 km² annular sector each, as a 32-vertex "
