@@ -15,8 +15,9 @@ for :math:`\tau'_k \le \Delta t` (the exact in-step instant at which a braking v
 exact at any instant, so the position on the route polyline needs no overshoot correction and
 no interpolation error.
 
-One time loop runs over the steps; every operation inside is numpy over all profiles (there is no
-per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 2, DESIGN §3):
+Every operation is numpy over profiles (and, in windows, over steps): there is no per-vehicle
+Python loop and, for driving profiles, no per-step one either (below).  Per profile a small
+state machine (the corrected Alg. 2, DESIGN §3):
 
 * ``TRACK`` (modes 0 cruise / 1 decelerate / 3 accelerate): the speed heads for the target
   :math:`v^* = \max(0, \min(c(s) + \sigma \xi_k, v_{cap}))` at the end of the step, where
@@ -68,7 +69,26 @@ its constant acceleration.
 
 Randomness enters only through per-profile noise blocks (speed normals, stop uniforms, wait
 uniforms) that the caller draws from each vehicle's own stream on demand (:class:`NoiseSource`),
-so the kernel is deterministic.
+so the kernel is deterministic.  ξ depends on the draws alone, so it is computed when a block is
+drawn (the same sequential recurrence as a step loop).
+
+Windows.  Each profile runs in its own local time, at its own pace, in rounds.  In a round a
+profile in ``TRACK`` takes a *window* of up to :data:`NOISE_BLOCK_STEPS` steps at once: from a
+guess of every step's start position and speed, the desired speeds v* of all steps are
+computed; the start speeds follow from them by the step recurrence in v alone (a step within
+its limits ends at v* whatever its start speed — the speeds are within a factor 2, so
+v + ((v* − v)/Δt)Δt rounds to v* — and a clipped run adds aΔt step by step, a sequential
+``np.add.accumulate``); every step's kinematics follow, and the positions are the running sum,
+again with ``np.add.accumulate``, of the very terms each step adds, in its order.  A step is
+*right* when its start speed is the previous step's end speed and the desired speed at its
+start state is the one used, bit for bit; the right steps are taken, up to the first random
+stop or stop point ahead or the profile's end, and for the rest the pass is repeated with the
+desired speeds it found (at most :data:`MAX_SWEEPS` passes; steady cruise needs one, a window
+that crosses a segment or brakes for a lower limit a few).  So the result is the step loop's,
+bit for bit (``windows=False`` runs that loop; tests/scene/test_motion_windows.py compares
+them), while the Python cost is per window, not per step.  A profile at rest takes its whole
+wait at once; braking, stop points and the step after a wait take single steps (the step loop's
+body, vectorised over the profiles that need it).
 
 Cost follows the trips: a profile is stepped from its start until it is done (past its length)
 or reaches its own horizon (the scene's end), and then leaves the active set, so work and
