@@ -30,7 +30,7 @@ from typing import Mapping
 import numpy as np
 
 from . import _text as _cells
-from ._io import (iso_utc, n_rows, parse_epoch, read_source, source_name,
+from ._io import (n_rows, parse_epoch, read_source, source_name,
                   write_chunks)
 from .errors import FormatError, where
 
@@ -131,7 +131,7 @@ def iter_csv(table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str,
     t = np.asarray(table["time_s"], dtype=np.float64)
     for a, b in _cells.row_chunks(len(order), rows):
         sel = order[a:b]
-        pieces: list = [_cells.ascii_fixed(iso_utc(epoch, t[sel]))]
+        pieces: list = [_cells.utc_cells(epoch, t[sel])]
         for c in names:
             pieces += [",", _field(table[c], cols[c], sel)]
         pieces.append("\n")

@@ -36,7 +36,7 @@ from typing import Iterator, Mapping, Sequence
 import numpy as np
 
 from . import _text as _cells
-from ._io import iso_utc, n_rows, parse_epoch, read_source, source_name, write_chunks
+from ._io import n_rows, parse_epoch, read_source, source_name, write_chunks
 from .csvtable import COLUMNS
 from .errors import FormatError, where
 
@@ -120,8 +120,8 @@ def _detection_blocks(dets: Mapping[str, np.ndarray], epoch) -> Iterator[bytes]:
         for c, nm in zip(props, names):
             pieces += [nm, _json_field(dets[c], rows)]
         if epoch is not None and "time_s" in dets:
-            pieces += [',"time_utc":"', _cells.ascii_fixed(
-                iso_utc(epoch, np.asarray(dets["time_s"], np.float64)[a:b])), '"']
+            pieces += [',"time_utc":"', _cells.utc_cells(
+                epoch, np.asarray(dets["time_s"], np.float64)[a:b]), '"']
         pieces.append("}},\n")
         yield _cells.join(pieces, m)[:-2]
 

@@ -37,7 +37,7 @@ import numpy as np
 from lxml import etree
 
 from . import _text as _cells
-from ._io import iso_utc, n_rows, source_name, write_chunks
+from ._io import n_rows, source_name, write_chunks
 from .errors import FormatError, where
 from .stanag4607 import resolve_meta
 
@@ -223,7 +223,7 @@ def iter_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarr
         empty = counts[g0:g1] == 0
         opening, o_off = _cells.join_rows(
             ["  <Dwell"] + _attrs(dcols, DWELL_COLUMNS, dsel)
-            + [' timeUtc="', _cells.ascii_fixed(iso_utc(epoch, dcols["time_s"][dsel].astype(float))),
+            + [' timeUtc="', _cells.utc_cells(epoch, dcols["time_s"][dsel]),
                '"', _cells.choice(empty, "/>\n", ">\n")], k)
         tsel = t_order[a:b]
         reports, r_off = _cells.join_rows(

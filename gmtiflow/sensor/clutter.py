@@ -299,8 +299,9 @@ def _poisson_counts(key, dwell_id: np.ndarray, mean: np.ndarray) -> np.ndarray:
     counts = np.zeros(len(dwell_id), dtype=np.int64)
     pos = mean > 0
     if np.any(pos):
-        from scipy import stats   # imported here: scipy.stats costs ~1 s at start-up
-        counts[pos] = stats.poisson.ppf(u[pos], mean[pos]).astype(np.int64)
+        # scipy.stats.poisson.ppf's values from scipy.special: scipy.stats costs ~1 s to import
+        from gmtiflow.sensor.noise import poisson_ppf
+        counts[pos] = poisson_ppf(u[pos], mean[pos]).astype(np.int64)
     return counts
 
 

@@ -482,3 +482,28 @@ def test_stage_region_draws_are_the_same_whatever_the_chunking():
     assert len(outs[0]["x_m"]) > 100
     for c in ("dwell_id", "x_m", "y_m", "range_rate_mps", "snr_db"):
         assert np.array_equal(outs[0][c], outs[1][c]), c
+
+
+def test_drawing_false_alarms_does_not_import_scipy_stats():
+    """scipy.stats costs ~1 s of import (issue 18: it was most of what clutter cost a run): the
+    Poisson counts come from scipy.special with scipy.stats' values.  Checked in a fresh
+    interpreter, so the test does not depend on what else this process imported."""
+    import subprocess
+    import sys
+    probe = ("import sys, numpy as np\n"
+             "from gmtiflow.sensor import clutter as cl\n"
+             "fp = [cl.annular_sector_polygon([0, 0], 1e4, 2e4, 0.0, 0.2)] * 5\n"
+             "t = cl.false_alarms(cl.ClutterConfig(fov_density_per_km2=2.0), 1, np.arange(5), fp)\n"
+             "assert len(t['x_m']) > 0\n"
+             "print('scipy.stats' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
+
+
+def test_poisson_counts_are_scipy_stats_quantiles_bit_for_bit():
+    g = np.random.default_rng(2)
+    u = g.uniform(size=200_000)
+    mean = 10 ** g.uniform(-4, 6, 200_000)
+    from gmtiflow.sensor.noise import poisson_ppf
+    assert np.array_equal(poisson_ppf(u, mean), stats.poisson.ppf(u, mean))
