@@ -11,8 +11,12 @@
    (best of 2), the per-dwell cost at 10 vehicles (the fixed cost) and the log-log slopes
    (target <= 1.1 from 1k to 10k, fixed cost <= 0.2 ms per dwell).  CPU time, not wall
    time: the development machine is shared.
+5. ``--run RUN.h5``: the tracker stage (``track()``) and the metrics (``evaluate()``) as the
+   pipeline runs them, on the /detections, /dwells, /truth, /looks ... of a stored run (e.g. the
+   issue-18 1,000-vehicle scene made with ``report=none export=none``): CPU and wall seconds,
+   median of ``--repeats``, the load printed with each.
 
-Run:  PYTHONPATH=. python benchmarks/metrics_throughput.py [--scaling]
+Run:  PYTHONPATH=. python benchmarks/metrics_throughput.py [--scaling | --run RUN.h5]
 """
 from __future__ import annotations
 
@@ -71,6 +75,44 @@ def scaling() -> None:
           f"(target <= 1.1)")
 
 
+def run_file(path: str, repeats: int) -> None:
+    """track() and evaluate() on a stored run, as gmtiflow.stages runs them."""
+    from gmtiflow import frames
+    from gmtiflow.store import open_run, read_table
+    with open_run(path) as f:
+        attrs = dict(f.attrs)
+        tables = {n: dict(read_table(f, n)) for n in ("detections", "dwells", "truth", "looks",
+                                                      "vehicles", "platform")}
+    origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
+                           float(attrs.get("origin_height_m", 0.0)))
+    first = np.asarray(tables["platform"]["sensor_id"]) == 0
+    plat = {c: np.asarray(v)[first] for c, v in tables["platform"].items()}
+    last_dwell_s = float(np.max(tables["dwells"]["time_s"]))
+    print(f"{path}: {len(tables['dwells']['dwell_id'])} dwells, "
+          f"{len(tables['detections']['dwell_id'])} detections, "
+          f"{len(tables['truth']['time_s'])} truth samples")
+    times = {"track": [], "evaluate": []}
+    for _ in range(repeats):
+        load = os.getloadavg()[0]
+        c0, w0 = time.process_time(), time.perf_counter()
+        tracks = track(TrackerConfig(), tables["detections"], tables["dwells"],
+                       int(attrs.get("seed", 0)), origin=origin,
+                       epoch_utc=str(attrs.get("scene_epoch_utc")),
+                       duration_s=float(attrs.get("scene_duration_s", 0.0)))
+        c1, w1 = time.process_time(), time.perf_counter()
+        evaluate(MetricsConfig(), tables["truth"], tracks, tables["looks"], tables["vehicles"],
+                 plat, origin=origin, until_s=last_dwell_s)
+        c2, w2 = time.process_time(), time.perf_counter()
+        times["track"].append((c1 - c0, w1 - w0))
+        times["evaluate"].append((c2 - c1, w2 - w1))
+        print(f"  track {c1 - c0:6.3f} s CPU ({w1 - w0:6.3f} s wall, "
+              f"{1e3 * (c1 - c0) / len(tables['dwells']['dwell_id']):.3f} ms per dwell), "
+              f"evaluate {c2 - c1:6.3f} s CPU ({w2 - w1:6.3f} s wall); load {load:.1f}")
+    for name, got in times.items():
+        print(f"{name}: median {np.median([c for c, _ in got]):.3f} s CPU, "
+              f"{np.median([w for _, w in got]):.3f} s wall over {repeats} runs")
+
+
 def random_tables(n_truth=100, n_tracks=100, n_steps=1000, seed=0, extent_m=10000.0):
     rng = np.random.default_rng(seed)
     grid = np.arange(float(n_steps))
@@ -92,12 +134,17 @@ def random_tables(n_truth=100, n_tracks=100, n_steps=1000, seed=0, extent_m=1000
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scaling", action="store_true", help="the issue-18 scaling figures")
+    ap.add_argument("--run", metavar="RUN.h5", help="time track() and evaluate() on a run file")
+    ap.add_argument("--repeats", type=int, default=3, help="with --run (median)")
     args = ap.parse_args()
     print(f"python {platform.python_version()}, numpy {np.__version__}, "
           f"{platform.processor() or platform.machine()}, load average "
           f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())}")
     if args.scaling:
         scaling()
+        return
+    if args.run:
+        run_file(args.run, args.repeats)
         return
     grid, truth, tracks = random_tables()
     cfg = MetricsConfig()

@@ -64,6 +64,39 @@ def _sin_ratio(theta):
     return np.where(small, 1.0 - theta * theta / 6.0, np.sin(safe) / safe)
 
 
+_WGS84 = pymap3d.Ellipsoid.from_name("wgs84")
+
+
+def _ecef_to_lat_lon_deg(x, y, z):
+    """Latitude and longitude (deg) of ECEF points: ``pymap3d.ecef2geodetic``'s own arithmetic
+    (You 2000, the same operations in the same order, so the same values bit for bit) without
+    the altitude, which :func:`enu_to_geodetic` does not use, and without its masked indexing,
+    which only the degenerate points need (at the poles or the earth's centre: those go to
+    pymap3d itself).  A sensor chunk converts every detection: this halves that cost."""
+    if np.ndim(x) == 0 or np.size(x) == 0:
+        lat, lon, _ = pymap3d.ecef2geodetic(x, y, z)
+        return lat, lon
+    a, b = _WGS84.semimajor_axis, _WGS84.semiminor_axis
+    r = np.sqrt(x**2 + y**2 + z**2)
+    E = np.sqrt(a**2 - b**2)
+    u = np.sqrt(0.5 * (r**2 - E**2) + 0.5 * np.hypot(r**2 - E**2, 2 * E * z))
+    hxy = np.hypot(x, y)
+    huE = np.hypot(u, E)
+    lim_pi2 = math.pi / 2 - np.finfo(float).eps
+    # pymap3d's special cases: isclose(u, 0) | isclose(hxy, 0) (|·| <= 1e-8), |β| near π/2
+    if np.any(np.abs(u) <= 1e-8) or np.any(np.abs(hxy) <= 1e-8):
+        lat, lon, _ = pymap3d.ecef2geodetic(x, y, z)
+        return lat, lon
+    beta = np.arctan(huE / u * z / hxy)
+    beta += ((b * u - a * huE + E**2) * np.sin(beta)) / (a * huE * 1 / np.cos(beta)
+                                                         - E**2 * np.cos(beta))
+    if np.any(np.abs(beta) >= lim_pi2):
+        lat, lon, _ = pymap3d.ecef2geodetic(x, y, z)
+        return lat, lon
+    lat = np.arctan(a / b * np.tan(beta))
+    return np.degrees(lat), np.degrees(np.arctan2(y, x))
+
+
 def enu_to_geodetic(origin: Origin, x_m, y_m, z_m):
     """Map metres -> (lat_deg, lon_deg, height_m) on WGS-84, vectorised (module doc)."""
     x, y, z = (np.asarray(c, float) for c in (x_m, y_m, z_m))
@@ -71,8 +104,8 @@ def enu_to_geodetic(origin: Origin, x_m, y_m, z_m):
     theta = np.hypot(x, y) / radius
     k = _sin_ratio(theta)                 # tangent-plane coordinates of the surface point
     drop = -2.0 * radius * np.sin(0.5 * theta) ** 2
-    lat, lon, _ = pymap3d.enu2geodetic(x * k, y * k, drop, origin.lat_deg, origin.lon_deg,
-                                       origin.height_m)
+    lat, lon = _ecef_to_lat_lon_deg(*pymap3d.enu2ecef(x * k, y * k, drop, origin.lat_deg,
+                                                      origin.lon_deg, origin.height_m))
     h = origin.height_m + z
     return np.asarray(lat, float), np.asarray(lon, float), np.asarray(h, float) + 0.0 * theta
 

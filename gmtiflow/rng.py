@@ -16,6 +16,7 @@ counter in turn; it passes BigCrush as a generator and is ample for Monte-Carlo 
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 
 import numpy as np
@@ -45,8 +46,11 @@ def stream(seed: int, *names: str | int) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(seed_sequence(seed, *names)))
 
 
+@functools.lru_cache(maxsize=4096)
 def counter_key(seed: int, *names: str | int) -> np.uint64:
-    """A 64-bit key for the counter-based draws of the stream named ``names``."""
+    """A 64-bit key for the counter-based draws of the stream named ``names`` (a pure function
+    of its arguments, cached: a SeedSequence costs tens of µs and chunked stages ask again for
+    every chunk)."""
     return np.uint64(seed_sequence(seed, *names).generate_state(1, np.uint64)[0])
 
 
@@ -97,9 +101,29 @@ def pair_normal(key: np.uint64, *counters: np.ndarray) -> np.ndarray:
     The counters are mixed once and hashed with two keys (the same values as two
     :func:`pair_uniform` calls, at about two thirds of the cost).
     """
-    with np.errstate(over="ignore"):
-        k2 = _mix(np.asarray(key, dtype=np.uint64) + _GOLDEN * np.uint64(7))
-    mixed = _mixed_counters(counters)
-    u1 = _unit(_hash_mixed(key, mixed))
-    u2 = _unit(_hash_mixed(k2, mixed))
-    return np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)
+    return Counters(*counters).normal(key)
+
+
+class Counters:
+    """Counter arrays mixed once (the key-independent half of :func:`pair_hash`) for several
+    draws on the same pairs: ``Counters(d, v).uniform(k)`` is ``pair_uniform(k, d, v)`` and
+    ``.normal(k)`` is ``pair_normal(k, d, v)``, bit for bit, and :meth:`take` selects pairs
+    without mixing them again (SplitMix64 on uint64 is most of a draw's cost)."""
+
+    def __init__(self, *counters, mixed=None):
+        self.mixed = _mixed_counters(counters) if mixed is None else mixed
+
+    def take(self, index) -> "Counters":
+        """The draws of pairs ``index`` (an index or mask into the counters' broadcast shape)."""
+        shape = np.broadcast_shapes(*(m.shape for m in self.mixed))
+        return Counters(mixed=[np.broadcast_to(m, shape)[index] for m in self.mixed])
+
+    def uniform(self, key: np.uint64) -> np.ndarray:
+        return _unit(_hash_mixed(key, self.mixed))
+
+    def normal(self, key: np.uint64) -> np.ndarray:
+        with np.errstate(over="ignore"):
+            k2 = _mix(np.asarray(key, dtype=np.uint64) + _GOLDEN * np.uint64(7))
+        u1 = _unit(_hash_mixed(key, self.mixed))
+        u2 = _unit(_hash_mixed(k2, self.mixed))
+        return np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)

@@ -36,3 +36,19 @@ def test_pair_uniform_and_normal_have_their_distributions():
     assert stats.kstest(z, "norm").pvalue > 1e-4
     assert abs(z.mean()) < 4.5 / np.sqrt(n)
     assert abs(z.var() - 1.0) < 4.5 * np.sqrt(2.0 / n)
+
+
+def test_counters_mixed_once_give_the_pair_draws_bit_for_bit():
+    """rng.Counters (counters mixed once, several draws, a subset taken) reproduces
+    pair_uniform / pair_normal exactly: the sensor's draws do not change with it."""
+    g = np.random.default_rng(3)
+    d = g.integers(0, 10**9, 5000)
+    v = g.integers(0, 10**6, 5000)
+    key, key2 = rng.counter_key(7, "a"), rng.counter_key(7, "b")
+    c = rng.Counters(d, v, 4)               # a scalar channel broadcasts as in pair_uniform
+    assert np.array_equal(c.uniform(key), rng.pair_uniform(key, d, v, 4))
+    assert np.array_equal(c.normal(key2), rng.pair_normal(key2, d, v, 4))
+    sel = g.random(5000) < 0.3
+    assert np.array_equal(c.take(sel).normal(key), rng.pair_normal(key, d[sel], v[sel], 4))
+    idx = np.flatnonzero(sel)[::-1]
+    assert np.array_equal(c.take(idx).uniform(key2), rng.pair_uniform(key2, d[idx], v[idx], 4))

@@ -100,19 +100,36 @@ def _small_assignment(rows: list, cols: list, cost: list, gate: float):
         o = sorted(range(n_pairs), key=rows.__getitem__)
         return (np.array([rows[i] for i in o], np.int64),
                 np.array([cols[i] for i in o], np.int64))
-    parent = {}
-
-    def root(x):
-        while parent.setdefault(x, x) != x:
-            x = parent[x]
-        return x
-    for r, c in zip(rows, cols):
-        a, b = root((0, r)), root((1, c))
-        if a != b:
-            parent[b] = a
     comps = {}
-    for i, r in enumerate(rows):
-        comps.setdefault(root((0, r)), []).append(i)
+    lo, hi_r, hi_c = min(min(rows), min(cols)), max(rows), max(cols)
+    if lo >= 0 and hi_r + hi_c < 4096:     # small indices: a list of parents, nodes as ints
+        off = hi_r + 1
+        parent = list(range(off + hi_c + 1))
+        for r, c in zip(rows, cols):
+            while parent[r] != r:
+                r = parent[r]
+            c += off
+            while parent[c] != c:
+                c = parent[c]
+            if r != c:
+                parent[c] = r
+        for i, r in enumerate(rows):
+            while parent[r] != r:
+                r = parent[r]
+            comps.setdefault(r, []).append(i)
+    else:
+        parent = {}
+
+        def root(x):
+            while parent.setdefault(x, x) != x:
+                x = parent[x]
+            return x
+        for r, c in zip(rows, cols):
+            a, b = root((0, r)), root((1, c))
+            if a != b:
+                parent[b] = a
+        for i, r in enumerate(rows):
+            comps.setdefault(root((0, r)), []).append(i)
     out = []
     for idx in comps.values():
         if len(idx) == 1:

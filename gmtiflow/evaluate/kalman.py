@@ -218,3 +218,27 @@ def gated_pairs(x_pos: np.ndarray, HPHt: np.ndarray, z: np.ndarray, R: np.ndarra
         d2 = np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
     inside = d2 < gate
     return ti[inside], di[inside], nu[inside], d2[inside]
+
+
+def dense_gated_pairs(HPHt: np.ndarray, z: np.ndarray, R: np.ndarray, h: np.ndarray,
+                      rr_half_period, gate: float):
+    """:func:`gated_pairs` for a small dwell: the exact pre-test of :func:`innovations` on every
+    (track, detection) pair at once, then the innovations and distances of the pairs that pass
+    it only (not the dense (nt, nd, m) innovations).  The pairs, ``nu`` and ``d2`` are those of
+    :func:`innovations` bit for bit (``tests/evaluate/test_kalman.py``); the same outputs as
+    :func:`gated_pairs` (``ti, di`` sorted by track, then detection)."""
+    m = z.shape[1]
+    dx = z[None, :, 0] - h[:, None, 0]
+    dy = z[None, :, 1] - h[:, None, 1]
+    bound = (np.trace(HPHt[:, :2, :2], axis1=1, axis2=2)[:, None]
+             + np.trace(R[:, :2, :2], axis1=1, axis2=2)[None, :])
+    ti, di = np.nonzero(dx * dx + dy * dy <= gate * bound)
+    nu = z[di] - h[ti]
+    if rr_half_period is not None and m == 3:
+        nu[:, 2] = wrap_symmetric(nu[:, 2], np.asarray(rr_half_period)[di])
+    d2 = np.full(len(ti), np.inf)
+    if len(ti):
+        S = HPHt[ti] + R[di]
+        d2 = np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+    inside = d2 < gate
+    return ti[inside], di[inside], nu[inside], d2[inside]

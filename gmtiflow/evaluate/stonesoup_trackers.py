@@ -26,8 +26,10 @@ tested with 1.9.1), so the filtering, gating and association are Stone Soup's, n
   exponential in their number and did not finish a dense-clutter scene; each track's posterior
   is the moment-matched mixture of its hypotheses (``gm_reduce_single``).
 * Both initiate with ``MultiMeasurementInitiator`` (GNN on the unassociated detections; a track
-  is confirmed and reported after ``min_points`` updates) and delete tracks without an update
-  for ``delete_after_s`` (``UpdateTimeDeleter``).
+  is confirmed and reported after ``min_points`` updates; like a confirmed track, a holding
+  track is only offered the detections of dwells that cover it) and delete tracks without an
+  update for ``delete_after_s`` (``UpdateTimeDeleter``; a JPDA update counts when its detection
+  hypotheses together outweigh the miss).
 * ``StoneSoupGMPHD``: Gaussian-mixture PHD (``GaussianMixtureHypothesiser``, ``PHDUpdater``,
   ``GaussianMixtureReducer``) on the covered components; a birth component per dwell spread over
   its footprint (weight ``birth_weight``); a tag's components above ``extraction_threshold``
@@ -227,12 +229,33 @@ class _AssociatingTracker(_StoneSoupTracker):
             if covered else set()
         dead = self.deleter.delete_tracks(self.tracks, timestamp=when)
         self.tracks -= dead
-        new = self.initiator.initiate(set(detections) - used, when)
+        new = self._initiate(dw, k, set(detections) - used, when)
         for tr in sorted(new, key=_first_det_id):
             self._id(tr)
         self.tracks |= new
         report = [tr for tr in covered if tr not in dead] + sorted(new, key=self._id)
         return self._rows([self._id(tr) for tr in report], t, [tr.state for tr in report])
+
+
+    def _initiate(self, dw, k: int, detections: set, when) -> set:
+        """The initiator's step with only the holding (tentative) tracks this dwell covers.
+
+        Stone Soup's ``MultiMeasurementInitiator`` associates *every* holding track with the
+        dwell's detections and predicts the ones it misses; a GMTI dwell sees a narrow sector,
+        so, as for confirmed tracks, a holding track outside the footprint is neither offered
+        the detections nor missed.  It is still deleted ``delete_after_s`` after its last
+        update.  Without this the initiator's association dominated the run time in clutter
+        (every false alarm holds a track for ``delete_after_s``, and each was hypothesised
+        against each dwell's detections).
+        """
+        held = sorted(self.initiator.holding_tracks, key=_first_det_id)
+        away = {tr for tr, c in zip(held, self._covered_mask(
+            dw, k, [tr.state for tr in held])) if not c}
+        self.initiator.holding_tracks -= away
+        new = self.initiator.initiate(detections, when)
+        away -= self.deleter.delete_tracks(away, timestamp=when)
+        self.initiator.holding_tracks |= away
+        return new
 
 
 class StoneSoupGNN(_AssociatingTracker):
@@ -265,9 +288,11 @@ class StoneSoupJPDA(_AssociatingTracker):
         used = set()
         for track, multi in self.jpda.associate(tracks, detections, when).items():
             states, weights = [], []
+            missed = None
             for hyp in multi:
                 if not hyp:
                     states.append(hyp.prediction)
+                    missed = hyp
                 else:
                     states.append(self.updater.update(hyp))
                     used.add(hyp.measurement)
@@ -275,7 +300,14 @@ class StoneSoupJPDA(_AssociatingTracker):
             means = StateVectors([s.state_vector for s in states])
             covars = np.stack([s.covar for s in states], axis=2)
             mean, covar = gm_reduce_single(means, covars, np.asarray(weights))
-            track.append(GaussianStateUpdate(mean, covar, multi, when))
+            # The deleter counts a state as an update when its hypothesis is truthy, and a
+            # MultipleHypothesis always is (it holds the missed-detection one): a covered JPDA
+            # track was never deleted, coasted on with a growing gate and pulled every plot
+            # of the dwell into one cluster.  It counts as updated when the detections
+            # together are more probable than the miss.
+            p_missed = sum(w for w, h in zip(weights, multi) if not h)
+            track.append(GaussianStateUpdate(
+                mean, covar, multi if p_missed < 0.5 or missed is None else missed, when))
         return used
 
 

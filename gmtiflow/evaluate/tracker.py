@@ -251,12 +251,10 @@ class NNKalmanTracker:
             zmeas, R, zdet, wrap = _measurements(det, didx, plat_pos, cfg)
         if len(didx) and len(ci):
             h, H = _model(xp, tr.z[ci], plat_pos, plat_vel, use_rr)
-            if len(ci) * len(didx) <= DENSE_PAIRS:      # small: every pair at once
-                nu_all, HPHt, d2_all = kalman.innovations(xp, Pp, H, h, zmeas, R, wrap, gate)
-                ti, di = np.nonzero(d2_all < gate)
-                nu, d2 = nu_all[ti, di], d2_all[ti, di]
+            HPHt = H @ Pp @ np.transpose(H, (0, 2, 1))
+            if len(ci) * len(didx) <= DENSE_PAIRS:      # small: every pair's pre-test at once
+                ti, di, nu, d2 = kalman.dense_gated_pairs(HPHt, zmeas, R, h, wrap, gate)
             else:                                        # large: k-d tree candidates
-                HPHt = H @ Pp @ np.transpose(H, (0, 2, 1))
                 ti, di, nu, d2 = kalman.gated_pairs(xp[:, :2], HPHt, zmeas, R, h, wrap, gate)
             for group in (tr.confirmed[ci], ~tr.confirmed[ci]):
                 sel = group[ti] & ~det_taken[di]

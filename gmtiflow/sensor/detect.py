@@ -47,9 +47,12 @@ def detected(uniform, snr, pfa: float):
     return np.log(uniform) < log_pd(snr, pfa)
 
 
-def reported_snr(uniform, snr):
-    """Noise-subtracted detector output z − 1 with z = −(1 + SNR) ln U (linear)."""
-    z = -(1.0 + np.asarray(snr, float)) * np.log(uniform)
+def reported_snr(uniform, snr, log_uniform=None):
+    """Noise-subtracted detector output z − 1 with z = −(1 + SNR) ln U (linear); ``log_uniform``:
+    ln U when the caller has it (the detection decision took it), ``uniform`` is then not read."""
+    if log_uniform is None:
+        log_uniform = np.log(uniform)
+    z = -(1.0 + np.asarray(snr, float)) * log_uniform
     return np.maximum(z - 1.0, SNR_MIN)
 
 

@@ -40,9 +40,12 @@ def scan_loss(scan_rad):
     return c * np.sqrt(c)
 
 
-def transmit_gain(n_elements: int, scan_rad, f_mismatch):
-    """G_t = π N cos^{3/2}(φ_b) f_mismatch (eq. 7), linear."""
-    return math.pi * n_elements * scan_loss(scan_rad) * np.asarray(f_mismatch, float)
+def transmit_gain(n_elements: int, scan_rad, f_mismatch, loss=None):
+    """G_t = π N cos^{3/2}(φ_b) f_mismatch (eq. 7), linear; ``loss``: :func:`scan_loss` of
+    ``scan_rad`` when the caller has it (e.g. looked up per beam), which is then not read."""
+    if loss is None:
+        loss = scan_loss(scan_rad)
+    return math.pi * n_elements * loss * np.asarray(f_mismatch, float)
 
 
 def blind_offset(own_range_rate_mps, blind_speed_mps=None):
@@ -57,14 +60,15 @@ def blind_offset(own_range_rate_mps, blind_speed_mps=None):
     return np.mod(v + 0.5 * blind_speed_mps, blind_speed_mps) - 0.5 * blind_speed_mps
 
 
-def stap_notch(own_range_rate_mps, mdv_mps: float, blind_speed_mps=None):
+def stap_notch(own_range_rate_mps, mdv_mps: float, blind_speed_mps=None, offset=None):
     """STAP receive-gain factor 1 − exp(−ln2 ((ṙ − ṙ_MLC)/v_MDV)²) (eq. 10), in [0, 1).
 
     ``own_range_rate_mps`` is ṙ − ṙ_MLC.  Zero for a stopped or tangential target; ½ at exactly
-    the MDV; repeating at the blind speeds when ``blind_speed_mps`` is given.
+    the MDV; repeating at the blind speeds when ``blind_speed_mps`` is given.  ``offset``: its
+    :func:`blind_offset` when the caller has it (the first two arguments are then not read).
     """
     mdv = np.asarray(mdv_mps, float)
-    off = blind_offset(own_range_rate_mps, blind_speed_mps)
+    off = blind_offset(own_range_rate_mps, blind_speed_mps) if offset is None else offset
     x = off / np.where(mdv > 0, mdv, 1.0)
     return np.where(mdv > 0, -np.expm1(-LN2 * x * x), 1.0)   # width 0: no notch
 
@@ -88,12 +92,15 @@ def mainlobe_clutter_halfwidth_mps(platform_vel, scan_rad, el_rad, b, h, u, half
     return 0.5 * np.abs(sum(platform_vel[k] * (lp[k] - lm[k]) for k in range(3)))
 
 
-def clutter_band_gain(offset_mps, band_mps, blind_speed_mps=None):
+def clutter_band_gain(offset_mps, band_mps, blind_speed_mps=None, folded=None):
     """Receive-gain factor of a non-adaptive Doppler filter that rejects the main-lobe clutter
     band |Δ| < band (Δ = ṙ − ṙ_MLC of the beam centre, folded to the nearest blind speed):
     0 inside, then 1 − exp(−ln2 ((|Δ| − band)/(band/2))²) (half power half a band outside);
-    1 everywhere for a band of 0 (no clutter)."""
+    1 everywhere for a band of 0 (no clutter).  ``folded``: :func:`blind_offset` of
+    ``offset_mps`` when the caller has it."""
     band = np.asarray(band_mps, float)
-    excess = np.abs(blind_offset(offset_mps, blind_speed_mps)) - band
+    if folded is None:
+        folded = blind_offset(offset_mps, blind_speed_mps)
+    excess = np.abs(folded) - band
     x = np.maximum(excess, 0.0) / np.where(band > 0, 0.5 * band, 1.0)
     return np.where(band > 0, -np.expm1(-LN2 * x * x), 1.0)

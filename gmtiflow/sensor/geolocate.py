@@ -74,19 +74,25 @@ def to_map(platform_xyz, o, radius_m, height_m=None):
     up = radius_m + pz + o[2]
     theta = np.arctan2(horiz, up)
     scale = np.divide(radius_m * theta, horiz, out=np.ones_like(horiz), where=horiz > 0)
-    z = np.hypot(horiz, up) - radius_m
-    if height_m is not None:
-        z = np.where(np.isfinite(height_m), height_m, z)
+    if height_m is None:
+        z = np.hypot(horiz, up) - radius_m
+    else:       # the height where given; |o + centre offset| − R only where not
+        height_m = np.asarray(height_m, float)
+        z = np.array(np.broadcast_to(height_m, np.broadcast(horiz, height_m).shape))
+        off = ~np.isfinite(z)
+        if np.any(off):
+            z[off] = (np.hypot(np.broadcast_to(horiz, z.shape)[off],
+                               np.broadcast_to(up, z.shape)[off]) - radius_m)
     return px + o[0] * scale, py + o[1] * scale, z
 
 
 def geolocate(platform_xyz, range_m, az_rad, b, h, u, terrain, iterations: int = 8,
-              tol_m: float = 0.1, radius_m=DEFAULT_RADIUS_M):
+              tol_m: float = 0.1, radius_m=DEFAULT_RADIUS_M, *, elevation: bool = True):
     """Measured ground points ``(x, y, z)``, their antenna elevations and a ``reached`` flag.
 
     ``platform_xyz``, ``b``, ``h``, ``u`` are 3-tuples of arrays; ``range_m`` and ``az_rad``
     (antenna frame) arrays of the same shape.  ``terrain`` provides ``flat`` and
-    ``height_at(x_m, y_m)``.
+    ``height_at(x_m, y_m)``.  ``elevation=False``: the elevations are not computed (None).
     """
     range_m = np.asarray(range_m, float)
     az_rad = np.asarray(az_rad, float)
@@ -104,7 +110,7 @@ def geolocate(platform_xyz, range_m, az_rad, b, h, u, terrain, iterations: int =
             if np.all(np.abs(new_ground - ground) < tol_m):
                 break
             ground = new_ground
-    return p, np.arctan2(se, ce), reached
+    return p, (np.arctan2(se, ce) if elevation else None), reached
 
 
 def geolocate_world_azimuth(platform_xyz, range_m, azimuth_rad, terrain, iterations: int = 8,

@@ -102,8 +102,9 @@ def _unit(o, sign=1.0):
     rng = np.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2])
     inv = 1.0 / np.maximum(rng, MIN_RANGE_M)
     small = rng < MIN_RANGE_M
-    los = ((o[0] * inv, o[1] * inv, o[2] * inv) if sign > 0
-           else (-o[0] * inv, -o[1] * inv, -o[2] * inv))
+    if sign < 0:
+        inv = -inv           # (−o)·inv = o·(−inv) exactly: IEEE products are sign-symmetric
+    los = (o[0] * inv, o[1] * inv, o[2] * inv)
     if np.any(small):
         los = (np.where(small, 0.0, los[0]), np.where(small, 0.0, los[1]),
                np.where(small, -1.0, los[2]))

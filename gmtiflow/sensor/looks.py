@@ -28,6 +28,14 @@ def _azimuth(east, north):
     return a
 
 
+def _azimuths(east, north):
+    """(:func:`_azimuth`, and arctan2(east, north) itself in [−π, π] as the RCS aspect uses it)."""
+    raw = np.arctan2(east, north)
+    a = raw.copy()
+    a[raw < 0] += 2.0 * np.pi
+    return a, raw
+
+
 def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     """Detections and looks of some vehicles over the chunk's revisits (chunk-local det ids),
     and the number of (dwell, target) pairs evaluated."""
@@ -40,10 +48,11 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     n = len(dl)
     veh = veh.astype(np.int64)
     rng_m, az, el, rr = (geo[k] for k in ("range_m", "az", "el", "rr"))
-    beam = sched.beam_scan_rad[dl % n_d]
+    beam_index = dl % n_d
+    beam = sched.beam_scan_rad[beam_index]
     dwell_id = dwell_ids[dl]
     time_s = poses.time_s[dl]
-    true_az_world = _azimuth(geo["los_e"], geo["los_n"])
+    true_az_world, los_az = _azimuths(geo["los_e"], geo["los_n"])
     in_fp = geo["in_fp"]
 
     # --- visibility: field of view, invisible road, terrain -------------------------------
@@ -56,7 +65,10 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     ci = np.flatnonzero(cand)
     p_ci = antenna.take(poses.pos, dl[ci])
     t_ci = tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m"))
-    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor, poses.radius_m)
+    reach_p = visibility.horizon_distance_m(poses.pos[2], cfg.horizon_k_factor,
+                                            poses.radius_m)      # per dwell, not per pair
+    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor, poses.radius_m,
+                                          platform_reach_m=reach_p[dl[ci]])
     if not getattr(terrain, "flat", False):
         cc = np.flatnonzero(clear[ci])
         clear[ci[cc]] = visibility.terrain_clear(terrain, antenna.take(p_ci, cc),
@@ -70,9 +82,14 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     pd_col = np.zeros(n)
     det_local = np.full(n, -1, np.int64)
     scan_angle = az[vis] if instant else beam[vis]
-    f_mis = 1.0 if instant else gain.mismatch(geo.at("sin_az", vis), np.sin(beam[vis]),
-                                              cfg.beamwidth_sine)
-    g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis)
+    if instant:
+        f_mis, loss = 1.0, None
+    else:   # per beam position, looked up: the same values as per pair
+        b_vis = beam_index[vis]
+        f_mis = gain.mismatch(geo.at("sin_az", vis), np.sin(sched.beam_scan_rad)[b_vis],
+                              cfg.beamwidth_sine)
+        loss = gain.scan_loss(sched.beam_scan_rad)[b_vis]
+    g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis, loss)
     mdv = poses.mdv[dl[vis]]
     if cfg.stap:
         own_rr = geo.at("own_rr", vis)                                 # ṙ − ṙ_MLC at the target
@@ -81,21 +98,24 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
         l_bc = antenna.direction(scan_angle, el[vis], antenna.take(poses.b, dv),
                                  antenna.take(poses.h, dv), antenna.take(poses.u, dv))
         own_rr = rr[vis] + antenna.dot(antenna.take(poses.vel, dv), l_bc)
+    folded = gain.blind_offset(own_rr, cfg.blind_speed_mps)   # for the gain and the misses
     if cfg.stap:
-        g_r = g_t * gain.stap_notch(own_rr, mdv, cfg.blind_speed_mps)
+        g_r = g_t * gain.stap_notch(own_rr, mdv, cfg.blind_speed_mps, offset=folded)
     else:
-        g_r = g_t * gain.clutter_band_gain(own_rr, mdv, cfg.blind_speed_mps)
-    rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo.at("heading_rad", vis),
-                                geo.at("los_e", vis), geo.at("los_n", vis))
+        g_r = g_t * gain.clutter_band_gain(own_rr, mdv, cfg.blind_speed_mps, folded=folded)
+    rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo.at("heading_rad", vis), None, None,
+                                los_azimuth_rad=los_az[vis])
     s_db = snr.snr_db(cfg, rng_m[vis], g_t, g_r, rcs_v)
     s_lin = snr.db_to_linear(s_db)
     lpd = detect.log_pd(s_lin, cfg.pfa)
-    uni = rng.pair_uniform(rng.counter_key(seed, "sensor", "pd"), dwell_id[vis], veh[vis])
-    hit = np.log(uni) < lpd
+    pairs = rng.Counters(dwell_id[vis], veh[vis])       # mixed once for all four draws
+    uni = pairs.uniform(rng.counter_key(seed, "sensor", "pd"))
+    log_u = np.log(uni)
+    hit = log_u < lpd
     snr_db_col[vis] = s_db
     pd_col[vis] = np.exp(lpd)
     miss = vis[~hit]
-    blind = np.abs(gain.blind_offset(own_rr[~hit], cfg.blind_speed_mps)) < mdv[~hit]
+    blind = np.abs(folded[~hit]) < mdv[~hit]
     outcome[miss] = np.where(blind, Outcome.DOPPLER_BLIND, Outcome.PD_MISS)
 
     # --- detections: reported SNR, errors, geolocation ----------------------------------
@@ -103,17 +123,19 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     k = d.size
     outcome[d] = Outcome.DETECTED
     det_local[d] = np.arange(k)
-    snr_rep = detect.reported_snr(uni[hit], s_lin[hit])
-    bw_rad = scan.broadened_beamwidth_rad(cfg, scan_angle[hit])
+    snr_rep = detect.reported_snr(None, s_lin[hit], log_uniform=log_u[hit])
+    bw_rad = (scan.broadened_beamwidth_rad(cfg, scan_angle[hit]) if instant else
+              scan.broadened_beamwidth_rad(cfg, sched.beam_scan_rad)[b_vis[hit]])
     s_r, s_az, s_rr = measurement.sigmas(cfg, snr_rep, bw_rad)
-    e_r, e_az, e_rr = measurement.draw_errors(seed, dwell_id[d], veh[d], s_r, s_az, s_rr)
+    e_r, e_az, e_rr = measurement.draw_errors(seed, None, None, s_r, s_az, s_rr,
+                                              counters=pairs.take(hit))
     r_meas = np.maximum(rng_m[d] + e_r, 0.0)
     az_meas = az[d] + e_az
     dd = dl[d]
     ppd = antenna.take(poses.pos, dd)
     ground, _, _ = geolocate.geolocate(ppd, r_meas, az_meas, antenna.take(poses.b, dd),
                                        antenna.take(poses.h, dd), antenna.take(poses.u, dd),
-                                       terrain, radius_m=poses.radius_m)
+                                       terrain, radius_m=poses.radius_m, elevation=False)
     lat, lon, hgt = frames.enu_to_geodetic(origin, *ground)
     detections = {
         "det_id": np.arange(k, dtype=np.int64),

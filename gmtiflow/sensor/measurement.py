@@ -51,12 +51,13 @@ def sigmas(cfg: SensorConfig, snr, beamwidth_rad):
     return s_r, s_az, s_rr
 
 
-def draw_errors(seed: int, dwell_id, vehicle_id, s_r, s_az, s_rr):
-    """Zero-mean Gaussian (range, azimuth, range-rate) errors for each pair."""
-    e_r = s_r * rng.pair_normal(rng.counter_key(seed, "sensor", "error_range"), dwell_id,
-                                vehicle_id)
-    e_az = s_az * rng.pair_normal(rng.counter_key(seed, "sensor", "error_azimuth"), dwell_id,
-                                  vehicle_id)
-    e_rr = s_rr * rng.pair_normal(rng.counter_key(seed, "sensor", "error_range_rate"), dwell_id,
-                                  vehicle_id)
+def draw_errors(seed: int, dwell_id, vehicle_id, s_r, s_az, s_rr, *, counters=None):
+    """Zero-mean Gaussian (range, azimuth, range-rate) errors for each pair.
+
+    ``counters``: the pairs' :class:`gmtiflow.rng.Counters` when the caller has them mixed
+    already (the same draws; ``dwell_id`` and ``vehicle_id`` are then not read)."""
+    c = rng.Counters(dwell_id, vehicle_id) if counters is None else counters
+    e_r = s_r * c.normal(rng.counter_key(seed, "sensor", "error_range"))
+    e_az = s_az * c.normal(rng.counter_key(seed, "sensor", "error_azimuth"))
+    e_rr = s_rr * c.normal(rng.counter_key(seed, "sensor", "error_range_rate"))
     return e_r, e_az, e_rr

@@ -175,7 +175,7 @@ def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
                                                antenna.take(poses.u, dl))
     # ṙ − ṙ_MLC: the target's velocity (its own local frame) on the LOS seen there
     own_rr = antenna.dot(geometry.true_velocity(vel_t, pos_t[2], poses.radius_m), los_t)
-    vel_p = geometry.true_velocity(antenna.take(poses.vel, dl), plat[2], poses.radius_m)
+    vel_p = antenna.take(geometry.true_velocity(poses.vel, poses.pos[2], poses.radius_m), dl)
     rr = own_rr + geometry.clutter_range_rate(vel_p, los)   # ṙ
     return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],
             "az": az, "el": el, "sin_az": sin_az, "lb": lb, "own_rr": own_rr,

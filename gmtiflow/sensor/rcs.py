@@ -147,10 +147,12 @@ class RcsModels:
             kind_codes[i] = code
         return kind_codes[inverse.ravel()].astype(np.int64)
 
-    def rcs_dbsm(self, type_code, vehicle_heading_rad, los_east, los_north):
+    def rcs_dbsm(self, type_code, vehicle_heading_rad, los_east, los_north, los_azimuth_rad=None):
         """RCS (dBsm) of each pair from its type code, heading and line of sight.
 
         The aspect angle is only computed for the pairs whose type has a table.
+        ``los_azimuth_rad``: ``arctan2(los_east, los_north)`` when the caller has it (as
+        arctan2 gives it, in [−π, π]); the LOS components are then not read.
         """
         type_code = np.asarray(type_code)
         out = self.constant_dbsm[type_code]
@@ -160,7 +162,8 @@ class RcsModels:
             sel = np.flatnonzero(type_code == code)
             if sel.size:
                 # np.interp with a period wraps the angle itself: no np.mod needed here
-                aspect = (np.asarray(vehicle_heading_rad)[sel]
-                          - np.arctan2(np.asarray(los_east)[sel], np.asarray(los_north)[sel]))
+                los_az = (np.arctan2(np.asarray(los_east)[sel], np.asarray(los_north)[sel])
+                          if los_azimuth_rad is None else np.asarray(los_azimuth_rad)[sel])
+                aspect = np.asarray(vehicle_heading_rad)[sel] - los_az
                 out[sel] = np.interp(aspect, table[0], table[1], period=2.0 * np.pi)
         return out

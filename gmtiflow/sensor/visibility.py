@@ -57,10 +57,18 @@ def horizon_distance_m(height_m, k_factor: float, radius_m: float = EARTH_RADIUS
     a = k_factor * radius_m
     h = np.maximum(np.asarray(height_m, float), 0.0)
     # acos(a/(a+h)) = atan(√(2ah + h²)/a), stable for small h
+    if h.ndim == 1 and h.size > 64:      # points on the surface (flat ground) are exactly 0
+        up = np.flatnonzero(h)
+        out = np.zeros(h.shape)
+        if up.size:
+            hu = h[up]
+            out[up] = a * np.arctan(np.sqrt(hu * (2.0 * a + hu)) / a)
+        return out
     return a * np.arctan(np.sqrt(h * (2.0 * a + h)) / a)
 
 
-def within_horizon(platform_xyz, target_xyz, k_factor: float, radius_m: float = EARTH_RADIUS_M):
+def within_horizon(platform_xyz, target_xyz, k_factor: float, radius_m: float = EARTH_RADIUS_M,
+                   platform_reach_m=None):
     """True where a point is above the radar horizon of the platform (smooth k-earth).
 
     Heights are map ``z`` (above the sphere through the scene origin, :mod:`gmtiflow.frames`);
@@ -71,9 +79,13 @@ def within_horizon(platform_xyz, target_xyz, k_factor: float, radius_m: float = 
     on the k-earth (:func:`gmtiflow.sensor.geometry.grazing_angle_rad` with radius k·R) of a
     ground point reaches 0.  At 10 m altitude a ground point is seen out to 13 km, at 6 km
     altitude out to 319 km, at 20 km out to 583 km.
+
+    ``platform_reach_m``: the platform's :func:`horizon_distance_m`, when the caller has it (one
+    per dwell rather than per pair); ``platform_xyz[2]`` is then not read.
     """
     dx = np.asarray(target_xyz[0], float) - np.asarray(platform_xyz[0], float)
     dy = np.asarray(target_xyz[1], float) - np.asarray(platform_xyz[1], float)
-    reach = (horizon_distance_m(platform_xyz[2], k_factor, radius_m)
-             + horizon_distance_m(target_xyz[2], k_factor, radius_m))
+    if platform_reach_m is None:
+        platform_reach_m = horizon_distance_m(platform_xyz[2], k_factor, radius_m)
+    reach = platform_reach_m + horizon_distance_m(target_xyz[2], k_factor, radius_m)
     return dx * dx + dy * dy <= reach * reach

@@ -38,10 +38,12 @@ def test_gated_pairs_are_the_dense_pairs_bit_for_bit(seed):
     gate = 16.27
     nu_all, HPHt, d2_all = kalman.innovations(x, P, H, h, z, R, wrap, gate)
     ti, di = np.nonzero(d2_all < gate)
-    sti, sdi, snu, sd2 = kalman.gated_pairs(x[:, :2], HPHt, z, R, h, wrap, gate)
     assert len(ti) > 20
-    assert np.array_equal(sti, ti) and np.array_equal(sdi, di)
-    assert np.array_equal(sd2, d2_all[ti, di]) and np.array_equal(snu, nu_all[ti, di])
+    for found in (kalman.gated_pairs(x[:, :2], HPHt, z, R, h, wrap, gate),
+                  kalman.dense_gated_pairs(HPHt, z, R, h, wrap, gate)):
+        sti, sdi, snu, sd2 = found
+        assert np.array_equal(sti, ti) and np.array_equal(sdi, di)
+        assert np.array_equal(sd2, d2_all[ti, di]) and np.array_equal(snu, nu_all[ti, di])
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -154,3 +156,53 @@ def test_sparse_ospa_is_the_dense_ospa(monkeypatch, m, n):
         assert sparse["ospa"] == dense["ospa"]
     else:                                        # the same terms summed in another order
         assert sparse["ospa"] == pytest.approx(dense["ospa"], rel=1e-13)
+
+
+def test_close_pairs_are_every_pair_closer_than_the_cutoff():
+    # the cell grid (and the k-d tree used when cell keys would overflow) find exactly the
+    # pairs of one step closer than c, whatever their cell; brute force as the reference
+    from gmtiflow.evaluate import ospa
+    rng = np.random.default_rng(5)
+    X = rng.uniform(-1000, 1000, (400, 2))
+    Y = np.r_[X[:200] + rng.normal(0, 150, (200, 2)), rng.uniform(-1000, 1000, (300, 2))]
+    Y[7] = [np.nan, 0.0]
+    sx, sy = rng.integers(0, 3, 400), rng.integers(0, 3, 500)
+    diff = X[:, None, :] - Y[None, :, :]
+    D = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
+    want_r, want_k = np.nonzero((D < 200.0) & (sx[:, None] == sy[None, :]))
+    for finder in (ospa._close_pairs, ospa._close_pairs_tree):
+        r, k, d = finder(X, Y, 200.0, sx, sy)
+        assert len(r) > 100
+        assert np.array_equal(r, want_r) and np.array_equal(k, want_k)
+        assert np.array_equal(d, D[want_r, want_k])
+
+
+def test_ospa_series_solved_together_is_step_by_step(monkeypatch):
+    # the steps above DENSE_PAIRS share one pair search and one assignment: the same numbers as
+    # scoring each step on its own
+    from gmtiflow.evaluate import ospa
+    rng = np.random.default_rng(9)
+    n_steps, parts_t, parts_k = 12, [], []
+    for s in range(n_steps):
+        m, n = int(rng.integers(0, 90)), int(rng.integers(0, 90))
+        X = rng.uniform(0, 2000, (m, 2))
+        Y = np.r_[X[: min(m, n)] + rng.normal(0, 60, (min(m, n), 2)),
+                  rng.uniform(0, 2000, (n - min(m, n), 2))]
+        parts_t.append((np.full(m, s), X))
+        parts_k.append((np.full(n, s), Y))
+    truth_at = {"step": np.concatenate([p[0] for p in parts_t]),
+                "x_m": np.concatenate([p[1][:, 0] for p in parts_t]),
+                "y_m": np.concatenate([p[1][:, 1] for p in parts_t])}
+    tracks_at = {"step": np.concatenate([p[0] for p in parts_k]),
+                 "x_m": np.concatenate([p[1][:, 0] for p in parts_k]),
+                 "y_m": np.concatenate([p[1][:, 1] for p in parts_k])}
+    monkeypatch.setattr(ospa, "DENSE_PAIRS", 100)
+    got = ospa.series(truth_at, tracks_at, np.arange(float(n_steps)), 200.0, 2.0)
+    assert (got["n_truth"] * got["n_tracks"] > 100).sum() >= 6
+    for s in range(n_steps):
+        one = ospa.ospa_gospa(parts_t[s][1], parts_k[s][1], 200.0, 2.0)
+        for key, col in (("ospa", "ospa_m"), ("gospa", "gospa_m"),
+                         ("localisation", "gospa_localisation"), ("missed", "gospa_missed"),
+                         ("false", "gospa_false"), ("n_assigned", "n_assigned")):
+            assert got[col][s] == one[key], (s, key)
+

@@ -108,3 +108,49 @@ def test_jpda_marginals_equal_full_enumeration_when_gates_overlap(monkeypatch):
         assert np.array_equal(ehm[k], enum[k]), k
     for k in ("x_m", "y_m", "vx_mps", "vy_mps", "cov_xx_m2"):
         assert np.allclose(ehm[k], enum[k], rtol=1e-9, atol=1e-6), k
+
+
+@pytest.mark.parametrize("kind", ["StoneSoupGNN", "StoneSoupJPDA"])
+def test_a_track_that_stops_being_detected_is_deleted_while_covered(kind):
+    # Vehicle 0 is never detected after t = 30 s but stays in the beams: its track must go
+    # delete_after_s (25 s) after its last update.  (JPDA's soft update once counted as an
+    # update with a measurement in every covering dwell, so such a track coasted on forever.)
+    blind = gmti_scene(n_vehicles=3, n_revisits=30, blind={0: [(30.0, 1e9)]}, seed=5)
+    tracks = run(blind, kind)
+    truth = blind["truth"]
+    mine = truth["vehicle_id"] == 0
+    late = tracks["time_s"] > 30.0 + 25.0 + 10.0
+    assert late.any()
+    for t, x, y in zip(tracks["time_s"][late], tracks["x_m"][late], tracks["y_m"][late]):
+        i = np.flatnonzero(mine)[np.argmin(np.abs(truth["time_s"][mine] - t))]
+        assert np.hypot(x - truth["x_m"][i], y - truth["y_m"][i]) > 500.0, t
+    # ... and it was held before: some track within 300 m of it at 25 s
+    at25 = np.flatnonzero(mine)[np.argmin(np.abs(truth["time_s"][mine] - 25.0))]
+    then = np.abs(tracks["time_s"] - 25.0) <= 5.0
+    assert np.min(np.hypot(tracks["x_m"][then] - truth["x_m"][at25],
+                           tracks["y_m"][then] - truth["y_m"][at25])) < 300.0
+
+
+def test_holding_tracks_outside_the_beam_are_left_alone_but_still_expire(scene):
+    # The initiator only sees the holding tracks a dwell covers; one outside the footprint is
+    # neither updated nor predicted, and is deleted delete_after_s after its last update.
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.hypothesis import SingleHypothesis
+    from stonesoup.types.track import Track
+    from stonesoup.types.update import GaussianStateUpdate
+    tr = sst.StoneSoupGNN(delete_after_s=25.0)
+    b = next(b for b in batches(scene["detections"], scene["dwells"]) if b.n_detections >= 1)
+    t = float(b.dwells["time_s"][0])
+
+    def far_track(age_s):                  # 60 km east of the scene: outside every beam
+        when = sst._stamp(t - age_s)
+        det = Detection(np.array([[60e3], [0.0]]), timestamp=when,
+                        measurement_model=tr.default_model)
+        return Track([GaussianStateUpdate(np.array([[60e3], [0.0], [0.0], [0.0]]),
+                                          np.diag([1e4, 1.0, 1e4, 1.0]),
+                                          SingleHypothesis(None, det), when)])
+    old, young = far_track(30.0), far_track(5.0)
+    tr.initiator.holding_tracks = {old, young}
+    tr._initiate(b.dwells, 0, set(tr._detections(b.dwells, 0, b.detections)), sst._stamp(t))
+    assert young in tr.initiator.holding_tracks and len(young) == 1     # untouched
+    assert old not in tr.initiator.holding_tracks                       # expired
