@@ -128,3 +128,35 @@ def test_join_keeps_nul_bytes_of_the_text():
                           _text.float_cells(np.array([1.5, -2.0, 1e-7])), b"\n"], 3)
         sep = b"\0" if text == b"ab" else b","
         assert got == text + sep + b"1.5\n-2.0\n" + text + sep + b"1e-07\n"
+
+
+def _near_decimals(rng, count):
+    """Doubles at and beside p-digit decimals and their midpoints (p = 14..18): the values where
+    the 15/16/17-digit decision is closest to its tolerance."""
+    from decimal import Decimal, getcontext
+    getcontext().prec = 60
+    out = []
+    for _ in range(count):
+        p = int(rng.integers(14, 19))
+        e = int(rng.integers(-30, 30)) if rng.random() < 0.8 else int(rng.integers(-300, 300))
+        d = Decimal(int(rng.integers(10 ** (p - 1), 10 ** p)))
+        if rng.random() < 0.5:
+            d += Decimal(1) / 2
+        x = float(d * Decimal(10) ** (e - p + 1))
+        out += [x, np.nextafter(x, 0.0), np.nextafter(x, np.inf)]
+    x = np.array(out)
+    return x[np.isfinite(x) & (x > 2.2250738585072014e-308)]
+
+
+def test_double_precision_screen_decides_as_the_extended_precision_proof():
+    """Where _proof_fast decides a value's digits, they are _proof's, including values next to
+    decimals and midpoints; it leaves only a small share of such values to _proof."""
+    rng = np.random.default_rng(11)
+    x = np.concatenate([_near_decimals(rng, 4000), np.abs(rng.normal(size=20000)) * 10.0 **
+                        rng.integers(-30, 30, 20000), 2.0 ** np.arange(-1000, 1000)])
+    m_fast, e_fast, done = _text._proof_fast(x)
+    m, e, proven = _text._proof(x)
+    assert proven[done].all()
+    np.testing.assert_array_equal(m_fast[done], m[done])
+    np.testing.assert_array_equal(e_fast[done], e[done])
+    assert done.mean() > 0.9
