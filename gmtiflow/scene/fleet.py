@@ -49,6 +49,7 @@ class Fleet:
         self._vx_off = np.concatenate([[0], np.cumsum([len(r.s_m) for r in routes],
                                                       dtype=np.int64)]).astype(np.int64)
         self._vx_xyz = np.concatenate([r.xyz_m for r in routes]) if routes else np.zeros((0, 3))
+        self._vx_xyz_t = np.ascontiguousarray(self._vx_xyz.T)
         self._vx_s = np.concatenate([r.s_m for r in routes]) if routes else np.zeros(0)
         pad = lambda a, fill: np.concatenate([a, [fill]])  # noqa: E731
         self._seg_edge = (np.concatenate([pad(r.edge_id, -1) for r in routes])
@@ -116,15 +117,17 @@ class Fleet:
             j = np.clip(j, lo, hi)
             j = np.where((s < self._vx_s[j]) & (j > lo), j - 1, j)
             j = np.where((s >= self._vx_s[j + 1]) & (j < hi), j + 1, j)
-            p0 = self._vx_xyz[j]
-            d = self._vx_xyz[j + 1] - p0
+            # (3, n) arrays: each axis a long contiguous row (an (n, 3) layout with n rows of
+            # 3 makes every numpy loop 3 elements long)
+            p0 = self._vx_xyz_t[:, j]
+            d = self._vx_xyz_t[:, j + 1] - p0
             seg_len = self._vx_s[j + 1] - self._vx_s[j]
             safe = np.where(seg_len > 0, seg_len, 1.0)
             f = np.where(seg_len > 0, (s - self._vx_s[j]) / safe, 0.0)
-            unit = d / safe[:, None]
-            pos = p0 + f[:, None] * d
-            vel = speed[:, None] * unit
-            accel = acc[:, None] * unit
+            unit = d / safe
+            pos = p0 + f * d
+            vel = speed * unit
+            accel = acc * unit
             # Wander: a smooth process in continuous time, in a frame that turns smoothly
             # through corners; its rates are added, so velocity = d/dt position exactly.
             moving = np.flatnonzero(self._w_off[v_ids + 1] > self._w_off[v_ids])
@@ -139,14 +142,14 @@ class Fleet:
                     self._vx_turn[jm + 1])
                 off, v_off, a_off = wander_mod.world_offset(n, nd, ndd, psi, dpsi, d2psi,
                                                             speed[moving], acc[moving])
-                pos[moving] += off
-                vel[moving] += v_off
-                accel[moving] += a_off
-            out["x_m"][idx], out["y_m"][idx], out["z_m"][idx] = pos.T
-            out["vx_mps"][idx], out["vy_mps"][idx], out["vz_mps"][idx] = vel.T
-            out["ax_mps2"][idx], out["ay_mps2"][idx], out["az_mps2"][idx] = accel.T
+                pos[:, moving] += off.T
+                vel[:, moving] += v_off.T
+                accel[:, moving] += a_off.T
+            out["x_m"][idx], out["y_m"][idx], out["z_m"][idx] = pos
+            out["vx_mps"][idx], out["vy_mps"][idx], out["vz_mps"][idx] = vel
+            out["ax_mps2"][idx], out["ay_mps2"][idx], out["az_mps2"][idx] = accel
             out["speed_mps"][idx] = speed
-            out["heading_rad"][idx] = frames.heading_rad(unit[:, 0], unit[:, 1])
+            out["heading_rad"][idx] = frames.heading_rad(unit[0], unit[1])
             out["route_s_m"][idx] = s
             out["edge_id"][idx] = self._seg_edge[j]
             out["mode"][idx] = mode

@@ -15,8 +15,9 @@ for :math:`\tau'_k \le \Delta t` (the exact in-step instant at which a braking v
 exact at any instant, so the position on the route polyline needs no overshoot correction and
 no interpolation error.
 
-One time loop runs over the steps; every operation inside is numpy over all profiles (there is no
-per-vehicle Python loop). Per profile a small state machine (the corrected Alg. 2, DESIGN §3):
+Every operation is numpy over profiles (and, in windows, over steps): there is no per-vehicle
+Python loop and, for driving profiles, no per-step one either (below).  Per profile a small
+state machine (the corrected Alg. 2, DESIGN §3):
 
 * ``TRACK`` (modes 0 cruise / 1 decelerate / 3 accelerate): the speed heads for the target
   :math:`v^* = \max(0, \min(c(s) + \sigma \xi_k, v_{cap}))` at the end of the step, where
@@ -68,7 +69,26 @@ its constant acceleration.
 
 Randomness enters only through per-profile noise blocks (speed normals, stop uniforms, wait
 uniforms) that the caller draws from each vehicle's own stream on demand (:class:`NoiseSource`),
-so the kernel is deterministic.
+so the kernel is deterministic.  ξ depends on the draws alone, so it is computed when a block is
+drawn (the same sequential recurrence as a step loop).
+
+Windows.  Each profile runs in its own local time, at its own pace, in rounds.  In a round a
+profile in ``TRACK`` takes a *window* of up to :data:`NOISE_BLOCK_STEPS` steps at once: from a
+guess of every step's start position and speed, the desired speeds v* of all steps are
+computed; the start speeds follow from them by the step recurrence in v alone (a step within
+its limits ends at v* whatever its start speed — the speeds are within a factor 2, so
+v + ((v* − v)/Δt)Δt rounds to v* — and a clipped run adds aΔt step by step, a sequential
+``np.add.accumulate``); every step's kinematics follow, and the positions are the running sum,
+again with ``np.add.accumulate``, of the very terms each step adds, in its order.  A step is
+*right* when its start speed is the previous step's end speed and the desired speed at its
+start state is the one used, bit for bit; the right steps are taken, up to the first random
+stop or stop point ahead or the profile's end, and for the rest the pass is repeated with the
+desired speeds it found (at most :data:`MAX_SWEEPS` passes; steady cruise needs one, a window
+that crosses a segment or brakes for a lower limit a few).  So the result is the step loop's,
+bit for bit (``windows=False`` runs that loop; tests/scene/test_motion_windows.py compares
+them), while the Python cost is per window, not per step.  A profile at rest takes its whole
+wait at once; braking, stop points and the step after a wait take single steps (the step loop's
+body, vectorised over the profiles that need it).
 
 Cost follows the trips: a profile is stepped from its start until it is done (past its length)
 or reaches its own horizon (the scene's end), and then leaves the active set, so work and
@@ -383,8 +403,11 @@ def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.n
                     bridge_flat=bridge, kappa=kappa)
 
 
+#: Segment starts ahead of a window's first step looked up by comparison (more: binary search).
+_SEG_AHEAD = 6
+
 #: Most passes of the fixed-point iteration of one window of tracking steps (module doc).
-MAX_SWEEPS = 6
+MAX_SWEEPS = 4
 
 
 def _leading_true(ok: np.ndarray) -> np.ndarray:
@@ -399,19 +422,40 @@ def _first_true(x: np.ndarray) -> np.ndarray:
     return np.argmax(np.concatenate([x, pad], axis=1), axis=1)
 
 
-def _track_speeds(v0, v_des, amax, dmax, dt):
+def _runs(V, v_des, rows, c, inc, am, dm, dt, length):
+    """Runs of clipped steps starting at column ``c`` of rows ``rows``: the speeds at columns
+    c .. c + length - 1 by repeated additions of ``inc`` from V[row, c], and each run's last
+    step e (the first t >= 1 at which the speed is within reach of v_des again; ``length`` if
+    none)."""
+    w = V.shape[1]
+    t = np.arange(length)
+    col = np.minimum(c[:, None] + t, w - 1)
+    chain = np.broadcast_to(inc[:, None], (rows.size, length)).copy()
+    chain[:, 0] = V[rows, c]
+    chain = np.maximum(np.add.accumulate(chain, axis=1), 0.0)   # speed at column c + t
+    rr = (v_des[rows[:, None], col] - chain) / dt
+    e = _first_true((rr <= am) & (rr >= -dm) & (t >= 1) & (c[:, None] + t < w))
+    return e, chain
+
+
+def _track_speeds(v0, v_des, amax, dmax, dt, known=None):
     """Start speeds (n, W) of W tracking steps from ``v0`` (n,) for the desired speeds
     ``v_des`` (n, W), as the step loop makes them.  A step within its acceleration limits
     ends at v_des (the speeds are within a factor 2, so v + ((v_des - v)/dt)*dt rounds to
     v_des whatever v); a run of clipped steps adds a dt step by step (a sequential sum) until
-    the speed is within reach of v_des again.  ``amax``, ``dmax``: (n, 1).  A guess: the
-    caller checks it step by step."""
+    the speed is within reach of v_des again.  ``amax``, ``dmax``: (n, 1).  ``known``:
+    (V, k), speeds already known to be right in columns 0 .. k (n,).  A guess: the caller
+    checks it step by step."""
     n, w = v_des.shape
     V = np.empty((n, w))
     V[:, 0] = v0
     V[:, 1:] = v_des[:, :-1]
-    settled = np.zeros(n, np.int64)           # columns before it are final
     t = np.arange(w)
+    settled = np.zeros(n, np.int64)           # the first step whose class is not known
+    if known is not None:
+        right = t <= known[1][:, None]
+        V[right] = known[0][right]
+        settled = known[1].copy()
     for _ in range(4):
         raw = (v_des - V) / dt
         clipped = ((raw > amax) | (raw < -dmax)) & (t >= settled[:, None])
@@ -422,20 +466,27 @@ def _track_speeds(v0, v_des, amax, dmax, dt):
         if not rows.size:
             break
         am, dm = amax[rows], dmax[rows]
-        inc = np.clip(raw[rows, c][:, None], -dm, am) * dt
-        col = np.minimum(c[:, None] + t, w - 1)
-        chain = np.broadcast_to(inc, (rows.size, w)).copy()
-        chain[:, 0] = V[rows, c]
-        chain = np.maximum(np.add.accumulate(chain, axis=1), 0.0)   # speed at column c + t
-        rr = (v_des[rows[:, None], col] - chain) / dt
-        inside = c[:, None] + t < w
-        e = _first_true((rr <= am) & (rr >= -dm) & (t >= 1) & inside)  # the run's last step
+        inc = np.clip(raw[rows, c], -dm[:, 0], am[:, 0]) * dt
+        e, chain = _runs(V, v_des, rows, c, inc, am, dm, dt, min(w, 8))
+        long = np.flatnonzero(e >= 8)          # not back within reach in 8 steps: longer
+        if long.size and w > 8:
+            e_l, chain_l = _runs(V, v_des, rows[long], c[long], inc[long], am[long], dm[long],
+                                 dt, w)
+            e = e.copy()
+            e[long] = e_l
+            wide = np.zeros((rows.size, w))
+            wide[:, :chain.shape[1]] = chain
+            wide[long] = chain_l
+            chain = wide
+        tc = np.arange(chain.shape[1])
+        col = np.minimum(c[:, None] + tc, w - 1)
+        inside = c[:, None] + tc < w
         # a run that starts within an earlier run of its row (as guessed) waits for a later pass
         key = rows * (2 * w + 2)
         end = np.maximum.accumulate(key + c + e)
         prev_end = np.concatenate([[-1], end[:-1]])
         ok = key + c > prev_end
-        put = (t >= 1) & (t <= e[:, None]) & inside & ok[:, None]
+        put = (tc >= 1) & (tc <= e[:, None]) & inside & ok[:, None]
         V[np.broadcast_to(rows[:, None], put.shape)[put], col[put]] = chain[put]
         settled_new = np.full(n, w, np.int64)
         np.minimum.at(settled_new, rows[~ok], c[~ok])
@@ -567,6 +618,13 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                "lseg": last_seg, "pbase": prof_base, "c1": c1, "look_a": look_a_all,
                "length": length_all}
         per = {key: val[ids][:, None] for key, val in per.items()}
+        j0 = np.clip(np.searchsorted(seg_key, s_at[ids] + prof_base[ids], side="right") - 1,
+                     first_seg[ids], last_seg[ids])
+        ahead_idx = j0[:, None] + 1 + np.arange(_SEG_AHEAD)
+        per["j0"] = j0[:, None]
+        per["k0"] = seg_key[j0][:, None]
+        per["nk"] = np.where(ahead_idx <= per["lseg"],
+                             seg_key[np.minimum(ahead_idx, len(seg_key) - 1)], np.inf)
         if points:
             sp, se = stop_ptr_at[ids], stop_end_all[ids]
             per["nxt"] = np.where(sp < se, stop_flat[np.minimum(sp, len(stop_flat) - 1)],
@@ -584,8 +642,17 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         ev0, last0 = ev0_a, last_a
 
         def desired(S, V):
-            j = np.clip(np.searchsorted(seg_key, S + c["pbase"], side="right") - 1,
-                        c["fseg"], c["lseg"])
+            # the segment under each step: the row's segment at s0 plus the starts passed (a
+            # binary search over all segments only for a row that passes more of them)
+            key = S + c["pbase"]
+            nk = c["nk"]
+            j = np.repeat(c["j0"], W, axis=1)
+            for q in range(_SEG_AHEAD):
+                j += key >= nk[:, q:q + 1]
+            far = np.flatnonzero((key[:, -1] >= nk[:, -1]) | (key[:, 0] < c["k0"][:, 0]))
+            if far.size:
+                j[far] = np.clip(np.searchsorted(seg_key, key[far], side="right") - 1,
+                                 c["fseg"][far], c["lseg"][far])
             target = seg_target[j]
             with np.errstate(invalid="ignore"):
                 ahead = np.maximum(cap_s[j] - (S + V * dt), 0.0)
@@ -594,12 +661,13 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             return target, noisy, np.maximum(np.minimum(noisy, cap), 0.0)
 
         target, noisy, v_des = desired(S, V)
+        known = None
         for sweep in range(MAX_SWEEPS):
             amx, dmx = c["amx"], c["dmx"]
             # The steps for these desired speeds: start speeds by the step recurrence in v
             # alone, then every step's kinematics as general() computes them, and positions
             # by the very additions the steps make (so s_end[i] = S[i + 1] exactly).
-            V = _track_speeds(v0, v_des, amx, dmx, dt)
+            V = _track_speeds(v0, v_des, amx, dmx, dt, known)
             raw = (v_des - V) / dt
             a = np.clip(raw, -dmx, amx)
             v_end = np.maximum(V + a * dt, 0.0)
@@ -608,13 +676,24 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                     & (np.minimum(V, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
                                                                           np.abs(x1)))
                     & (step > 0))
-            x = np.empty((todo.size, 4 * W + 1))
-            x[:, 0] = s0
-            x[:, 1::4] = V * dt
-            x[:, 2::4] = 0.5 * a * dt * dt
-            x[:, 3::4] = v_end * (dt - dt)
-            x[:, 4::4] = np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0)
-            S_full = np.add.accumulate(x, axis=1)[:, ::4]
+            terms = (V * dt, 0.5 * a * dt * dt, v_end * (dt - dt),
+                     np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0))
+            if todo.size < 64:      # few rows: one running sum along each row
+                x = np.empty((todo.size, 4 * W + 1))
+                x[:, 0] = s0
+                for q, term in enumerate(terms):
+                    x[:, q + 1::4] = term
+                S_full = np.add.accumulate(x, axis=1)[:, ::4]
+            else:                   # many: the same additions column by column (faster)
+                tt = [np.ascontiguousarray(term.T) for term in terms]
+                st = np.empty((W + 1, todo.size))
+                st[0] = s0
+                for i in range(W):
+                    np.add(st[i], tt[0][i], out=st[i + 1])
+                    st[i + 1] += tt[1][i]
+                    st[i + 1] += tt[2][i]
+                    st[i + 1] += tt[3][i]
+                S_full = st.T
             S, s_end = S_full[:, :-1], S_full[:, 1:]
             # Right: step 0 (its start state is exact) and every step after a right one whose
             # start speed is the previous step's end and whose desired speed at its start
@@ -641,6 +720,12 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             # the rows still short: again, with the desired speeds at this pass's states
             keep = ~fin
             todo = todo[keep]
+            # the speeds of the right steps and the next one's start speed are known
+            k = np.minimum(n_exact[keep], W - 1)
+            Vk = V[keep]
+            rk = np.flatnonzero(k > 0)
+            Vk[rk, k[rk]] = v_end[keep][rk, k[rk] - 1]
+            known = (Vk, k)
             target, noisy, v_des = t2[keep], n2[keep], v2[keep]
             s0, v0, x0, x1 = s0[keep], v0[keep], x0[keep], x1[keep]
             step, sig, ev0, last0 = step[keep], sig[keep], ev0[keep], last0[keep]

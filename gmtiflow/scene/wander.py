@@ -67,11 +67,14 @@ def _basis(x):
 def evaluate(time_s, vehicle, knots, offset, t0_s, h_s):
     """Offsets n, rates ṅ and accelerations n̈, each (n, 3), of vehicles ``vehicle`` (n,) at
     ``time_s`` (n,): ``knots`` (K, 3) all vehicles' knot values, ``offset`` (N + 1,) each
-    vehicle's first knot row, ``t0_s`` and ``h_s`` (N,) its time origin and knot spacing."""
+    vehicle's first knot row, ``t0_s`` and ``h_s`` (N,) its time origin and knot spacing.
+
+    Computed axis by axis on (3, n) arrays (long inner loops) and returned as (n, 3) views."""
     t = np.asarray(time_s, float)
-    n = np.zeros((t.size, 3))
-    nd = np.zeros((t.size, 3))
-    ndd = np.zeros((t.size, 3))
+    n = np.zeros((3, t.size))
+    nd = np.zeros((3, t.size))
+    ndd = np.zeros((3, t.size))
+    knots_t = np.ascontiguousarray(np.asarray(knots, float).T)
     for i0 in range(0, t.size, _CHUNK):
         sl = slice(i0, i0 + _CHUNK)
         v = vehicle[sl]
@@ -86,21 +89,20 @@ def evaluate(time_s, vehicle, knots, offset, t0_s, h_s):
         q2 = 2.0 * np.sum(b1 * b1 + b * b2, axis=0)
         rq = 1.0 / np.sqrt(q)
         base = offset[v] + i
-        num = np.zeros((len(v), 3))
-        num1 = np.zeros((len(v), 3))
-        num2 = np.zeros((len(v), 3))
+        num = np.zeros((3, len(v)))
+        num1 = np.zeros((3, len(v)))
+        num2 = np.zeros((3, len(v)))
         for k in range(4):
-            c = knots[base + k]
-            num += b[k][:, None] * c
-            num1 += b1[k][:, None] * c
-            num2 += b2[k][:, None] * c
-        r1, r3, r5 = rq[:, None], (rq ** 3)[:, None], (rq ** 5)[:, None]
-        q1c, q2c = q1[:, None], q2[:, None]
-        n[sl] = num * r1
-        nd[sl] = (num1 * r1 - 0.5 * num * q1c * r3) / h[:, None]
-        ndd[sl] = (num2 * r1 - num1 * q1c * r3 + 0.75 * num * q1c * q1c * r5
-                   - 0.5 * num * q2c * r3) / (h * h)[:, None]
-    return n, nd, ndd
+            c = knots_t[:, base + k]
+            num += b[k] * c
+            num1 += b1[k] * c
+            num2 += b2[k] * c
+        r1, r3, r5 = rq, rq ** 3, rq ** 5
+        n[:, sl] = num * r1
+        nd[:, sl] = (num1 * r1 - 0.5 * num * q1 * r3) / h
+        ndd[:, sl] = (num2 * r1 - num1 * q1 * r3 + 0.75 * num * q1 * q1 * r5
+                      - 0.5 * num * q2 * r3) / (h * h)
+    return n.T, nd.T, ndd.T
 
 
 def segment_headings(xyz_m: np.ndarray) -> np.ndarray:
@@ -176,8 +178,8 @@ def world_offset(n, nd, ndd, psi, dpsi_ds, d2psi_ds2, speed, accel):
     va, vc, vu = nd.T
     aa, ac, au = ndd.T
 
-    def world(c_a, c_c, c_u):
-        return np.column_stack([c_a * sp - c_c * cp, c_a * cp + c_c * sp, c_u])
+    def world(c_a, c_c, c_u):      # (k, 3), as a view of a (3, k) array (long rows)
+        return np.stack([c_a * sp - c_c * cp, c_a * cp + c_c * sp, c_u]).T
 
     off = world(na, nc, nu)
     vel = world(va + w * nc, vc - w * na, vu)
