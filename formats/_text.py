@@ -561,6 +561,16 @@ def _prefix_masks(w: int) -> np.ndarray:
     return m
 
 
+def contiguous(rows: np.ndarray):
+    """``rows`` as a slice when they are consecutive increasing indices (a table already in
+    the order written: its columns' cells are then views, not copies), else ``rows``."""
+    rows = np.asarray(rows)
+    if len(rows) and rows[-1] - rows[0] == len(rows) - 1 and \
+            (len(rows) == 1 or bool(np.all(rows[1:] - rows[:-1] == 1))):
+        return slice(int(rows[0]), int(rows[-1]) + 1)
+    return rows
+
+
 def row_chunks(n: int, rows: int = 1 << 15):
     """(start, stop) of consecutive row ranges of at most ``rows`` rows (bounded memory)."""
     return [(a, min(a + rows, n)) for a in range(0, n, rows)]
