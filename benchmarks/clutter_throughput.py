@@ -25,7 +25,9 @@ the count grows; the log-log slope of cost against count over the densities is p
 linear).  ``--baseline REV`` loads ``gmtiflow/sensor/clutter.py`` as of git revision REV and
 times it too, alternating with the working tree's module run by run (A/B under the same load;
 its false-alarm counts differ only by the draws).  The 1-minute load average is printed with
-every row.  Last, the clutter module alone called with polygon footprints (a library use, not
+every row.  Then the FoV-wide density under a platform banked 4.4° (the default platform's
+circle) and −15° (a steeper turn), the sectors from the cells' geolocated edges against sectors
+padded by the bank angle (as before), alternated.  Last, the clutter module alone called with polygon footprints (a library use, not
 the stage's), at ten times the densities, A/B likewise.  ``--run-share`` instead times whole
 runs (truth, sensor, run.h5) of 1,000 random vehicles over 10 min without clutter, with
 ``clutter=urban`` and with 5 FoV-wide false alarms per km² and dwell (the issue's example), and
@@ -111,6 +113,61 @@ def run_once(cfg, ccfg, duration_s):
     return time.process_time() - t0, len(out["detections"]["det_id"])
 
 
+#: Banks timed: the default platform's circle (4.4°, every dwell of a default-platform run)
+#: and a steeper turn's.
+BANKS_DEG = (4.4, -15.0)
+
+
+class _Banked(_Platform):
+    """The benchmark's platform with a constant bank (a turn's attitude, without the turn)."""
+
+    def __init__(self, bank_deg):
+        self.bank_rad = np.radians(bank_deg)
+
+    def state_at(self, time_s):
+        s = super().state_at(time_s)
+        s["bank_rad"] = np.full(len(s["x_m"]), self.bank_rad)
+        return s
+
+
+class _BankPad(fx.FalseAlarms):
+    """FalseAlarms with the sectors padded by the bank angle (as before the tilted cells'
+    azimuths were geolocated): the A side of the banked comparison."""
+
+    def _tilted_cell_azimuths(self, ctx, rows, lo, hi, to_world, margin):
+        a0, span = super()._tilted_cell_azimuths(ctx, rows, lo, hi, to_world, margin)
+        return a0, np.full_like(span, np.nan)
+
+
+def banked(densities, repeats, duration_s, bank_deg):
+    """FoV-wide false alarms under a platform banked ``bank_deg``: the sectors from the cells'
+    geolocated edges against sectors padded by the bank angle, alternated; CPU time less the
+    banked run without clutter, median of ``repeats``."""
+    cfg = SensorConfig(noise_false_alarms=False)
+
+    def once(effect):
+        t0 = time.process_time()
+        out = simulate(cfg, _NoFleet(), _Banked(bank_deg), _Flat(), 3, duration_s, ORIGIN,
+                       effects=[] if effect is None else [effect])
+        return time.process_time() - t0, len(out["detections"]["det_id"])
+
+    rows = []
+    for dens in densities:
+        ccfg = cl.ClutterConfig(fov_density_per_km2=dens)
+        base, per, counts = [], {"geolocated edges": [], "bank pad (before)": []}, {}
+        for _ in range(repeats):
+            base.append(once(None)[0])
+            for name, kind in (("geolocated edges", fx.FalseAlarms), ("bank pad (before)", _BankPad)):
+                t, n = once(kind(cfg, ccfg, 3))
+                per[name].append(t)
+                counts[name] = n
+        t0 = float(np.median(base))
+        for name in per:
+            rows.append((name, dens, counts[name], float(np.median(per[name])) - t0,
+                         os.getloadavg()[0]))
+    return rows
+
+
 def library_polygons(densities, repeats, impls):
     """The clutter module alone, called with polygon footprints (the library path): 100 dwells,
     each a 67.5 km² annular sector (15-30 km, 0.2 rad) as a 32-vertex polygon (effects_scaling's
@@ -139,14 +196,34 @@ RUN_SCENE = ["vehicles=random", "vehicles.random.count=1000", "scene.duration_s=
              "vehicles.random.start_time_max_s=500", "cache.enabled=false", "tracker=none",
              "metrics.enabled=false", "report=none", "export=none", "progress=false"]
 RUN_CASES = {"clutter=none": ["clutter=none"], "clutter=urban": ["clutter=urban"],
-             "FoV-wide 5/km²": ["clutter=none", "clutter.fov_density_per_km2=5"]}
+             "FoV-wide 5/km²": ["clutter=none", "clutter.fov_density_per_km2=5"],
+             "FoV-wide 5/km², bank pad (before)": ["clutter=none",
+                                                   "clutter.fov_density_per_km2=5"]}
+
+
+@contextlib.contextmanager
+def bank_pad(on: bool):
+    """Within: FalseAlarms pads banked dwells' sectors by the bank angle (as before)."""
+    saved = fx.FalseAlarms._tilted_cell_azimuths
+
+    def padded(self, *args):
+        a0, span = saved(self, *args)
+        return a0, np.full_like(span, np.nan)
+
+    if on:
+        fx.FalseAlarms._tilted_cell_azimuths = padded
+    try:
+        yield
+    finally:
+        fx.FalseAlarms._tilted_cell_azimuths = saved
 
 
 def run_share(repeats):
     """Whole runs (truth, sensor, run.h5; tracker, metrics, report, exports off) of 1,000
     random vehicles over 10 min, without clutter, with ``clutter=urban`` and with 5 FoV-wide
-    false alarms per km² and dwell: CPU time of the process (all threads), median of
-    ``repeats``, cases alternated; and the false alarms in /detections."""
+    false alarms per km² and dwell (also with the banked dwells' sectors padded by the bank
+    angle, as before: the default platform's circle banks 4.4°): CPU time of the process (all
+    threads), median of ``repeats``, cases alternated; and the false alarms in /detections."""
     import h5py
 
     from gmtiflow import pipeline
@@ -156,7 +233,7 @@ def run_share(repeats):
     fas = {}
     for _ in range(repeats):
         for name, extra in RUN_CASES.items():
-            with tempfile.TemporaryDirectory() as d:
+            with tempfile.TemporaryDirectory() as d, bank_pad("before" in name):
                 t0 = time.process_time()
                 path = pipeline.run(compose(RUN_SCENE + extra), d)
                 cpu[name].append(time.process_time() - t0)
@@ -259,6 +336,20 @@ def main(argv=None) -> int:
             for (dens, _, tn, _), (_, _, to, _) in zip(new, old):
                 print(f"| {label} | {dens:g} | {to / tn:.1f}× |" if tn > 0 else
                       f"| {label} | {dens:g} | (new below timing noise) |")
+    print("\n## FoV-wide false alarms, platform banked (sensor stage, same dwells)\n")
+    print("| bank | sectors | density (/km²/dwell) | false alarms | CPU s (less empty run) "
+          "| µs CPU per false alarm | load |\n|---|---|---|---|---|---|---|")
+    for bank in BANKS_DEG:
+        bank_rows = banked(args.densities, args.repeats, duration, bank)
+        for name, dens, n, t, load in bank_rows:
+            print(f"| {bank:g}° | {name} | {dens:g} | {n:,} | {t:.4f} | "
+                  f"{1e6 * t / max(n, 1):.2f} | {load:.1f} |")
+            if name == "geolocated edges" and n >= 1000:
+                worst = max(worst, 1e6 * t / n)
+        for name in ("geolocated edges", "bank pad (before)"):
+            mine = [r for r in bank_rows if r[0] == name]
+            print(f"| {bank:g}° | {name} | **log-log slope** | | | "
+                  f"**{slope([r[2] for r in mine], [r[3] for r in mine]):.2f}** | |")
     lib = library_polygons([d * 10 for d in args.densities], args.repeats, impls)
     print("\n## The clutter module alone, with polygon footprints (a library use; the stage "
           "passes sectors)\n\n100 dwells of a 67.5 km² annular sector each, as a 32-vertex "

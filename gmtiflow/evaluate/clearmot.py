@@ -14,18 +14,18 @@ distances and ``max_d`` = g, against which ``tests/evaluate/test_clearmot.py`` c
   truth↔track matching that maximises it (an optimal assignment on the co-occurrence counts,
   per connected component of the co-occurring pairs); IDP = IDTP / track-steps, IDR = IDTP / GT.
 
-Pairs closer than g are found with one k-d tree over (x, y, step·4g) for all steps at once, so
-the cost is linear in rows (no per-step Python loop).
+Pairs closer than g are found for all steps at once (:func:`gmtiflow.evaluate.neighbours.
+close_pairs`, a grid of g-sized cells per step), so the cost is linear in rows (no per-step
+Python loop).
 """
 from __future__ import annotations
 
 from typing import Dict, Mapping
 
 import numpy as np
-from scipy.spatial import cKDTree
-
 from gmtiflow.evaluate.assignment import sparse_gated_assignment
 from gmtiflow.evaluate.identity import unique_pairs
+from gmtiflow.evaluate.neighbours import close_pairs
 
 
 def _matched_distance(truth_at, tracks_at, assigned: np.ndarray) -> np.ndarray:
@@ -52,19 +52,12 @@ def idtp(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray]
     if not n_t or not n_k:
         return 0
     g = float(gate_m)
-    lift = 4.0 * g
-    a = np.stack([truth_at["x_m"], truth_at["y_m"],
-                  np.asarray(truth_at["step"], float) * lift], axis=1)
-    b = np.stack([tracks_at["x_m"], tracks_at["y_m"],
-                  np.asarray(tracks_at["step"], float) * lift], axis=1)
-    # unbalanced trees: built in half the time, the same pairs
-    found = cKDTree(a, balanced_tree=False, compact_nodes=False).sparse_distance_matrix(
-        cKDTree(b, balanced_tree=False, compact_nodes=False), max_distance=g,
-        output_type="ndarray")
-    close = found["v"] < g
-    if not close.any():
+    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1).astype(float)
+    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1).astype(float)
+    # the pairs of one step closer than g (the distances a k-d tree over (x, y, step·4g) gives)
+    r, c, _ = close_pairs(X, Y, g, truth_at["step"], tracks_at["step"])
+    if not len(r):
         return 0
-    r, c = found["i"][close], found["j"][close]
     vid = np.asarray(truth_at["vehicle_id"], np.int64)[r]
     tid = np.asarray(tracks_at["track_id"], np.int64)[c]
     pairs, counts = unique_pairs(vid, tid, return_counts=True)

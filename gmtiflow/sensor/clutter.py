@@ -36,8 +36,8 @@ that thins them): adding, removing or reordering other regions leaves them bit-i
 target detections (other keys) are untouched.  A dwell's draws depend on its own footprint only
 (the bounding shape is computed per dwell), never on the chunk of dwells it is drawn with.  With
 ``fov_polygons`` a region's draws do not depend on the footprint (widening it only adds points);
-the FoV-wide draws fill the footprint's bounding box, and with ``fov_sectors`` both fill the
-dwell's sector or window, so they change with it.
+the FoV-wide draws fill the footprint (or its bounding box), and with ``fov_sectors`` both fill
+the dwell's sector or window, so they change with it.
 
 Range rate
 ----------

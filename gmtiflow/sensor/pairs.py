@@ -40,6 +40,39 @@ def _nearest_beam(u_beam, s):
     return np.where(left_closer, right - 1, right)
 
 
+def _may_be_active(fleet, time_s, vehicle_id):
+    """False where the fleet's activity window (``start_time_s``/``end_time_s``, padded as in
+    :func:`gmtiflow.sensor.model._on_the_road`) rules the vehicle out at that time; None when
+    the fleet has no windows or every row may be active."""
+    start = getattr(fleet, "start_time_s", None)
+    end = getattr(fleet, "end_time_s", None)
+    if start is None or end is None or not len(time_s):
+        return None
+    pad = 1e-6 * np.maximum(1.0, np.abs(time_s))
+    maybe = ((np.asarray(start)[vehicle_id] <= time_s + pad)
+             & (np.asarray(end)[vehicle_id] >= time_s - pad))
+    return None if maybe.all() else maybe
+
+
+def _state_at(fleet, time_s, vehicle_id) -> Table:
+    """``fleet.state_at`` asked only for the rows its activity windows leave open; the others
+    are inactive rows (NaN, False, −1), which is what the fleet gives for them.  Only
+    ``active`` is read of an inactive row."""
+    maybe = _may_be_active(fleet, time_s, vehicle_id)
+    if maybe is None:
+        return fleet.state_at(time_s, vehicle_id)
+    ask = np.flatnonzero(maybe)
+    sub = fleet.state_at(time_s[ask], vehicle_id[ask])
+    out = {}
+    for k, v in sub.items():
+        v = np.asarray(v)
+        fill = {"f": np.nan, "b": False, "i": -1}.get(v.dtype.kind, 0)
+        col = np.full(len(time_s), fill, v.dtype)
+        col[ask] = v
+        out[k] = col
+    return out
+
+
 def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     """Every vehicle at one reference dwell per revisit: the middle one (its time, its pose).
 
@@ -54,7 +87,7 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     ref = np.arange(n_rev) * n_d + n_d // 2
     d_rep = np.repeat(ref, n_v)
     v_rep = np.tile(vehicle_ids, n_rev)
-    st = fleet.state_at(poses.time_s[d_rep], v_rep)
+    st = _state_at(fleet, poses.time_s[d_rep], v_rep)
     active = np.asarray(st["active"], bool)
     xyz = [(c if np.all(active) else np.where(active, c, 0.0)).reshape(n_rev, n_v)
            for c in _xyz(st)]
@@ -133,11 +166,18 @@ def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
 
 
 def _active_at_ends(run: SensorRun, poses: Poses, v_rep, rev):
+    """Whether each (vehicle, revisit) is active at the scan's first or last dwell.  With the
+    fleet's activity windows (``start_time_s``/``end_time_s``, padded as in
+    :func:`gmtiflow.sensor.model._on_the_road`) only the vehicles whose window reaches that
+    instant are asked (``state_at``): most inactive ones have long finished or not started."""
     n_d, fleet = run.sched.n_dwells, run.fleet
     out = np.zeros(len(v_rep), bool)
     for k in (0, n_d - 1):
-        st = fleet.state_at(poses.time_s[rev * n_d + k], v_rep)
-        out |= np.asarray(st["active"], bool)
+        t = poses.time_s[rev * n_d + k]
+        maybe = _may_be_active(fleet, t, v_rep)
+        ask = np.flatnonzero(~out if maybe is None else maybe & ~out)
+        if ask.size:
+            out[ask] = np.asarray(fleet.state_at(t[ask], v_rep[ask])["active"], bool)
     return out
 
 

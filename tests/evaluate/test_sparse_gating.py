@@ -161,7 +161,7 @@ def test_sparse_ospa_is_the_dense_ospa(monkeypatch, m, n):
 def test_close_pairs_are_every_pair_closer_than_the_cutoff():
     # the cell grid (and the k-d tree used when cell keys would overflow) find exactly the
     # pairs of one step closer than c, whatever their cell; brute force as the reference
-    from gmtiflow.evaluate import ospa
+    from gmtiflow.evaluate import neighbours
     rng = np.random.default_rng(5)
     X = rng.uniform(-1000, 1000, (400, 2))
     Y = np.r_[X[:200] + rng.normal(0, 150, (200, 2)), rng.uniform(-1000, 1000, (300, 2))]
@@ -170,11 +170,20 @@ def test_close_pairs_are_every_pair_closer_than_the_cutoff():
     diff = X[:, None, :] - Y[None, :, :]
     D = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
     want_r, want_k = np.nonzero((D < 200.0) & (sx[:, None] == sy[None, :]))
-    for finder in (ospa._close_pairs, ospa._close_pairs_tree):
+    for finder in (neighbours.close_pairs, neighbours.close_pairs_tree):
         r, k, d = finder(X, Y, 200.0, sx, sy)
         assert len(r) > 100
         assert np.array_equal(r, want_r) and np.array_equal(k, want_k)
         assert np.array_equal(d, D[want_r, want_k])
+    # the distances are the ones a k-d tree over (x, y, step) reports (IDF1's gate used those)
+    from scipy.spatial import cKDTree
+    A, B = np.c_[X, sx * 800.0], np.c_[Y, sy * 800.0]
+    ok = np.isfinite(B).all(axis=1)
+    found = cKDTree(A).sparse_distance_matrix(cKDTree(B[ok]), 200.0, output_type="ndarray")
+    tree_d = dict(zip(zip(found["i"].tolist(), np.flatnonzero(ok)[found["j"]].tolist()),
+                      found["v"].tolist()))
+    r, k, d = neighbours.close_pairs(X, Y, 200.0, sx, sy)
+    assert [tree_d[p] for p in zip(r.tolist(), k.tolist())] == d.tolist()
 
 
 def test_ospa_series_solved_together_is_step_by_step(monkeypatch):
