@@ -2,6 +2,7 @@
 
     PYTHONPATH=. python benchmarks/export_throughput.py [--dwells 2000] [--detections 200000]
     PYTHONPATH=. python benchmarks/export_throughput.py --against bf41938   # 4607 writer A/B
+    PYTHONPATH=. python benchmarks/export_throughput.py --text-against fb27d3a --ab-runs 3
 
 Synthetic tables (formats.synthetic) of N detections in M dwells; each figure is the best of
 --repeat runs, in memory (encode_* / read_* on bytes, no disk I/O), timed in CPU time of this
@@ -162,6 +163,34 @@ def stage_ab(run_path: Path, rev, runs: int) -> None:
             print(f"CPU speed-up today vs {rev}: {c[1] / c[0]:.2f}x")
 
 
+def ab_text(rev: str, cases, runs: int) -> None:
+    """The text writers' values/s, today's against REV's (same tables, alternating runs)."""
+    names = {"xml": "xmldoc", "csv": "csvtable", "geojson": "geojson", "truth-csv": "csvtable",
+             "truth-geo": "geojson"}
+    today = {"xmldoc": xmldoc, "csvtable": csvtable, "geojson": geojson}
+    with tempfile.TemporaryDirectory() as tmp:
+        ref = load_reference(rev, Path(tmp), module="")
+        print(f"\ntext writers A/B against {rev}, {runs} alternating runs (median CPU time):")
+        print(f"{'format':<10} {'reference values/s':>19} {'today values/s':>15} {'speed-up':>9}")
+        for name, _, _, cells in cases:
+            if name not in names:
+                continue
+            mod = names[name]
+            ref_mod = importlib.import_module(f"{ref.__name__}.{mod}")
+            cpu = {"ref": [], "today": []}
+            for _ in range(runs):
+                for label, m in (("ref", ref_mod), ("today", today[mod])):
+                    write = _TEXT_WRITES[name](m)
+                    t0 = time.process_time()
+                    write()
+                    cpu[label].append(time.process_time() - t0)
+            a, b = np.median(cpu["ref"]), np.median(cpu["today"])
+            print(f"{name:<10} {cells / a:>19,.0f} {cells / b:>15,.0f} {a / b:>8.2f}x")
+
+
+_TEXT_WRITES: dict = {}
+
+
 def ab_4607(rev: str, dwells, dets, meta, runs: int) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         ref = load_reference(rev, Path(tmp))
@@ -194,6 +223,8 @@ def main(argv=None):
     ap.add_argument("--ab-runs", type=int, default=9)
     ap.add_argument("--run", type=Path, metavar="RUN.h5",
                     help="with --against: time the export stage's files of this run file")
+    ap.add_argument("--text-against", metavar="REV",
+                    help="A/B the XML, CSV and GeoJSON writers with those of git revision REV")
     ap.add_argument("--stage", action="store_true",
                     help="with --run: time the whole export stage in fresh processes")
     a = ap.parse_args(argv)
@@ -244,6 +275,17 @@ def main(argv=None):
         ("truth-geo", lambda: geojson.encode_geojson(truth=truth, epoch_utc=meta["epoch_utc"]),
          geojson.read_geojson, truth_cells),
     ]
+    _TEXT_WRITES.update({
+        "xml": lambda m: lambda: m.encode_xml(dwells, dets, meta),
+        "csv": lambda m: lambda: m.encode_csv({c: dets[c] for c in csv_cols}, "detections",
+                                              epoch_utc=meta["epoch_utc"]),
+        "geojson": lambda m: lambda: m.encode_geojson(detections=dets,
+                                                      epoch_utc=meta["epoch_utc"]),
+        "truth-csv": lambda m: lambda: m.encode_csv(
+            {c: v for c, v in truth.items() if c in csvtable.COLUMNS["truth"]}, "truth",
+            epoch_utc=meta["epoch_utc"]),
+        "truth-geo": lambda m: lambda: m.encode_geojson(truth=truth, epoch_utc=meta["epoch_utc"]),
+    })
     for name, write, read, cells in cases:
         tw, data = best(write, a.repeat)
         tr, _ = best(lambda: read(data), 1 if cells else a.repeat)
@@ -252,6 +294,8 @@ def main(argv=None):
         print(f"{name:<10} {len(data):>12,d} {rows / tw:>12,.0f} {vals} {rows / tr:>12,.0f}")
     if a.against:
         ab_4607(a.against, dwells, dets, meta, a.ab_runs)
+    if a.text_against:
+        ab_text(a.text_against, cases, a.ab_runs)
 
 
 if __name__ == "__main__":

@@ -48,13 +48,20 @@ def _intersect(platform_xyz, range_m, ca, sa, b, h, u, ground_z, radius_m):
             / (2.0 * (radius_m + zp))
     rho = np.hypot(a_coef, b_coef)
     ok = rho > 0
-    inv_rho = np.divide(1.0, rho, out=np.zeros_like(rho), where=ok)
-    ratio = np.where(ok, c * inv_rho, -1.0)
+    if np.all(ok):      # the usual case: the same values without the masked fallbacks
+        inv_rho = 1.0 / rho
+        ratio = c * inv_rho
+    else:
+        inv_rho = np.divide(1.0, rho, out=np.zeros_like(rho), where=ok)
+        ratio = np.where(ok, c * inv_rho, -1.0)
     reached = np.abs(ratio) <= 1.0
     r = np.clip(ratio, -1.0, 1.0)
     s = np.sqrt(1.0 - r * r)
-    ce = np.where(ok, (a_coef * r + b_coef * s) * inv_rho, 0.0)
-    se = np.where(ok, (b_coef * r - a_coef * s) * inv_rho, -1.0)
+    ce = (a_coef * r + b_coef * s) * inv_rho
+    se = (b_coef * r - a_coef * s) * inv_rho
+    if not np.all(ok):
+        ce = np.where(ok, ce, 0.0)
+        se = np.where(ok, se, -1.0)
     rc, rs, re = range_m * ce * ca, range_m * ce * sa, range_m * se
     o = tuple(rc * b[k] + rs * h[k] + re * u[k] for k in range(3))
     return to_map(platform_xyz, o, radius_m, np.where(reached, ground_z, np.nan)), ce, se, reached
@@ -73,7 +80,10 @@ def to_map(platform_xyz, o, radius_m, height_m=None):
     horiz = np.hypot(o[0], o[1])
     up = radius_m + pz + o[2]
     theta = np.arctan2(horiz, up)
-    scale = np.divide(radius_m * theta, horiz, out=np.ones_like(horiz), where=horiz > 0)
+    if np.all(horiz > 0):
+        scale = radius_m * theta / horiz
+    else:
+        scale = np.divide(radius_m * theta, horiz, out=np.ones_like(horiz), where=horiz > 0)
     if height_m is None:
         z = np.hypot(horiz, up) - radius_m
     else:       # the height where given; |o + centre offset| − R only where not

@@ -511,7 +511,20 @@ def test_poisson_counts_are_scipy_stats_quantiles_bit_for_bit():
 
 # ---------------------------------------------------------------- banked platform: tight sectors
 
-def _banked_stage(bank_deg, seed, monkeypatch=None, generous=False):
+class _TiltedPlatform(LevelPlatform):
+    """LevelPlatform with a pitch too (nose up +, as a climb)."""
+
+    def __init__(self, bank_deg, pitch_deg):
+        super().__init__(bank_deg=bank_deg)
+        self.pitch_deg = pitch_deg
+
+    def state_at(self, time_s):
+        s = super().state_at(time_s)
+        s["pitch_rad"] = np.full(len(s["x_m"]), np.radians(self.pitch_deg))
+        return s
+
+
+def _banked_stage(bank_deg, seed, generous=False, pitch_deg=0.0):
     cfg = SensorConfig(noise_false_alarms=False)
     sectors = []
 
@@ -526,21 +539,21 @@ def _banked_stage(bank_deg, seed, monkeypatch=None, generous=False):
             return a0, (np.full_like(span, np.nan) if generous else span)
 
     ccfg = cl.ClutterConfig(fov_density_per_km2=20.0)
-    out = simulate(cfg, grid_fleet(0), LevelPlatform(bank_deg=bank_deg), FlatTerrain(), seed,
+    out = simulate(cfg, grid_fleet(0), _TiltedPlatform(bank_deg, pitch_deg), FlatTerrain(), seed,
                    40.0, ORIGIN, effects=[Spy(cfg, ccfg, seed)])
     return out["detections"], out["dwells"], np.concatenate(sectors)
 
 
-@pytest.mark.parametrize("bank_deg", [-15.0, 5.0])
-def test_banked_platform_sectors_hold_the_cells_and_keep_the_law(bank_deg):
+@pytest.mark.parametrize("bank_deg, pitch_deg", [(-15.0, 0.0), (5.0, 0.0), (-4.0, 6.0)])
+def test_banked_platform_sectors_hold_the_cells_and_keep_the_law(bank_deg, pitch_deg):
     """With the antenna banked a cell's edges are not world azimuths: its sector comes from
     geolocated edge points instead of a pad of the bank angle.  The sector must still hold the
     whole cell: no false alarm within 0.5 mrad of its azimuth edges (a cut cell would put
     them right there), and the counts and positions have the law of the generous sectors'
     (independent seeds; binomial test on the totals, two-sample KS on x and y), while the
     sectors are far narrower."""
-    det, dw, sec = _banked_stage(bank_deg, 3)
-    ref, dw_ref, sec_ref = _banked_stage(bank_deg, 4, generous=True)
+    det, dw, sec = _banked_stage(bank_deg, 3, pitch_deg=pitch_deg)
+    ref, dw_ref, sec_ref = _banked_stage(bank_deg, 4, generous=True, pitch_deg=pitch_deg)
     assert np.array_equal(dw["dwell_id"], dw_ref["dwell_id"])
     assert sec[:, 5].sum() < 0.5 * sec_ref[:, 5].sum()
     k = det["dwell_id"] - dw["dwell_id"][0]
