@@ -25,6 +25,7 @@ writes it; columns that repeat values in runs are formatted once per run.
 """
 from __future__ import annotations
 
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Iterator, List, Optional, Sequence, Union
@@ -180,7 +181,11 @@ def _expand(field: Field, run: np.ndarray) -> Field:
 
 SHARED_MAX_ROWS = 1 << 18
 SHARED_MAX_VALUES = 4_000_000
-_SHARED: Optional[dict] = None
+_LOCAL = threading.local()          # the active shared_columns of each thread
+
+
+def _active() -> Optional[dict]:
+    return getattr(_LOCAL, "shared", None)
 
 
 @contextmanager
@@ -190,30 +195,31 @@ def shared_columns(max_values: int = SHARED_MAX_VALUES) -> Iterator[None]:
     GeoJSON of one table write the same numbers).  Memory stays bounded: only columns of at
     most :data:`SHARED_MAX_ROWS` rows are kept, at most ``max_values`` values in all (about 25
     bytes each); others are formatted a block at a time as without the block.  The columns must
-    not change inside the block (they are known by identity)."""
-    global _SHARED
-    outer = _SHARED
-    _SHARED = {"room": int(max_values), "columns": {}}
+    not change inside the block (they are known by identity).  The block holds for the thread
+    that opens it."""
+    outer = _active()
+    _LOCAL.shared = {"room": int(max_values), "columns": {}}
     try:
         yield
     finally:
-        _SHARED = outer
+        _LOCAL.shared = outer
 
 
 def _shared(kind: str, values, make):
     """The whole-column text of ``values`` (``make(values)``) kept by :func:`shared_columns`,
     or None (no block active, or the column does not fit)."""
-    if _SHARED is None or not isinstance(values, np.ndarray) or values.ndim != 1:
+    shared = _active()
+    if shared is None or not isinstance(values, np.ndarray) or values.ndim != 1:
         return None
-    columns = _SHARED["columns"]
+    columns = shared["columns"]
     hit = columns.get((kind, id(values)))
     if hit is not None and hit[0] is values:
         return hit[1]
-    if len(values) > min(SHARED_MAX_ROWS, _SHARED["room"]):
+    if len(values) > min(SHARED_MAX_ROWS, shared["room"]):
         return None
     text = make(values)
     columns[(kind, id(values))] = (values, text)       # holding values keeps its id unique
-    _SHARED["room"] -= len(values)
+    shared["room"] -= len(values)
     return text
 
 
@@ -559,6 +565,16 @@ def _prefix_masks(w: int) -> np.ndarray:
         m = _PREFIX_MASKS[w] = np.where(np.arange(w)[None, :] < np.arange(w + 1)[:, None],
                                         255, 0).astype(np.uint8)
     return m
+
+
+def contiguous(rows: np.ndarray):
+    """``rows`` as a slice when they are consecutive increasing indices (a table already in
+    the order written: its columns' cells are then views, not copies), else ``rows``."""
+    rows = np.asarray(rows)
+    if len(rows) and rows[-1] - rows[0] == len(rows) - 1 and \
+            (len(rows) == 1 or bool(np.all(rows[1:] - rows[:-1] == 1))):
+        return slice(int(rows[0]), int(rows[-1]) + 1)
+    return rows
 
 
 def row_chunks(n: int, rows: int = 1 << 15):

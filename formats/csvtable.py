@@ -130,7 +130,7 @@ def iter_csv(table: Mapping[str, np.ndarray], kind: str, *, epoch_utc: str,
     yield (",".join([TIME_UTC] + names) + "\n").encode()
     t = np.asarray(table["time_s"], dtype=np.float64)
     for a, b in _cells.row_chunks(len(order), rows):
-        sel = order[a:b]
+        sel = _cells.contiguous(order[a:b])
         pieces: list = [_cells.utc_cells(epoch, t[sel])]
         for c in names:
             pieces += [",", _field(table[c], cols[c], sel)]

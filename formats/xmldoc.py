@@ -218,14 +218,14 @@ def iter_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarr
         if g0 == g1:
             continue
         k = g1 - g0
-        dsel = order[g0:g1]
+        dsel = _cells.contiguous(order[g0:g1])
         a, b = int(starts[g0]), int(starts[g1])
         empty = counts[g0:g1] == 0
         opening, o_off = _cells.join_rows(
             ["  <Dwell"] + _attrs(dcols, DWELL_COLUMNS, dsel)
             + [' timeUtc="', _cells.utc_cells(epoch, dcols["time_s"][dsel]),
                '"', _cells.choice(empty, "/>\n", ">\n")], k)
-        tsel = t_order[a:b]
+        tsel = _cells.contiguous(t_order[a:b])
         reports, r_off = _cells.join_rows(
             ["    <TargetReport"] + _attrs(tcols, DETECTION_COLUMNS, tsel, skip=("dwell_id",))
             + ["/>\n"],

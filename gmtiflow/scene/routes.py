@@ -58,7 +58,8 @@ def _polyline(xyz: np.ndarray):
 
 
 def _csr(roadmap: RoadMap):
-    """CSR weight matrix of the routing graph and (from, to) -> edge_id, cached on the map."""
+    """CSR weight matrix of the routing graph, (from, to) -> edge_id and the shortest-path
+    predecessors per source node (filled on use), cached on the map."""
     cached = roadmap._routing_csr
     if cached is None:
         g = roadmap.graph
@@ -71,7 +72,7 @@ def _csr(roadmap: RoadMap):
         from scipy.sparse import csr_matrix   # here: scipy.sparse is slow to import
         csr = csr_matrix((w, (rows, cols)), shape=(n, n))
         edge_of = {(a, b): d["edge_id"] for a, b, d in arcs}
-        cached = (csr, edge_of)
+        cached = (csr, edge_of, {})
         roadmap._routing_csr = cached
     return cached
 
@@ -84,13 +85,16 @@ def shortest_route(roadmap: RoadMap, start: Any, end: Any, stopovers: Sequence[A
         ids = [roadmap.node_index(r) for r in refs]
     except RoadMapError as exc:
         raise RoadMapError(f"{who}: {exc}") from None
-    csr, edge_of = _csr(roadmap)
+    csr, edge_of, preds = _csr(roadmap)
     path = [ids[0]]
     for a, b in zip(ids[:-1], ids[1:]):
         if a == b:
             continue
-        from scipy.sparse.csgraph import dijkstra
-        _, pred = dijkstra(csr, directed=True, indices=a, return_predecessors=True)
+        pred = preds.get(a)
+        if pred is None:    # one search per source node, shared by the vehicles leaving it
+            from scipy.sparse.csgraph import dijkstra
+            pred = preds[a] = dijkstra(csr, directed=True, indices=a,
+                                       return_predecessors=True)[1]
         if pred[b] < 0:
             names = roadmap.nodes["name"]
             raise RoadMapError(f"{who}: no route from node {str(names[a])!r} to node "

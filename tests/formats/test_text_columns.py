@@ -103,7 +103,7 @@ def test_shared_columns_give_each_formats_text_of_any_rows():
                 assert lines(_text.float_cells(x, rows=rows, **words), len(x[rows])) == want
             assert lines(_text.int_cells(ids, rows), len(ids[rows])) == \
                 [str(v) for v in ids[rows].tolist()]
-        assert len(_text._SHARED["columns"]) == 2           # each column formatted once
+        assert len(_text._active()["columns"]) == 2           # each column formatted once
 
 
 def test_shared_columns_keep_bounded_memory(monkeypatch):
@@ -114,9 +114,9 @@ def test_shared_columns_keep_bounded_memory(monkeypatch):
         assert lines(_text.float_cells(big, rows=slice(0, 3)), 3) == ["0.25", "1.25", "2.25"]
         _text.float_cells(small, rows=slice(0, 3))
         _text.float_cells(small + 1, rows=slice(0, 3))               # over the budget
-        assert [k[0] for k in _text._SHARED["columns"]] == ["float"]
-        assert _text._SHARED["room"] == 300
-    assert _text._SHARED is None
+        assert [k[0] for k in _text._active()["columns"]] == ["float"]
+        assert _text._active()["room"] == 300
+    assert _text._active() is None
 
 
 def test_join_keeps_nul_bytes_of_the_text():
@@ -160,3 +160,14 @@ def test_double_precision_screen_decides_as_the_extended_precision_proof():
     np.testing.assert_array_equal(m_fast[done], m[done])
     np.testing.assert_array_equal(e_fast[done], e[done])
     assert done.mean() > 0.9
+
+
+def test_shared_columns_belong_to_the_thread_that_opens_them():
+    import threading
+    seen = []
+    with _text.shared_columns():
+        t = threading.Thread(target=lambda: seen.append(_text._active()))
+        t.start()
+        t.join()
+        assert _text._active() is not None
+    assert seen == [None]
