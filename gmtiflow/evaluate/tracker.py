@@ -202,10 +202,11 @@ class NNKalmanTracker:
             return None
         has_fp = "beam_az_rad" in dw and "angle_half_extent_rad" in dw
         usable = np.ones(len(det["dwell_id"]), bool)
-        if "implausible" in det:
-            usable &= ~np.asarray(det["implausible"], bool)
-        for c in ("x_m", "y_m"):
-            usable &= np.isfinite(np.asarray(det[c], float))
+        if len(usable):
+            if "implausible" in det:
+                usable &= ~np.asarray(det["implausible"], bool)
+            for c in ("x_m", "y_m"):
+                usable &= np.isfinite(np.asarray(det[c], float))
         out = []
         one = len(dw["dwell_id"]) == 1          # per-dwell batches: the batch is the dwell
         for k, rows in batch.dwell_slices():
