@@ -101,7 +101,10 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    print(f"load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)")
+    from gmtiflow import allocator
+    tuned = allocator.tune()        # as the gmtiflow command runs
+    print(f"load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores); "
+          f"malloc tuned as by the gmtiflow command: {tuned}")
     one_run("fast", args.seeds[0], out / "warmup", args.extra)      # imports, caches warm
     runs = {(p, s): one_run(p, s, out, args.extra) for s in args.seeds for p in PRESETS}
     quiet = {(p, s): one_run(p, s, out / "noise_off", args.extra + NOISE_OFF)[1]

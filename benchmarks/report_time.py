@@ -3,11 +3,14 @@
     python benchmarks/report_time.py [--big N]            # simulate, then time the report
     python benchmarks/report_time.py --run RUN_DIR/run.h5  # e.g. issue 18's 1,000-vehicle scene
     python benchmarks/report_time.py --run RUN_DIR/run.h5 --scaling   # each page linear?
+    python benchmarks/report_time.py --run RUN_DIR/run.h5 --fresh     # as the pipeline's stage
 
 Without ``--run`` it simulates each scene once (not timed) into a temporary dir, then builds
 report.pdf three times and prints the best total and the per-page seconds of the best build;
 with ``--run`` it prints, per build, the wall and CPU time and every page's CPU seconds, with
-the machine load (CPU time is what counts on a shared machine).
+the machine load (CPU time is what counts on a shared machine).  With ``--fresh`` each build
+runs in a new process, as the pipeline's report stage does: the import of the report modules
+(matplotlib, its PDF backend) is timed apart from the build.
 """
 from __future__ import annotations
 
@@ -65,6 +68,37 @@ def bench_file(run: Path, repeats: int) -> None:
                       f"{p} {s:.2f}" for p, s in build_run_report.last_cpu_seconds.items()))
 
 
+_FRESH = """
+import json, sys, time
+t0, c0 = time.perf_counter(), time.process_time()
+from gmtiflow.report import ReportConfig
+from gmtiflow.report.run_report import build_run_report
+t1, c1 = time.perf_counter(), time.process_time()
+build_run_report(ReportConfig(), sys.argv[1], sys.argv[2])
+print(json.dumps({"import_wall": t1 - t0, "import_cpu": c1 - c0,
+                  "build_wall": time.perf_counter() - t1, "build_cpu": time.process_time() - c1}))
+"""
+
+
+def bench_fresh(run: Path, repeats: int) -> None:
+    """The report stage as the pipeline runs it: a fresh process per build (imports included)."""
+    import json
+    import subprocess
+    import numpy as np
+    got = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(repeats):
+            res = subprocess.run([sys.executable, "-c", _FRESH, str(run), str(Path(tmp) / "r.pdf")],
+                                 capture_output=True, text=True, check=True)
+            r = json.loads(res.stdout.strip().splitlines()[-1])
+            got.append(r)
+            print(f"  import wall {r['import_wall']:.2f} s CPU {r['import_cpu']:.2f} s; build wall "
+                  f"{r['build_wall']:.2f} s CPU {r['build_cpu']:.2f} s; load {os.getloadavg()[0]:.1f}")
+    med = {k: float(np.median([r[k] for r in got])) for k in got[0]}
+    print(f"  medians: import + build = {med['import_wall']:.2f} + {med['build_wall']:.2f} s wall, "
+          f"{med['import_cpu']:.2f} + {med['build_cpu']:.2f} s CPU")
+
+
 def scaling(run_path: Path, fractions=(0.25, 0.5, 1.0)) -> None:
     """Is every page linear in its data?  Builds each page on the run's first f of its time
     (every table with a time_s column cut at f × the last time; maps, vehicles and summary
@@ -114,6 +148,8 @@ def main() -> None:
     ap.add_argument("--run", type=Path, help="time the report of this existing run.h5 only "
                     "(e.g. the issue-18 1,000-vehicle scene: see docs/reports.md)")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--fresh", action="store_true",
+                    help="with --run: a fresh process per build, imports timed apart")
     ap.add_argument("--scaling", action="store_true",
                     help="with --run: each page's CPU time on the first 25/50/100 %% of the run")
     args = ap.parse_args()
@@ -121,6 +157,9 @@ def main() -> None:
           f"load {os.getloadavg()[0]:.1f}")
     if args.run and args.scaling:
         scaling(args.run)
+        return
+    if args.run and args.fresh:
+        bench_fresh(args.run, args.repeat)
         return
     if args.run:
         bench_file(args.run, args.repeat)

@@ -64,7 +64,8 @@ class Cells:
         """The same cells in less memory (kept whole by :func:`shared_columns`)."""
         if np.ndim(self.start) or not len(self.lens) or self.lens.max() > 255:
             return self
-        chars = self.chars if len(self.chars) == 1 else self.chars[:, :int(self.lens.max())]
+        chars = self.chars if len(self.chars) == 1 else \
+            np.ascontiguousarray(self.chars[:, :int(self.lens.max())])
         return Cells(chars, self.lens.astype(np.uint8), 0, self.nul)
 
 
@@ -320,7 +321,7 @@ def _proof_fast(ai: np.ndarray):
     product by 10^k held as two doubles), so its distance r to the nearest integer is known to
     1e-14, while the extended-precision product that :func:`_proof` rounds lies within
     10^p 2^-64 of it: where r is further than that margin from the tolerance (and from 1/2),
-    both decide alike; the other values (about one in a hundred) are left undecided."""
+    both decide alike; the other values (a few in a hundred) are left undecided."""
     n = len(ai)
     mant = np.zeros(n, np.uint64)
     e10 = np.zeros(n, np.int64)

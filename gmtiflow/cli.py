@@ -129,7 +129,8 @@ def main() -> None:
         print(console.help_text())
         return
     _VERBOSE = console.pop_verbose_flag(sys.argv)
-    from gmtiflow import interrupts
+    from gmtiflow import allocator, interrupts
+    allocator.tune()        # before the run allocates: large temporaries reused, not faulted
     interrupts.install()
     try:
         _hydra_app()()

@@ -139,6 +139,12 @@ def _merge_blocks(dets, looks):
 
 def _renumber(detections: Table, looks: Table, offset: int) -> None:
     old = np.asarray(detections["det_id"], np.int64)
+    if old.size and old[0] == 0 and np.all(np.diff(old) == 1):
+        # already 0, 1, 2, ... in row order (no effect reordered them): ids + offset
+        detections["det_id"] = old + offset
+        ld = np.asarray(looks["det_id"], np.int64)
+        looks["det_id"] = np.where(ld >= 0, ld + offset, ld)
+        return
     order = np.argsort(old, kind="stable")
     new = np.empty_like(old)
     new[order] = np.arange(old.size) + offset
