@@ -215,3 +215,30 @@ def test_ospa_series_solved_together_is_step_by_step(monkeypatch):
                          ("false", "gospa_false"), ("n_assigned", "n_assigned")):
             assert got[col][s] == one[key], (s, key)
 
+
+def test_small_and_vectorised_assignment_paths_agree(monkeypatch):
+    # the plain-Python path (a dwell's few pairs) and the vectorised one make the same
+    # decisions, also with tied costs (stars then go to the solver), costs at the gate, negative
+    # costs (IDF1's -counts) and large ids
+    from gmtiflow.evaluate import assignment
+    rng = np.random.default_rng(11)
+    n_multi = 0
+    for it in range(600):
+        nr, nc = int(rng.integers(1, 8)), int(rng.integers(1, 8))
+        flat = rng.choice(nr * nc, int(rng.integers(1, nr * nc + 1)), replace=False)
+        rows = flat // nc + int(rng.integers(0, 3)) * (7 if it % 2 else 7000)
+        cols = flat % nc
+        if it % 3 == 0:
+            cost, gate = rng.uniform(0, 10, len(flat)), 9.0
+        elif it % 3 == 1:
+            cost, gate = rng.integers(0, 4, len(flat)).astype(float), 3.0
+        else:
+            cost, gate = -rng.integers(1, 4, len(flat)).astype(float), 0.0
+        small = assignment.sparse_gated_assignment(rows, cols, cost, gate)
+        monkeypatch.setattr(assignment, "_SMALL_PAIRS", 0)
+        vector = assignment.sparse_gated_assignment(rows, cols, cost, gate)
+        monkeypatch.setattr(assignment, "_SMALL_PAIRS", 512)
+        assert np.array_equal(small[0], vector[0]) and np.array_equal(small[1], vector[1])
+        n_multi += len(np.unique(rows)) < len(rows)
+    assert n_multi > 300
+
