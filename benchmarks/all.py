@@ -33,6 +33,7 @@ BENCHMARKS = {
     "fidelity_tradeoff": ("docs/scale.md", [], ["--seeds", "1", "--", "scene.duration_s=300",
                                                 "vehicles.random.count=100"]),
     "stonesoup_peer": ("docs/scale.md", [], ["--quick"]),
+    "truth_windows": ("docs/scale.md", [], ["--repeat", "1", "--only", "peer 10 x", "default"]),
     "sweep_parallel": ("docs/scale.md", [], ["--jobs", "2"]),
     "sensor_throughput": ("docs/sensor.md", [],
                           ["--vehicles", "10000", "--workers", "1", "--repeat", "3"]),
