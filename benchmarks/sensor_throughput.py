@@ -21,6 +21,13 @@ counter-based detection draw and the three measurement-error draws; no tables, n
 search, no round earth, no geolocation.  It is what one core does when only the per-pair
 arithmetic is left; the model's pairs per CPU second over it says how much the model's
 structure costs.  The two are alternated; both in pairs per CPU second.
+
+``--baseline REV`` also loads the ``gmtiflow`` package (and ``conf/``) of git revision REV
+under another name into the same process and alternates the two models on the same scene
+(best CPU time of ``--repeat`` runs each), checking that their tables are equal: the speed-up
+of the model's code alone, on the same allocator.  The malloc setting of the ``gmtiflow``
+command (``gmtiflow.allocator``) is applied as the command does; ``GMTIFLOW_MALLOC=default``
+leaves the C library's defaults.
 """
 from __future__ import annotations
 
@@ -133,6 +140,56 @@ def plain_pairs(cfg, fleet, platform, duration_s, n_pairs, seed=0):
             g.uniform(-0.15, 0.15, n_pairs), np.arange(n_pairs), vid)
 
 
+def load_baseline(rev: str):
+    """``gmtiflow.sensor.model`` and ``gmtiflow.frames`` of git revision ``rev``, imported as
+    the package ``gmtiflow_<rev>`` from a temporary export of that revision."""
+    import importlib
+    import io
+    import re
+    import subprocess
+    import sys
+    import tarfile
+    import tempfile
+    root = Path(__file__).resolve().parents[1]
+    data = subprocess.run(["git", "-C", str(root), "archive", rev, "gmtiflow", "conf"],
+                          check=True, capture_output=True).stdout
+    tmp = Path(tempfile.mkdtemp())
+    tarfile.open(fileobj=io.BytesIO(data)).extractall(tmp)
+    name = "gmtiflow_" + re.sub(r"\W", "_", rev)
+    (tmp / "gmtiflow").rename(tmp / name)
+    for path in (tmp / name).rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        text = re.sub(r"\bgmtiflow(?=[. ])", name, text)
+        path.write_text(text, encoding="utf-8")
+    sys.path.insert(0, str(tmp))
+    return (importlib.import_module(f"{name}.sensor.model"),
+            importlib.import_module(f"{name}.sensor.config"),
+            importlib.import_module(f"{name}.frames"))
+
+
+def compare_baseline(rev, args, cfg, fleet, platform, origin) -> None:
+    """Alternate the model of ``rev`` and this one, in this process (module doc)."""
+    model_b, config_b, frames_b = load_baseline(rev)
+    cfg_b = OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(config_b.SensorConfig),
+                                                OmegaConf.load(CONF)))
+    origin_b = frames_b.Origin(origin.lat_deg, origin.lon_deg, origin.height_m)
+    runs = {rev: (model_b.simulate, cfg_b, origin_b), "this": (simulate, cfg, origin)}
+    best, out, stats = {k: math.inf for k in runs}, {}, {}
+    for _ in range(args.repeat):
+        for k, (sim, c, o) in runs.items():
+            stats[k] = {}
+            c0 = time.process_time()
+            out[k] = sim(c, fleet, platform, FlatTerrain(), 1, args.duration, o,
+                         dwell_mode=args.mode, stats=stats[k])
+            best[k] = min(best[k], time.process_time() - c0)
+    same = all(np.array_equal(np.asarray(out[rev][t][c]), np.asarray(out["this"][t][c]),
+                              equal_nan=True) for t in out["this"] for c in out["this"][t])
+    pairs = stats["this"]["pairs_evaluated"]
+    print(f"{'':>9} model of {rev}: {pairs / best[rev]:.3g} pairs/cpu-s; this one "
+          f"{pairs / best['this']:.3g} pairs/cpu-s: {best[rev] / best['this']:.2f}x "
+          f"(alternated, best of {args.repeat}); tables equal: {same}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--vehicles", type=int, nargs="+", default=[100, 10_000])
@@ -141,6 +198,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5, help="runs per case; the best is shown")
     ap.add_argument("--mode", default="dwell_resolved", choices=["dwell_resolved", "instant_scan"])
     ap.add_argument("--plain", action="store_true", help="also time the plain-numpy kernel")
+    ap.add_argument("--baseline", metavar="REV", default=None,
+                    help="also time the model of git revision REV, alternated (module doc)")
     args = ap.parse_args()
     import os
     from gmtiflow import allocator
@@ -187,6 +246,8 @@ def main() -> None:
                 print(f"{'':>9} plain-numpy kernel on {pairs} pairs: {pairs / p_cpu:.3g} "
                       f"pairs/cpu-s; model {pairs / m_cpu:.3g} pairs/cpu-s = "
                       f"{p_cpu / m_cpu:.0%} of the plain kernel's rate")
+            if args.baseline and w == 1:
+                compare_baseline(args.baseline, args, cfg, fleet, platform, origin)
     print(f"load after: {os.getloadavg()[0]:.2f}")
 
 

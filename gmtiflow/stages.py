@@ -116,6 +116,14 @@ class TableSink:
         self._created = True
 
     def close(self) -> None:
+        if not self._created and self._pending:
+            # every row arrived before the first block was due: one dataset of exactly these
+            # rows (chunks of its own size; no padding to a full streaming chunk)
+            block = (self._pending[0] if len(self._pending) == 1 else
+                     {c: np.concatenate([p[c] for p in self._pending]) for c in self._pending[0]})
+            self._pending, self._n_pending = [], 0
+            self.writer.write_table(self.name, block)
+            self._created = True
         self._flush()
         if not self._created:
             empty = self._first

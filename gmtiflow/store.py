@@ -19,8 +19,7 @@ when :meth:`RunWriter.commit` is called, after ``complete`` is set, so a crash, 
 never leaves a file that reads as a complete run.  HDF5 object timestamps are off so that the
 same config and seed give byte-identical datasets.
 
-Writing speed: the columns of big tables (a full chunk of :data:`_CHUNK_ROWS` rows or more) are
-compressed by :class:`_ChunkDeflater`, which applies the datasets' own filters (shuffle, then
+Writing speed: every numeric column is compressed by :class:`_ChunkDeflater`, which applies the datasets' own filters (shuffle, then
 deflate, :func:`_deflated_chunk`) in worker threads while the simulation goes on, and writes
 the finished chunks in order with HDF5's direct chunk write.  The file is the same standard
 gzip + shuffle HDF5 file, with the same values, readable by any HDF5 reader.
@@ -131,9 +130,10 @@ class _ChunkDeflater:
         if tail is not None:
             start = tail[1]
             values = np.concatenate([tail[2], values])
-        full = (len(values) // _CHUNK_ROWS) * _CHUNK_ROWS
-        for i in range(0, full, _CHUNK_ROWS):
-            self._submit(ds, start + i, values[i:i + _CHUNK_ROWS])
+        rows = ds.chunks[0]
+        full = (len(values) // rows) * rows
+        for i in range(0, full, rows):
+            self._submit(ds, start + i, values[i:i + rows])
         if full < len(values):
             self.tails[ds.name] = (ds, start + full, values[full:])
         self.write_done()
@@ -156,7 +156,7 @@ class _ChunkDeflater:
     def finish(self) -> None:
         """Pad and write every dataset's last, partial chunk; wait for every chunk."""
         for ds, start, values in self.tails.values():
-            chunk = np.zeros(_CHUNK_ROWS, values.dtype)
+            chunk = np.zeros(ds.chunks[0], values.dtype)
             chunk[:len(values)] = values
             self._submit(ds, start, chunk)
         self.tails.clear()
@@ -274,11 +274,10 @@ class RunWriter:
             elif len(data) and len(data) < _CHUNK_ROWS:
                 kwargs["chunks"] = (len(data),)
             dtype = _STR if data.dtype.kind == "O" else data.dtype
-            if data.dtype.kind != "O" and kwargs["chunks"] == (_CHUNK_ROWS,):
-                # whole chunks: compressed by the deflater's threads, written when ready
+            if data.dtype.kind != "O" and len(data):
+                # compressed by the deflater's threads, written when ready
                 ds = group.create_dataset(column, shape=data.shape, dtype=dtype, **kwargs)
-                if len(data):
-                    self._deflater.add(ds, 0, data)
+                self._deflater.add(ds, 0, data)
             else:
                 ds = group.create_dataset(column, data=data, dtype=dtype, **kwargs)
             ds.attrs["units"] = unit_of(column)
@@ -301,7 +300,8 @@ class RunWriter:
             old = ds.shape[0]
             ds.resize((old + rows,))
             data = _as_storable(values)
-            if ds.compression == "gzip" and ds.chunks == (_CHUNK_ROWS,):
+            if ds.compression == "gzip" and ds.chunks is not None and old % ds.chunks[0] == 0 \
+                    or ds.name in self._deflater.tails:
                 self._deflater.add(ds, old, data.astype(ds.dtype, copy=False))
             else:
                 ds[old:] = data
