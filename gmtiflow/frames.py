@@ -60,6 +60,8 @@ def sphere_radius_m(origin: Origin) -> float:
 def _sin_ratio(theta):
     """sin θ / θ (1 at 0)."""
     small = np.abs(theta) < 1e-4
+    if np.ndim(theta) and not small.any():      # the same values, without the masking
+        return np.sin(theta) / theta
     safe = np.where(small, 1.0, theta)
     return np.where(small, 1.0 - theta * theta / 6.0, np.sin(safe) / safe)
 

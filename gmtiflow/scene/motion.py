@@ -407,7 +407,7 @@ def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.n
 _SEG_AHEAD = 6
 
 #: Most passes of the fixed-point iteration of one window of tracking steps (module doc).
-MAX_SWEEPS = 4
+MAX_SWEEPS = 2
 
 
 def _leading_true(ok: np.ndarray) -> np.ndarray:

@@ -62,9 +62,10 @@ def _curvature(d2, radius_m):
     return sinc, 2.0 * np.sin(0.5 * theta) ** 2
 
 
-def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
+def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M, target_frame: bool = True):
     """(o_P, o_T): the target from the platform in the platform's local ENU frame and the
-    platform from the target in the target's local frame (module doc), each a 3-tuple (m)."""
+    platform from the target in the target's local frame (module doc), each a 3-tuple (m);
+    ``target_frame=False``: o_T is not computed (None)."""
     dx = np.asarray(target_xyz[0], float) - np.asarray(platform_xyz[0], float)
     dy = np.asarray(target_xyz[1], float) - np.asarray(platform_xyz[1], float)
     zp = np.asarray(platform_xyz[2], float)
@@ -73,12 +74,15 @@ def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
         dz = zt - zp
         return (dx, dy, dz), (-dx, -dy, -dz)
     sinc, vers = _curvature(dx * dx + dy * dy, radius_m)
-    a = radius_m + zp
     b = radius_m + zt
-    kp = b * (sinc / radius_m)          # b sin θ / d
-    kt = a * (sinc / radius_m)
+    s_r = sinc / radius_m
+    kp = b * s_r                        # b sin θ / d
     dz = zt - zp
     o_p = (dx * kp, dy * kp, dz - b * vers)
+    if not target_frame:
+        return o_p, None
+    a = radius_m + zp
+    kt = a * s_r
     o_t = (-dx * kt, -dy * kt, -dz - a * vers)
     return o_p, o_t
 

@@ -91,7 +91,8 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     active = np.asarray(st["active"], bool)
     xyz = [(c if np.all(active) else np.where(active, c, 0.0)).reshape(n_rev, n_v)
            for c in _xyz(st)]
-    d, _ = geometry.offsets(tuple(c[ref][:, None] for c in poses.pos), xyz, poses.radius_m)
+    d, _ = geometry.offsets(tuple(c[ref][:, None] for c in poses.pos), xyz, poses.radius_m,
+                            target_frame=False)
     b = [c[ref][:, None] for c in poses.b]
     h = [c[ref][:, None] for c in poses.h]
     lb = d[0] * b[0] + d[1] * b[1] + d[2] * b[2]
@@ -114,7 +115,9 @@ def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
 
     Also returns, per group, whether the vehicle is active at the middle dwell (``mid_active``)
     and that dwell (``mid_dwell``), so a vehicle that leaves or appears mid-scan and is inactive
-    at all its candidate dwells still gets its one look row (at the middle dwell).
+    at all its candidate dwells still gets its one look row (at the middle dwell); and each
+    group's first row (``starts``; every group has at least one, so ``group`` numbers them
+    0, 1, 2, ... in order) and each candidate's beam position in its scan (``dwell % n_d``).
     """
     cfg, sched, n_rev = run.cfg, run.sched, poses.n_rev
     n_d = sched.n_dwells
@@ -161,8 +164,10 @@ def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
     group = np.repeat(np.arange(len(lo)), count)
     starts = np.cumsum(count) - count
     within = np.arange(total) - starts[group]
-    dwell_local = rev[group] * n_d + lo[group] + within
-    return dwell_local, v_rep[group], group, mid_active, rev * n_d + n_d // 2
+    beam = lo[group] + within
+    dwell_local = rev[group] * n_d + beam
+    return (dwell_local, v_rep[group], group, mid_active, rev * n_d + n_d // 2, starts,
+            beam)
 
 
 def _active_at_ends(run: SensorRun, poses: Poses, v_rep, rev):
@@ -241,8 +246,8 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
         dl, veh = dl[sel], veh[sel]
         sel = np.arange(len(dl))
     else:
-        dl, veh, group, mid_active, mid_dwell = _candidate_pairs(run, poses,
-                                                                 vehicle_ids)
+        dl, veh, group, mid_active, mid_dwell, starts, beam = _candidate_pairs(run, poses,
+                                                                               vehicle_ids)
         n_eval = len(dl)
         geo = _pair_geometry(poses, dl, fleet.state_at(poses.time_s[dl], veh))
         active = geo["active"]
@@ -251,8 +256,7 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
         if group.size:
             # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps
             # one row: its first candidate of least sine-space distance (the nearest dwell)
-            starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-            gidx = np.cumsum(np.r_[False, group[1:] != group[:-1]])
+            gidx = group                # groups are numbered 0, 1, 2, ... in row order
             g_active = np.logical_or.reduceat(active, starts)
             # active at the middle dwell but at none of its candidate dwells (it left or
             # appeared mid-scan): one more candidate, the middle dwell itself
@@ -266,10 +270,11 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
                 geo = {k: np.concatenate([v, geo_x[k]]) for k, v in geo.items()}
                 dl, veh = np.concatenate([dl, dl_x]), np.concatenate([veh, veh_x])
                 gidx = np.concatenate([gidx, lost])
+                beam = np.concatenate([beam, np.full(lost.size, n_d // 2, beam.dtype)])
                 active = geo["active"]
                 g_active[lost] = active[-lost.size:]
             dist = np.where((geo["lb"] > 0) & active,
-                            np.abs(geo["sin_az"] - u_beam_all[dl % n_d]), 1e300)
+                            np.abs(geo["sin_az"] - u_beam_all[beam]), 1e300)
             in_fp = dist <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12)
             if extra:     # the extra rows sit after every group: unbuffered group reductions
                 any_fp = np.zeros(len(starts), bool)
