@@ -23,7 +23,9 @@ tested with 1.9.1), so the filtering, gating and association are Stone Soup's, n
   ``gate_probability``) + ``JPDAwithEHM`` (stonesoup ≥ 1.7): the exact JPDA marginals, computed
   per cluster of tracks that share gated detections by efficient hypothesis management (Maskell
   et al. 2004) instead of enumerating every joint hypothesis of all covered tracks, which is
-  exponential in their number and did not finish a dense-clutter scene; each track's posterior
+  exponential in their number and did not finish a dense-clutter scene; in a dwell whose widest
+  cluster has more than ``exact_cluster_max_tracks`` tracks, ``JPDAwithLBP`` (loopy belief
+  propagation: approximate marginals, polynomial cost); each track's posterior
   is the moment-matched mixture of its hypotheses (``gm_reduce_single``).
 * Both initiate with ``MultiMeasurementInitiator`` (GNN on the unassociated detections; a track
   is confirmed and reported after ``min_points`` updates; like a confirmed track, a holding
@@ -52,7 +54,8 @@ from gmtiflow.evaluate.tracker import TRACK_COLUMNS, _covered, _measurements
 
 try:
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
-    from stonesoup.dataassociator.probability import JPDAwithEHM
+    from stonesoup.dataassociator._ehm import TrackClusterer
+    from stonesoup.dataassociator.probability import JPDAwithEHM, JPDAwithLBP
     from stonesoup.deleter.time import UpdateTimeDeleter
     from stonesoup.functions import gm_reduce_single
     from stonesoup.hypothesiser.distance import DistanceHypothesiser
@@ -276,17 +279,49 @@ class StoneSoupJPDA(_AssociatingTracker):
     """Joint probabilistic data association (Stone Soup ``JPDAwithEHM``: exact JPDA marginals)."""
 
     def __init__(self, prob_detect: float = 0.6, clutter_density_per_km2: float = 0.01,
-                 **kwargs):
+                 exact_cluster_max_tracks: int = 8, **kwargs):
         self.prob_detect = float(prob_detect)
         self.clutter_density_per_km2 = float(clutter_density_per_km2)
+        self.exact_cluster_max_tracks = int(exact_cluster_max_tracks)
         super().__init__(**kwargs)
-        self.jpda = JPDAwithEHM(PDAHypothesiser(
+        hypothesiser = PDAHypothesiser(
             self.predictor, self.updater, clutter_spatial_density=self.clutter_density_per_km2
-            / 1e6, prob_detect=self.prob_detect, prob_gate=self.gate_probability))
+            / 1e6, prob_detect=self.prob_detect, prob_gate=self.gate_probability)
+        self.jpda = JPDAwithEHM(hypothesiser)
+        self.jpda_lbp = JPDAwithLBP(hypothesiser)
+
+    def reset(self, scene: SceneInfo) -> None:
+        super().reset(scene)
+        self.n_dwells_exact = self.n_dwells_approx = 0
+
+    def finish(self):
+        if self.n_dwells_approx:
+            import logging
+            logging.getLogger(__name__).info(
+                "stonesoup_jpda: %d of %d dwells had a cluster of more than %d tracks sharing "
+                "plots; their marginals came from loopy belief propagation",
+                self.n_dwells_approx, self.n_dwells_approx + self.n_dwells_exact,
+                self.exact_cluster_max_tracks)
+        return None
+
+    def _associator(self, tracks, detections, when):
+        """Exact JPDA (EHM) unless a cluster of tracks sharing gated plots is wider than
+        ``exact_cluster_max_tracks``: EHM's cost grows exponentially with such a cluster (a town
+        of false tracks made one dwell take minutes), so those dwells use Stone Soup's
+        ``JPDAwithLBP`` (loopy belief propagation, Williams & Lau 2014: approximate marginals,
+        polynomial cost)."""
+        hyps = self.jpda.generate_hypotheses(tracks, detections, when)
+        widest = max((len(c) for c in TrackClusterer(hyps).clustered_hypotheses), default=0)
+        if widest <= self.exact_cluster_max_tracks:
+            self.n_dwells_exact += 1
+            return self.jpda
+        self.n_dwells_approx += 1
+        return self.jpda_lbp
 
     def _associate_and_update(self, tracks, detections, when) -> set:
         used = set()
-        for track, multi in self.jpda.associate(tracks, detections, when).items():
+        jpda = self._associator(tracks, detections, when)
+        for track, multi in jpda.associate(tracks, detections, when).items():
             states, weights = [], []
             missed = None
             for hyp in multi:

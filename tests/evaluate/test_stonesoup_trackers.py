@@ -154,3 +154,23 @@ def test_holding_tracks_outside_the_beam_are_left_alone_but_still_expire(scene):
     tr._initiate(b.dwells, 0, set(tr._detections(b.dwells, 0, b.detections)), sst._stamp(t))
     assert young in tr.initiator.holding_tracks and len(young) == 1     # untouched
     assert old not in tr.initiator.holding_tracks                       # expired
+
+
+def test_jpda_switches_to_belief_propagation_for_wide_clusters():
+    # With clusters capped at one track, every coupled dwell goes to JPDAwithLBP; its
+    # approximate marginals must still track the four close vehicles as the exact ones do.
+    close = gmti_scene(n_vehicles=4, n_revisits=12, spacing_m=150.0,
+                       headings_rad=[np.pi / 2] * 4, seed=7)
+    exact = sst.StoneSoupJPDA()
+    approx = sst.StoneSoupJPDA(exact_cluster_max_tracks=1)
+    out = {}
+    for name, tr in (("exact", exact), ("approx", approx)):
+        tr.reset(None)
+        rows = [r for b in batches(close["detections"], close["dwells"])
+                if (r := tr.update(b)) is not None]
+        out[name] = {k: np.concatenate([r[k] for r in rows]) for k in ("track_id", "x_m")}
+    assert exact.n_dwells_approx == 0 and exact.n_dwells_exact > 0
+    assert approx.n_dwells_approx > 0
+    assert len(np.unique(out["approx"]["track_id"])) == len(np.unique(out["exact"]["track_id"]))
+    n = min(len(out["exact"]["x_m"]), len(out["approx"]["x_m"]))
+    assert np.median(np.abs(out["exact"]["x_m"][:n] - out["approx"]["x_m"][:n])) < 20.0
