@@ -145,9 +145,11 @@ def _bridge(x0, x1, kappa, f):
 #: Steps of noise drawn per block for the active profiles (bounded temporaries).
 NOISE_BLOCK_STEPS = 128
 
-#: ``noise(profiles, k0, n) -> (normal, u_stop, u_wait)``, each (n, len(profiles)): the noise of
-#: local steps k0 .. k0 + n - 1 of the given profiles (ids ascending); called with k0 = 0, n,
-#: 2n, … in order, each time for the profiles still active.
+#: ``noise(profiles, k0, n) -> (normal, u_stop, u_wait)``, each (n, len(profiles)) (fewer rows
+#: allowed past the last step there is): the noise of local steps k0 .. k0 + n - 1 of the given
+#: profiles (ids ascending), n = NOISE_BLOCK_STEPS; each profile's blocks are asked for in order
+#: (k0 = 0, n, 2n, …), one block ahead of the step the profile is at (so a profile may get
+#: one block it does not use), different profiles at different k0 in separate calls.
 NoiseSource = Callable[[np.ndarray, int, int], Tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
