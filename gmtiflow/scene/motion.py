@@ -372,22 +372,17 @@ def _bridge_scalar(x0, x1, kappa, f):
 def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.ndarray,
              rec: list) -> Profiles:
     """The recorded steps as flat profiles: per record (profile ids, local steps, a, tau, label,
-    bridge, s_end, v_end, σξ at the step's end), in any order."""
-    def cat(c, dtype):
-        return np.concatenate([r[c] for r in rec]) if rec else np.zeros(0, dtype)
-
-    ids = cat(0, np.int64)
-    k = cat(1, np.int64)
-    n_p = np.bincount(ids, minlength=P).astype(np.int64)
+    bridge, s_end, v_end, σξ at the step's end), in any order; each record is scattered into
+    place directly (no concatenated copy of every column first)."""
+    ids_all = (np.concatenate([r[0] for r in rec]) if rec else np.zeros(0, np.int64))
+    n_p = np.bincount(ids_all, minlength=P).astype(np.int64)
+    del ids_all
     off = np.concatenate([[0], np.cumsum(n_p)]).astype(np.int64)
-    i = off[ids] + k
     n = int(off[-1])
     a = np.empty(n)
     tau = np.empty(n)
     mode = np.empty(n, np.uint8)
     bridge = np.empty(n, bool)
-    a[i], tau[i], mode[i], bridge[i] = (cat(2, float), cat(3, float), cat(4, np.uint8),
-                                        cat(5, bool))
     s = np.empty(n + P)
     v = np.empty(n + P)
     w = np.empty(n + P)
@@ -395,9 +390,11 @@ def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.n
     s[first] = 0.0
     v[first] = v0
     w[first] = 0.0
-    s[i + ids + 1] = cat(6, float)
-    v[i + ids + 1] = cat(7, float)
-    w[i + ids + 1] = cat(8, float)
+    for ids, k, a_r, tau_r, mode_r, bridge_r, s_r, v_r, w_r in rec:
+        i = off[ids] + k
+        a[i], tau[i], mode[i], bridge[i] = a_r, tau_r, mode_r, bridge_r
+        g = i + ids + 1
+        s[g], v[g], w[g] = s_r, v_r, w_r
     return Profiles(dt_s=dt, n_steps_p=n_p, horizon_steps=horizon, step_offset=off,
                     s_flat=s, v_flat=v, a_flat=a, tau_flat=tau, mode_flat=mode, noise_flat=w,
                     bridge_flat=bridge, kappa=kappa)
@@ -405,6 +402,9 @@ def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.n
 
 #: Segment starts ahead of a window's first step looked up by comparison (more: binary search).
 _SEG_AHEAD = 6
+
+#: Profiles per window computation: its (rows, W) temporaries stay cache-sized.
+_WINDOW_ROWS = 512
 
 #: Most passes of the fixed-point iteration of one window of tracking steps (module doc).
 MAX_SWEEPS = 2
@@ -901,8 +901,9 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         st = state_at[act]
         moved = np.zeros(act.size, bool)
         tr = np.flatnonzero(st == TRACK) if windows else np.zeros(0, np.int64)
-        if tr.size:
-            moved[tr] = speculate(act[tr]) > 0
+        for c0 in range(0, tr.size, _WINDOW_ROWS):    # bounded (cache-sized) temporaries
+            part = tr[c0:c0 + _WINDOW_ROWS]
+            moved[part] = speculate(act[part]) > 0
         wt = np.flatnonzero((st == STOPPED) & (wait_at[act] > 0) & windows)
         if wt.size:
             wait(act[wt])
