@@ -228,7 +228,10 @@ class _AssociatingTracker(_StoneSoupTracker):
         tracks = sorted(self.tracks, key=self._id)
         covered = [tr for tr, c in zip(tracks, self._covered_mask(
             dw, k, [tr.state for tr in tracks])) if c]
-        used = self._associate_and_update(set(covered), set(detections), when) \
+        # Lists in a fixed order (tracks by id, plots by det_id), not sets: a set of Stone Soup
+        # objects iterates in address order, which changed the JPDA sums in the last bits from
+        # one process to the next.
+        used = self._associate_and_update(covered, detections, when) \
             if covered else set()
         dead = self.deleter.delete_tracks(self.tracks, timestamp=when)
         self.tracks -= dead
