@@ -651,7 +651,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             j = np.repeat(c["j0"], W, axis=1)
             for q in range(_SEG_AHEAD):
                 j += key >= nk[:, q:q + 1]
-            far = np.flatnonzero((key[:, -1] >= nk[:, -1]) | (key[:, 0] < c["k0"][:, 0]))
+            far = np.flatnonzero((key.max(axis=1) >= nk[:, -1])
+                                 | (key.min(axis=1) < c["k0"][:, 0]))
             if far.size:
                 j[far] = np.clip(np.searchsorted(seg_key, key[far], side="right") - 1,
                                  c["fseg"][far], c["lseg"][far])
