@@ -336,6 +336,9 @@ def track(state: RunState):
     dwells = state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID})
     for name in ("looks", "detection_ancestors"):
         state.sinks[name].close()
+    if not cfg.tracker.enabled:        # tracker=none: no tracker module (scipy.optimize)
+        from gmtiflow.evaluate.tracks import empty_tracks
+        return empty_tracks()
     from gmtiflow.evaluate import track as run_tracker    # imported when run (scipy)
     return run_tracker(cfg.tracker, detections, dwells, cfg.seed,
                  origin=state.values["scene"][0].origin, epoch_utc=cfg.scene.epoch_utc,

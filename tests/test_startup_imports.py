@@ -54,3 +54,15 @@ def test_help_imports_neither_hydra_nor_numpy(tmp_path):
     code, modules = loaded_modules(["--help"], tmp_path)
     assert code in (0, None)
     assert [m for m in modules if m.split(".")[0] in ("hydra", "numpy", "omegaconf")] == []
+
+
+def test_a_run_without_tracker_and_metrics_does_not_load_them(tmp_path):
+    # tracker=none metrics.enabled=false: the baseline tracker, its assignment (scipy.optimize)
+    # and the metrics are not imported at all.
+    code, modules = loaded_modules(
+        ["tracker=none", "metrics.enabled=false", "report=none", "export=none",
+         "scene.duration_s=20", "progress=false", f"hydra.run.dir={tmp_path}/run"], tmp_path)
+    assert code in (0, None)
+    assert "gmtiflow.sensor.model" in modules          # the run really ran
+    assert [m for m in modules if m.startswith(("scipy.optimize", "gmtiflow.evaluate.tracker",
+                                                "gmtiflow.evaluate.stage"))] == []

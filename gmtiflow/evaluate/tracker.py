@@ -52,7 +52,7 @@ from gmtiflow.evaluate.assignment import sparse_gated_assignment
 from gmtiflow.evaluate.config import TrackerConfig
 from gmtiflow.evaluate.protocol import (Batch, SceneInfo, _Prepared, load_tracker,
                                         run_tracker)
-from gmtiflow.evaluate.tracks import TRACK_COLUMNS
+from gmtiflow.evaluate.tracks import TRACK_COLUMNS, empty_tracks  # noqa: F401 (re-exported)
 from gmtiflow.tables import Table
 
 
@@ -60,14 +60,6 @@ from gmtiflow.tables import Table
 #: above, candidates come from a k-d tree (:func:`gmtiflow.evaluate.kalman.gated_pairs`).  Both
 #: give the same pairs and values; the threshold only trades fixed cost for scaling.
 DENSE_PAIRS = 4096
-
-
-def empty_tracks() -> Table:
-    """A zero-row /tracks table with the baseline's columns and dtypes."""
-    out = {name: np.zeros(0, float) for name in TRACK_COLUMNS}
-    out["track_id"] = np.zeros(0, np.int64)
-    out["confirmed"] = np.zeros(0, bool)
-    return out
 
 
 def _column(det, name, n, default):

@@ -185,3 +185,11 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
                                 f"track must be in increasing time order")
         out = {k: v[order] for k, v in out.items()}
     return out
+
+
+def empty_tracks() -> Table:
+    """A zero-row /tracks table with the baseline's columns and dtypes."""
+    out = {name: np.zeros(0, float) for name in TRACK_COLUMNS}
+    out["track_id"] = np.zeros(0, np.int64)
+    out["confirmed"] = np.zeros(0, bool)
+    return out
