@@ -72,12 +72,29 @@ def stonesoup_child(n: int, scans: int) -> dict:
             "detections": n_det, "scans": n_scan}
 
 
+def peer_vehicles(n: int, duration_s: float):
+    """The matched workload's vehicles: ``n`` off-road rectangles of 12 km lapped at 5 m/s,
+    enough laps for ``duration_s``, no position noise (seeded: the same for every run)."""
+    import numpy as np
+
+    from gmtiflow.scene.vehicles import VehicleSpec, VehiclesConfig
+    g = np.random.default_rng(1)
+    laps = int(np.ceil(duration_s * 5.0 / 12_000.0)) + 1     # 12 km laps at 5 m/s
+    specs = []
+    for i, (x, y) in enumerate(zip(g.uniform(-4000, -2000, n).tolist(),
+                                   g.uniform(-2500, -1500, n).tolist())):
+        corners = [[x, y], [x + 4000, y], [x + 4000, y + 2000], [x, y + 2000]]
+        specs.append(VehicleSpec(name=f"t{i:04d}", cruise_speed_mps=5.0,
+                                 off_road=corners * laps + [[x, y]],
+                                 position_noise_m=[0.0, 0.0, 0.0]))
+    return VehiclesConfig(vehicles=specs)
+
+
 def gmtiflow_child(n: int, scans: int, out: str) -> dict:
     import numpy as np
 
     from gmtiflow import pipeline
     from gmtiflow.compose import compose
-    from gmtiflow.scene.vehicles import VehicleSpec, VehiclesConfig
 
     duration = scans * REVISIT_S
     base = ["fidelity=fast", "clutter=none", "tracker=none", "metrics.enabled=false",
@@ -87,16 +104,7 @@ def gmtiflow_child(n: int, scans: int, out: str) -> dict:
     sensor = cfg.sensor.normalised()
     per_scan = sensor.expected_false_alarms_per_dwell * sensor.n_dwells
     cfg = compose(base + [f"sensor.pfa={sensor.pfa * FA_PER_SCAN / per_scan:.6g}"])
-    g = np.random.default_rng(1)
-    laps = int(np.ceil(duration * 5.0 / 12_000.0)) + 1     # 12 km laps at 5 m/s
-    specs = []
-    for i, (x, y) in enumerate(zip(g.uniform(-4000, -2000, n).tolist(),
-                                   g.uniform(-2500, -1500, n).tolist())):
-        corners = [[x, y], [x + 4000, y], [x + 4000, y + 2000], [x, y + 2000]]
-        specs.append(VehicleSpec(name=f"t{i:04d}", cruise_speed_mps=5.0,
-                                 off_road=corners * laps + [[x, y]],
-                                 position_noise_m=[0.0, 0.0, 0.0]))
-    cfg.vehicles = VehiclesConfig(vehicles=specs)
+    cfg.vehicles = peer_vehicles(n, duration)
     import gmtiflow.evaluate
     gmtiflow.evaluate.track       # the lazy imports a run makes: in the process time, not sim
     start, cpu0 = time.perf_counter(), time.process_time()

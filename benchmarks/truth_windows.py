@@ -16,25 +16,14 @@ import os
 import statistics
 import time
 
-import numpy as np
-
 
 def peer(n: int, scans: int):
     """The Stone Soup peer's workload (benchmarks/stonesoup_peer.py): off-road laps."""
     from gmtiflow.compose import compose
-    from gmtiflow.scene.vehicles import VehicleSpec, VehiclesConfig
+    from stonesoup_peer import peer_vehicles       # this script's directory is on sys.path
     duration = scans * 5.0
     cfg = compose(["fidelity=fast", "clutter=none", f"scene.duration_s={duration:g}"])
-    g = np.random.default_rng(1)
-    laps = int(np.ceil(duration * 5.0 / 12_000.0)) + 1
-    specs = []
-    for i, (x, y) in enumerate(zip(g.uniform(-4000, -2000, n).tolist(),
-                                   g.uniform(-2500, -1500, n).tolist())):
-        corners = [[x, y], [x + 4000, y], [x + 4000, y + 2000], [x, y + 2000]]
-        specs.append(VehicleSpec(name=f"t{i:04d}", cruise_speed_mps=5.0,
-                                 off_road=corners * laps + [[x, y]],
-                                 position_noise_m=[0.0, 0.0, 0.0]))
-    cfg.vehicles = VehiclesConfig(vehicles=specs)
+    cfg.vehicles = peer_vehicles(n, duration)
     return cfg
 
 

@@ -214,12 +214,7 @@ def gated_pairs(x_pos: np.ndarray, HPHt: np.ndarray, z: np.ndarray, R: np.ndarra
         nu[:, 2] = wrap_symmetric(nu[:, 2], np.asarray(rr_half_period)[di])
     keep = (nu[:, :2] ** 2).sum(axis=-1) <= gate * (tr_p[ti] + tr_r[di])
     ti, di, nu = ti[keep], di[keep], nu[keep]
-    d2 = np.full(len(ti), np.inf)
-    if len(ti):
-        S = HPHt[ti] + R[di]
-        d2 = np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
-    inside = d2 < gate
-    return ti[inside], di[inside], nu[inside], d2[inside]
+    return _inside_gate(HPHt, R, ti, di, nu, gate)
 
 
 def dense_gated_pairs(HPHt: np.ndarray, z: np.ndarray, R: np.ndarray, h: np.ndarray,
@@ -238,6 +233,13 @@ def dense_gated_pairs(HPHt: np.ndarray, z: np.ndarray, R: np.ndarray, h: np.ndar
     nu = z[di] - h[ti]
     if rr_half_period is not None and m == 3:
         nu[:, 2] = wrap_symmetric(nu[:, 2], np.asarray(rr_half_period)[di])
+    return _inside_gate(HPHt, R, ti, di, nu, gate)
+
+
+def _inside_gate(HPHt, R, ti, di, nu, gate: float):
+    """The pairs ``(ti, di)`` with innovations ``nu`` whose squared Mahalanobis distance under
+    S = HPHᵀ + R is below ``gate``: ``ti, di, nu, d2`` of those (the last step of
+    :func:`gated_pairs` and :func:`dense_gated_pairs`)."""
     d2 = np.full(len(ti), np.inf)
     if len(ti):
         S = HPHt[ti] + R[di]
