@@ -85,8 +85,9 @@ def test_load_run_reads_and_checks_the_config_once(small_run, monkeypatch):
     from gmtiflow.report.data import load_run
     expected = yaml.safe_load(store.read_text(small_run, "config"))
     calls = []
-    real = yaml.safe_load
-    monkeypatch.setattr(store.yaml, "safe_load", lambda text: calls.append(1) or real(text))
+    real = store.yaml.load
+    monkeypatch.setattr(store.yaml, "load",
+                        lambda text, Loader: calls.append(1) or real(text, Loader=Loader))
     run = load_run(small_run, lazy=True)
     assert len(calls) == 1
     assert run.config == expected and run.cfg("scene.duration_s") == 30
