@@ -66,3 +66,5 @@ def test_a_run_without_tracker_and_metrics_does_not_load_them(tmp_path):
     assert "gmtiflow.sensor.model" in modules          # the run really ran
     assert [m for m in modules if m.startswith(("scipy.optimize", "gmtiflow.evaluate.tracker",
                                                 "gmtiflow.evaluate.stage"))] == []
+    # The default scene routes its vehicles on RoadMap.arcs(): networkx (~0.15 s) stays out.
+    assert [m for m in modules if m.split(".")[0] == "networkx"] == []

@@ -25,7 +25,8 @@ class RoadMap:
         self.edges = edges
         self.attribution = attribution
         self.source = source
-        self.graph = _build_graph(nodes, edges)
+        self._graph = None        # the networkx graph, built on first use (see graph)
+        self._arcs = None         # the routing arcs as arrays, built on first use (see arcs)
         self._name_to_id = {str(n): i for i, n in enumerate(nodes["name"])}
         self._xyz = np.column_stack([nodes["x_m"], nodes["y_m"], nodes["z_m"]])
         self._tree = None
@@ -98,6 +99,42 @@ class RoadMap:
 
     # -- queries ------------------------------------------------------------------------------
     @property
+    def graph(self) -> "nx.DiGraph":
+        """The routing graph as a networkx DiGraph (built on first use: importing networkx
+        and building the graph cost ~0.1–0.2 s, and routing and the largest component use
+        :meth:`arcs`, so a run never needs it)."""
+        if self._graph is None:
+            self._graph = _build_graph(self.nodes, self.edges)
+        return self._graph
+
+    def arcs(self):
+        """The routing graph's arcs as arrays ``(from, to, length_m, edge_id)``, in the order
+        networkx's ``graph.edges`` lists them (by source node, then insertion): one arc per
+        direction a road may be travelled, the first road between a pair wins, no self-loops —
+        the arcs of :attr:`graph`, without networkx."""
+        if self._arcs is None:
+            e = self.edges
+            f, t = e["from_node"].astype(np.int64), e["to_node"].astype(np.int64)
+            keep = f != t
+            both = ~e["oneway"].astype(bool)
+            eid = e["edge_id"].astype(np.int64)
+            length = e["length_m"].astype(float)
+            # Candidates in the order _build_graph adds them: each road forwards, then backwards.
+            a = np.column_stack([f, t]).ravel()
+            b = np.column_stack([t, f]).ravel()
+            ok = np.column_stack([keep, keep & both]).ravel()
+            ids = np.repeat(eid, 2)
+            ln = np.repeat(length, 2)
+            a, b, ids, ln = a[ok], b[ok], ids[ok], ln[ok]
+            n = self.n_nodes
+            _, first = np.unique(a * n + b, return_index=True)
+            first = np.sort(first)                       # insertion order of the kept arcs
+            a, b, ids, ln = a[first], b[first], ids[first], ln[first]
+            order = np.argsort(a, kind="stable")         # by source, then insertion
+            self._arcs = (a[order], b[order], ln[order], ids[order])
+        return self._arcs
+
+    @property
     def n_nodes(self) -> int:
         return len(self.nodes["node_id"])
 
@@ -141,10 +178,18 @@ class RoadMap:
 
     def largest_component(self) -> np.ndarray:
         """Node ids of the largest strongly connected component (sorted)."""
-        import networkx as nx   # 0.15 s to import: only once a road map is built
-        comps = nx.strongly_connected_components(self.graph)
-        best = max(comps, key=lambda c: (len(c), -min(c)))
-        return np.asarray(sorted(best), dtype=np.int64)
+        from scipy.sparse import csr_matrix
+        from scipy.sparse.csgraph import connected_components
+        a, b, _, _ = self.arcs()
+        n = self.n_nodes
+        adj = csr_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
+        _, labels = connected_components(adj, directed=True, connection="strong")
+        size = np.bincount(labels)
+        first = np.full(len(size), n, dtype=np.int64)
+        np.minimum.at(first, labels, np.arange(n, dtype=np.int64))
+        # The largest; between equal sizes the one with the smallest node id.
+        best = max(range(len(size)), key=lambda c: (int(size[c]), -int(first[c])))
+        return np.flatnonzero(labels == best).astype(np.int64)
 
 
 def _build_graph(nodes: Table, edges: Table) -> "nx.DiGraph":

@@ -6,7 +6,8 @@ A :class:`RoadMap` holds
   ``/roads/edges`` in ``docs/tables.md``;
 * ``graph``: a :class:`networkx.DiGraph` over ``node_id`` with one directed arc per direction a
   road may be travelled (a oneway road only ``from_node -> to_node``), arc attributes
-  ``length_m`` (Euclidean 3-D length, the Dijkstra weight of the paper) and ``edge_id``;
+  ``length_m`` (Euclidean 3-D length, the Dijkstra weight of the paper) and ``edge_id``, built
+  on first use; routing and the random fleet use the same arcs as arrays (``arcs()``);
 * ``origin`` (:class:`gmtiflow.frames.Origin`) of the ENU frame, and ``attribution``.
 
 Curves are chains of nodes, as in the paper and in vector road maps; an inline road's ``via``

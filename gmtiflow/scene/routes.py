@@ -1,7 +1,7 @@
 """Routes: shortest paths on the road graph, as polylines with arc length (paper §3, DESIGN §3).
 
 Dijkstra with the Euclidean 3-D road length as weight, from the start through the stopovers to
-the end. The search runs on a CSR copy of ``RoadMap.graph`` with ``scipy.sparse.csgraph.dijkstra``
+the end. The search runs on a CSR matrix of the road graph's arcs (``RoadMap.arcs``) with ``scipy.sparse.csgraph.dijkstra``
 (compiled; networkx's pure-Python Dijkstra took 10 ms a route on Monaco, 10 s for 1,000
 vehicles); the tests check it against networkx and brute force. A :class:`Route` is a
 polyline: node positions, cumulative arc length, and per segment the road's edge id, invisible
@@ -62,16 +62,13 @@ def _csr(roadmap: RoadMap):
     predecessors per source node (filled on use), cached on the map."""
     cached = roadmap._routing_csr
     if cached is None:
-        g = roadmap.graph
-        arcs = list(g.edges(data=True))
+        rows, cols, length, eid = roadmap.arcs()
         n = roadmap.n_nodes
-        rows = np.asarray([a for a, _, _ in arcs], dtype=np.int64)
-        cols = np.asarray([b for _, b, _ in arcs], dtype=np.int64)
         # Explicit zeros would read as "no arc": a zero-length road gets a negligible weight.
-        w = np.maximum(np.asarray([d["length_m"] for _, _, d in arcs], dtype=float), 1e-9)
+        w = np.maximum(length, 1e-9)
         from scipy.sparse import csr_matrix   # here: scipy.sparse is slow to import
         csr = csr_matrix((w, (rows, cols)), shape=(n, n))
-        edge_of = {(a, b): d["edge_id"] for a, b, d in arcs}
+        edge_of = dict(zip(zip(rows.tolist(), cols.tolist()), eid.tolist()))
         cached = (csr, edge_of, {})
         roadmap._routing_csr = cached
     return cached

@@ -269,3 +269,20 @@ def test_geojson_lines_merge_at_shared_vertices(tmp_path):
 def test_malformed_geojson(tmp_path, text, match):
     with pytest.raises(RoadMapError, match=match):
         load_geojson(write(tmp_path, text, "bad.geojson"))
+
+
+@needs_data
+def test_arcs_and_largest_component_are_networkx_s(monaco):
+    # Routing and the random fleet use RoadMap.arcs() and scipy, not the networkx graph: the
+    # same arcs in the same order, the same component (ties: the smallest node id).
+    import networkx as nx
+    g = monaco.graph
+    arcs = list(g.edges(data=True))
+    a, b, length, eid = monaco.arcs()
+    assert list(zip(a.tolist(), b.tolist())) == [(u, v) for u, v, _ in arcs]
+    assert length.tolist() == [d["length_m"] for *_, d in arcs]
+    assert eid.tolist() == [d["edge_id"] for *_, d in arcs]
+    comps = list(nx.strongly_connected_components(g))
+    best = max(comps, key=lambda c: (len(c), -min(c)))
+    assert len(comps) > 1
+    assert monaco.largest_component().tolist() == sorted(best)
