@@ -264,3 +264,28 @@ def test_poisson_ppf_is_scipy_stats_poisson_ppf_exactly():
     want = stats.poisson.ppf(q, mean)
     assert np.array_equal(got, want)
     assert got.min() >= 0 and np.all(np.isfinite(got))
+
+
+def test_poisson_ppf_table_path_is_scipy_stats_poisson_ppf_exactly(monkeypatch):
+    """A few distinct means (the noise false alarms' case) go through the CDF table, not
+    pdtrik: the same values bit for bit, on and next to the CDF's steps too."""
+    g = np.random.default_rng(6)
+    means = np.asarray([1e-6, 0.05, 0.7142857142857143, 2.5, 40.0, 900.0])
+    mean = np.repeat(means, 40_000)
+    q = (g.integers(0, 2 ** 53, mean.size) + 0.5) * 2.0 ** -53
+    steps = np.concatenate([stats.poisson.cdf(np.arange(60), m) for m in means])
+    step_means = np.repeat(means, 60)
+    near = np.concatenate([np.nextafter(steps, 0.0), steps, np.nextafter(steps, 1.0),
+                           steps + 1e-7, steps - 1e-7, steps + 2e-6])
+    q = np.concatenate([q, near])
+    mean = np.concatenate([mean, np.tile(step_means, 6)])
+    keep = (q > 0.0) & (q < 1.0)
+    q, mean = q[keep], mean[keep]
+    through_pdtrik = []
+    slow = noise._poisson_ppf_pdtrik
+    monkeypatch.setattr(noise, "_poisson_ppf_pdtrik",
+                        lambda a, b: through_pdtrik.append(len(a)) or slow(a, b))
+    got = noise.poisson_ppf(q, mean)
+    assert sum(through_pdtrik) < 0.05 * q.size            # the table really answered
+    assert np.array_equal(got, stats.poisson.ppf(q, mean))
+    assert np.array_equal(got, slow(q, mean))
