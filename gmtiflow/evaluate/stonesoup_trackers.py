@@ -43,6 +43,7 @@ the prediction when the dwell missed it.  Tracks ids count from 0 in order of co
 from __future__ import annotations
 
 import datetime
+import logging
 from typing import Dict, List, Optional
 
 import numpy as np
@@ -54,7 +55,7 @@ from gmtiflow.evaluate.tracker import TRACK_COLUMNS, _covered, _measurements
 
 try:
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
-    from stonesoup.dataassociator._ehm import TrackClusterer
+    from stonesoup.dataassociator._ehm import TrackClusterer   # what JPDAwithEHM clusters with
     from stonesoup.dataassociator.probability import JPDAwithEHM, JPDAwithLBP
     from stonesoup.deleter.time import UpdateTimeDeleter
     from stonesoup.functions import gm_reduce_single
@@ -242,7 +243,6 @@ class _AssociatingTracker(_StoneSoupTracker):
         report = [tr for tr in covered if tr not in dead] + sorted(new, key=self._id)
         return self._rows([self._id(tr) for tr in report], t, [tr.state for tr in report])
 
-
     def _initiate(self, dw, k: int, detections: set, when) -> set:
         """The initiator's step with only the holding (tentative) tracks this dwell covers.
 
@@ -279,7 +279,8 @@ class StoneSoupGNN(_AssociatingTracker):
 
 
 class StoneSoupJPDA(_AssociatingTracker):
-    """Joint probabilistic data association (Stone Soup ``JPDAwithEHM``: exact JPDA marginals)."""
+    """Joint probabilistic data association: Stone Soup's ``JPDAwithEHM`` (exact marginals), or
+    ``JPDAwithLBP`` in dwells with a cluster wider than ``exact_cluster_max_tracks``."""
 
     def __init__(self, prob_detect: float = 0.6, clutter_density_per_km2: float = 0.01,
                  exact_cluster_max_tracks: int = 8, **kwargs):
@@ -299,7 +300,6 @@ class StoneSoupJPDA(_AssociatingTracker):
 
     def finish(self):
         if self.n_dwells_approx:
-            import logging
             logging.getLogger(__name__).info(
                 "stonesoup_jpda: %d of %d dwells had a cluster of more than %d tracks sharing "
                 "plots; their marginals came from loopy belief propagation",
