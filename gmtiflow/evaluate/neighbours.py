@@ -52,13 +52,7 @@ def close_pairs(X: np.ndarray, Y: np.ndarray, c: float, step_x=None, step_y=None
         cols.append(oky[order[np.arange(total) + start]])
     if not rows:
         return empty, empty, np.zeros(0)
-    r, k = np.concatenate(rows), np.concatenate(cols)
-    o = np.argsort(r * max(n, 1) + k)
-    r, k = r[o], k[o]
-    diff = X[r] - Y[k]
-    D = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-    inside = D < c
-    return r[inside], k[inside], D[inside]
+    return _within(X, Y, np.concatenate(rows), np.concatenate(cols), c)
 
 
 def close_pairs_tree(X, Y, c, sx, sy):
@@ -71,7 +65,12 @@ def close_pairs_tree(X, Y, c, sx, sy):
     ia, ib = np.flatnonzero(fin_a), np.flatnonzero(fin_b)
     found = cKDTree(A[ia]).sparse_distance_matrix(cKDTree(B[ib]), c * (1.0 + 1e-9),
                                                   output_type="ndarray")
-    r, k = ia[found["i"].astype(np.int64)], ib[found["j"].astype(np.int64)]
+    return _within(X, Y, ia[found["i"].astype(np.int64)], ib[found["j"].astype(np.int64)], c)
+
+
+def _within(X, Y, r, k, c):
+    """The candidate pairs ``(r, k)`` closer than ``c``, sorted by row then column, and their
+    distances (the exact test both candidate searches end with)."""
     o = np.argsort(r * max(len(Y), 1) + k)
     r, k = r[o], k[o]
     diff = X[r] - Y[k]
