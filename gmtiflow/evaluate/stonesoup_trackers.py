@@ -62,6 +62,8 @@ try:
     from stonesoup.hypothesiser.distance import DistanceHypothesiser
     from stonesoup.hypothesiser.gaussianmixture import GaussianMixtureHypothesiser
     from stonesoup.hypothesiser.probability import PDAHypothesiser
+    from stonesoup.base import Property
+    from stonesoup.hypothesiser import Hypothesiser
     from stonesoup.initiator.simple import MultiMeasurementInitiator
     from stonesoup.measures import Mahalanobis
     from stonesoup.mixturereducer.gaussianmixture import GaussianMixtureReducer
@@ -278,6 +280,27 @@ class StoneSoupGNN(_AssociatingTracker):
         return used
 
 
+class _OncePerDwell(Hypothesiser):
+    """Answers each track once per dwell (:meth:`clear` between dwells): the JPDA's cluster test
+    and its associator then share one set of hypotheses (their Kalman predictions and
+    likelihoods are most of a JPDA dwell's cost) instead of computing them twice."""
+
+    hypothesiser: Hypothesiser = Property(doc="The hypothesiser that does the work.")
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._memo = {}
+
+    def clear(self) -> None:
+        self._memo.clear()
+
+    def hypothesise(self, track, detections, timestamp, **kwargs):
+        if track not in self._memo:
+            self._memo[track] = self.hypothesiser.hypothesise(track, detections, timestamp,
+                                                              **kwargs)
+        return self._memo[track]
+
+
 class StoneSoupJPDA(_AssociatingTracker):
     """Joint probabilistic data association: Stone Soup's ``JPDAwithEHM`` (exact marginals), or
     ``JPDAwithLBP`` in dwells with a cluster wider than ``exact_cluster_max_tracks``."""
@@ -288,11 +311,11 @@ class StoneSoupJPDA(_AssociatingTracker):
         self.clutter_density_per_km2 = float(clutter_density_per_km2)
         self.exact_cluster_max_tracks = int(exact_cluster_max_tracks)
         super().__init__(**kwargs)
-        hypothesiser = PDAHypothesiser(
+        self.hypotheses = _OncePerDwell(PDAHypothesiser(
             self.predictor, self.updater, clutter_spatial_density=self.clutter_density_per_km2
-            / 1e6, prob_detect=self.prob_detect, prob_gate=self.gate_probability)
-        self.jpda = JPDAwithEHM(hypothesiser)
-        self.jpda_lbp = JPDAwithLBP(hypothesiser)
+            / 1e6, prob_detect=self.prob_detect, prob_gate=self.gate_probability))
+        self.jpda = JPDAwithEHM(self.hypotheses)
+        self.jpda_lbp = JPDAwithLBP(self.hypotheses)
 
     def reset(self, scene: SceneInfo) -> None:
         super().reset(scene)
@@ -313,6 +336,7 @@ class StoneSoupJPDA(_AssociatingTracker):
         of false tracks made one dwell take minutes), so those dwells use Stone Soup's
         ``JPDAwithLBP`` (loopy belief propagation, Williams & Lau 2014: approximate marginals,
         polynomial cost)."""
+        self.hypotheses.clear()                     # a new dwell: its own hypotheses
         hyps = self.jpda.generate_hypotheses(tracks, detections, when)
         widest = max((len(c) for c in TrackClusterer(hyps).clustered_hypotheses), default=0)
         if widest <= self.exact_cluster_max_tracks:
