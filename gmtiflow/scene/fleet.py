@@ -6,6 +6,8 @@ evaluates them exactly at any instant (``state_at``, vectorised over (time, vehi
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from gmtiflow import frames
@@ -60,16 +62,8 @@ class Fleet:
         self._vx_key = self._vx_s + route_of_vx * self._span
         # Road-frame heading per segment (indexed by its first vertex) and the corner blend
         # (half-width, turn) per vertex, for the wander's smoothly turning frame.
-        psi, blend, turn = [], [], []
-        for r in routes:
-            h = wander_mod.segment_headings(r.xyz_m)
-            b, t = wander_mod.corner_blends(r.s_m, h)
-            psi.append(pad(h, h[-1] if len(h) else 0.0))
-            blend.append(b)
-            turn.append(t)
-        self._seg_psi = np.concatenate(psi) if routes else np.zeros(0)
-        self._vx_blend = np.concatenate(blend) if routes else np.zeros(0)
-        self._vx_turn = np.concatenate(turn) if routes else np.zeros(0)
+        self._seg_psi, self._vx_blend, self._vx_turn = _road_frames(
+            routes, self._vx_xyz, self._vx_s, self._vx_off)
 
     @property
     def n_vehicles(self) -> int:
@@ -187,6 +181,38 @@ class Fleet:
             st.pop("active")
             return st
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def _road_frames(routes, xyz, s, off):
+    """Per vertex of the flat routes (``xyz``, ``s``, route r at ``off[r]:off[r + 1]``): the
+    heading of the segment it starts (a route's last vertex: its last segment's), and the
+    corner blend half-width and turn (:func:`wander.segment_headings`,
+    :func:`wander.corner_blends` of each route, the same operations on all routes at once;
+    a route with a segment without horizontal extent takes them route by route)."""
+    nv = len(s)
+    if not routes:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    last = off[1:] - 1                    # each route's last vertex
+    d = xyz[1:] - xyz[:-1]                # row i: vertex i to i + 1 (across routes at `last`)
+    psi = np.empty(nv)
+    psi[:-1] = np.arctan2(d[:, 0], d[:, 1])
+    flat = ~(np.hypot(d[:, 0], d[:, 1]) > 0)
+    flat[last[:-1]] = False
+    psi[last] = psi[last - 1]
+    seg = s[1:] - s[:-1]
+    blend = np.zeros(nv)
+    turn = np.zeros(nv)
+    blend[1:-1] = np.minimum(wander_mod.CORNER_BLEND_M, 0.5 * np.minimum(seg[:-1], seg[1:]))
+    turn[1:-1] = np.mod(psi[1:-1] - psi[:-2] + math.pi, 2.0 * math.pi) - math.pi
+    blend[off[:-1]] = blend[last] = 0.0
+    turn[off[:-1]] = turn[last] = 0.0
+    if flat.any():                          # those routes as wander does them
+        for r in np.unique(np.searchsorted(off, np.flatnonzero(flat), side="right") - 1):
+            a, b = int(off[r]), int(off[r + 1])
+            h = wander_mod.segment_headings(routes[r].xyz_m)
+            psi[a:b - 1], psi[b - 1] = h, h[-1]
+            blend[a:b], turn[a:b] = wander_mod.corner_blends(routes[r].s_m, h)
+    return psi, blend, turn
 
 
 TRUTH_COLUMNS = ("time_s", "vehicle_id", "convoy_id", "x_m", "y_m", "z_m", "vx_mps", "vy_mps",
