@@ -99,7 +99,7 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     lh = d[0] * h[0] + d[1] * h[1] + d[2] * h[2]
     rng_m = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).ravel()
     horiz = np.hypot(lb, lh)
-    sin_az = np.divide(lh, horiz, out=np.zeros_like(lh), where=horiz > 0)
+    sin_az = antenna.ratio(lh, horiz)
     # behind the antenna: beyond every beam, on the side it is turned to
     s = np.where(lb > 0, sin_az, np.where(lh >= 0, 2.0, -2.0)).ravel()
     return st, d_rep, v_rep, active, rng_m, s
