@@ -38,6 +38,15 @@ def _azimuths(east, north):
     return a, raw
 
 
+def _pair_counters(dwell_ids, vehicle_ids, dl, veh) -> rng.Counters:
+    """The counters (dwell_ids[dl], veh) of pairs, mixed: each dwell's and each vehicle's id is
+    mixed once and gathered per pair (the same values as ``rng.Counters(dwell_ids[dl], veh)``;
+    vehicles indexed by id, like the run's type codes)."""
+    by_id = np.zeros(int(vehicle_ids.max()) + 1 if len(vehicle_ids) else 0, np.uint64)
+    by_id[vehicle_ids] = rng.mix_counter(vehicle_ids)
+    return rng.Counters(mixed=[rng.mix_counter(dwell_ids)[dl], by_id[veh]])
+
+
 def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     """Detections and looks of some vehicles over the chunk's revisits (chunk-local det ids),
     and the number of (dwell, target) pairs evaluated."""
@@ -110,7 +119,7 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     s_db = snr.snr_db(cfg, rng_m[vis], g_t, g_r, rcs_v)
     s_lin = snr.db_to_linear(s_db)
     lpd = detect.log_pd(s_lin, cfg.pfa)
-    pairs = rng.Counters(dwell_id[vis], veh[vis])       # mixed once for all four draws
+    pairs = _pair_counters(dwell_ids, vehicle_ids, dl[vis], veh[vis])   # for all four draws
     uni = pairs.uniform(rng.counter_key(seed, "sensor", "pd"))
     log_u = np.log(uni)
     # hits and misses as index arrays (numpy's boolean-mask gathers are ~5x slower)
