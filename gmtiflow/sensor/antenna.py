@@ -67,8 +67,16 @@ def target_angles(los, b, h, u):
     horiz = np.hypot(lb, lh)
     az = np.arctan2(lh, lb)
     el = np.arctan2(lu, horiz)
-    sin_az = np.divide(lh, horiz, out=np.zeros_like(lh), where=horiz > 0)
+    sin_az = ratio(lh, horiz)
     return az, el, sin_az, lb
+
+
+def ratio(num, den, fill: float = 0.0):
+    """``num / den`` where ``den > 0``, ``fill`` elsewhere.  The plain division when every
+    ``den`` is positive (the usual case): numpy's ``where=`` path costs ~5x as much."""
+    if np.all(den > 0):
+        return num / den
+    return np.divide(num, den, out=np.full_like(num, fill), where=den > 0)
 
 
 def direction(az_rad, el_rad, b, h, u):
