@@ -82,25 +82,30 @@ class Fleet:
         t = t.ravel()
         vid = vid.ravel()
         n = t.size
-        valid = (vid >= 0) & (vid < self.n_vehicles)
-        vs = np.where(valid, vid, 0)
         out = _empty_truth(n)
         out["time_s"] = t.copy()
         out["vehicle_id"] = vid.copy()
         if self.n_vehicles == 0:
             out["active"] = np.zeros(n, bool)
             return {k: c.reshape(shape) for k, c in out.items()}
-        tau = t - self._t0[vs]
-        active = (valid & (tau >= self._on[vs]) & (tau < self._off[vs])
-                  & (tau <= self._horizon[vs])
-                  & np.isfinite(t))
+        active, valid, vs, tau = self._active(t, vid)
         idx = np.flatnonzero(active)
         out["active"] = active
         out["convoy_id"] = np.where(valid, self.vehicles["convoy_id"][vs], -1)
+        whole = idx.size == n       # every row active (truth_table): no gather, no scatter
+
+        def put(names, values):
+            for name, val in zip(names, values):
+                if whole:
+                    out[name] = np.asarray(val, dtype=out[name].dtype)
+                else:
+                    out[name][idx] = val
+
         if idx.size:
-            v_ids = vs[idx]
+            v_ids = vs if whole else vs[idx]
+            t_a = t if whole else t[idx]
             p = self._profile[v_ids]
-            s_p, speed, acc, mode = self.profiles.evaluate(tau[idx], p)
+            s_p, speed, acc, mode = self.profiles.evaluate(tau if whole else tau[idx], p)
             r = self._route[v_ids]
             length = self._vx_s[self._vx_off[r + 1] - 1]
             s = np.clip(s_p - self._offset[v_ids], 0.0, length)
@@ -127,7 +132,7 @@ class Fleet:
             moving = np.flatnonzero(self._w_off[v_ids + 1] > self._w_off[v_ids])
             if moving.size:
                 m_ids = v_ids[moving]
-                n, nd, ndd = wander_mod.evaluate(t[idx][moving], m_ids, self._w_knots,
+                n, nd, ndd = wander_mod.evaluate(t_a[moving], m_ids, self._w_knots,
                                                  self._w_off, self._w_t0, self._w_h)
                 jm = j[moving]
                 psi, dpsi, d2psi = wander_mod.corner_heading(
@@ -139,16 +144,23 @@ class Fleet:
                 pos[:, moving] += off.T
                 vel[:, moving] += v_off.T
                 accel[:, moving] += a_off.T
-            out["x_m"][idx], out["y_m"][idx], out["z_m"][idx] = pos
-            out["vx_mps"][idx], out["vy_mps"][idx], out["vz_mps"][idx] = vel
-            out["ax_mps2"][idx], out["ay_mps2"][idx], out["az_mps2"][idx] = accel
-            out["speed_mps"][idx] = speed
-            out["heading_rad"][idx] = frames.heading_rad(unit[0], unit[1])
-            out["route_s_m"][idx] = s
-            out["edge_id"][idx] = self._seg_edge[j]
-            out["mode"][idx] = mode
-            out["invisible"][idx] = self._seg_inv[j]
+            put(("x_m", "y_m", "z_m"), pos)
+            put(("vx_mps", "vy_mps", "vz_mps"), vel)
+            put(("ax_mps2", "ay_mps2", "az_mps2"), accel)
+            put(("speed_mps", "heading_rad", "route_s_m", "edge_id", "mode", "invisible"),
+                (speed, frames.heading_rad(unit[0], unit[1]), s, self._seg_edge[j], mode,
+                 self._seg_inv[j]))
         return {k: c.reshape(shape) for k, c in out.items()}
+
+    def _active(self, t, vid):
+        """(active, valid, clipped vehicle ids, local time) of flat (time, vehicle) pairs."""
+        valid = (vid >= 0) & (vid < self.n_vehicles)
+        vs = np.where(valid, vid, 0)
+        tau = t - self._t0[vs]
+        active = (valid & (tau >= self._on[vs]) & (tau < self._off[vs])
+                  & (tau <= self._horizon[vs])
+                  & np.isfinite(t))
+        return active, valid, vs, tau
 
     def truth_table(self, times_s, chunk_rows: int = 500_000) -> Table:
         """``/truth`` rows of the active vehicles at ``times_s``, sorted by time then vehicle.
@@ -171,15 +183,20 @@ class Fleet:
             if len(vid) else np.zeros(0, np.int64)
         order = np.argsort(ti * max(n, 1) + vid, kind="stable")
         vid, ti = vid[order], ti[order]
+        if len(vid):        # the active pairs only (state_at then neither gathers nor scatters)
+            keep = self._active(times[ti], vid)[0]
+            vid, ti = vid[keep], ti[keep]
         parts = []
         for a in range(0, len(vid), chunk_rows):
             st = self.state_at(times[ti[a:a + chunk_rows]], vid[a:a + chunk_rows])
             mask = st.pop("active")
-            parts.append({k: c[mask] for k, c in st.items()})
+            parts.append(st if mask.all() else {k: c[mask] for k, c in st.items()})
         if not parts:
             st = self.state_at(np.zeros(0), np.zeros(0, np.int64))
             st.pop("active")
             return st
+        if len(parts) == 1:
+            return parts[0]
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
