@@ -16,7 +16,7 @@ from typing import Dict
 
 import numpy as np
 
-from gmtiflow.sensor import antenna, geometry
+from gmtiflow.sensor import antenna, fastnp, geometry
 from gmtiflow.sensor.context import SensorRun
 from gmtiflow.sensor.poses import Poses
 from gmtiflow.tables import Table
@@ -99,7 +99,7 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     lh = d[0] * h[0] + d[1] * h[1] + d[2] * h[2]
     rng_m = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).ravel()
     horiz = np.hypot(lb, lh)
-    sin_az = antenna.ratio(lh, horiz)
+    sin_az = fastnp.ratio(lh, horiz)
     # behind the antenna: beyond every beam, on the side it is turned to
     s = np.where(lb > 0, sin_az, np.where(lh >= 0, 2.0, -2.0)).ravel()
     return st, d_rep, v_rep, active, rng_m, s
