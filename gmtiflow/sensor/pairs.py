@@ -326,14 +326,18 @@ class Rows:
 
     def __init__(self, columns: Dict[str, np.ndarray], sel: np.ndarray):
         self.columns, self.sel, self.cache = columns, sel, {}
+        self._at = (None, None)       # the last ``index`` of :meth:`at` and sel[index]
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name not in self.cache:
-            self.cache[name] = self.columns[name][self.sel]
+            self.cache[name] = np.take(self.columns[name], self.sel)
         return self.cache[name]
 
     def at(self, name: str, index: np.ndarray) -> np.ndarray:
-        """Column ``name`` at selected rows ``index`` (without gathering the others)."""
+        """Column ``name`` at selected rows ``index`` (an integer array; without gathering the
+        other rows).  Successive calls with the same ``index`` object compose it once."""
         if name in self.cache:
-            return self.cache[name][index]
-        return self.columns[name][self.sel[index]]
+            return np.take(self.cache[name], index)
+        if self._at[0] is not index:
+            self._at = (index, np.take(self.sel, index))
+        return np.take(self.columns[name], self._at[1])
