@@ -11,8 +11,13 @@ to quote are those of a full run on a quiet machine.  Before and after each scri
 and the 1-minute load average are printed; ratios from one script's run (A/B alternated inside
 it) are what count on a shared machine.  Output of each script also goes to ``--out``/NAME.txt.
 
-The table below (``BENCHMARKS``) names, for every script, the doc page that quotes it; a script
-that backs no figure in docs/ is not listed (``fuzz.py`` and ``config_extremes.py`` back the
+The table below (``BENCHMARKS``) names, for every command, the script and the doc page that
+quotes it (a script quoted with several argument sets has an entry per set); ``user_wait`` keeps
+its 1,000-vehicle run under ``--out``, and the entries that time a stage of a real run
+(``export_stage``, ``report_run``, ``metrics_run``) read it: ``--only`` adds it first.  The
+A/B comparisons against old revisions that some pages quote (``--against``, ``--baseline``,
+``--text-against``) are left out, except the clutter one: they measure a past change, not
+today's figure.  A script that backs no figure in docs/ is not listed (``fuzz.py`` and ``config_extremes.py`` back the
 reliability tables through ``reliability_table.py``).
 """
 from __future__ import annotations
@@ -27,36 +32,59 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 
-# name: (doc page quoting it, full arguments, --quick arguments)
+# name: (script, doc page quoting it, full arguments, --quick arguments).  "{out}" stands for
+# --out; the entries after "user_wait" read the 1,000-vehicle run it keeps in {out}/user_wait.
 BENCHMARKS = {
-    "scale": ("docs/scale.md", [], ["--quick"]),
-    "fidelity_tradeoff": ("docs/scale.md", [], ["--seeds", "1", "--", "scene.duration_s=300",
-                                                "vehicles.random.count=100"]),
-    "stonesoup_peer": ("docs/scale.md", [], ["--quick"]),
-    "truth_windows": ("docs/scale.md", [], ["--repeat", "1", "--only", "peer 10 x", "default"]),
-    "sweep_parallel": ("docs/scale.md", [], ["--jobs", "2"]),
-    "sensor_throughput": ("docs/sensor.md", [],
+    "scale": ("scale", "docs/scale.md", [], ["--quick"]),
+    "user_wait": ("user_wait", "docs/scale.md",
+                  ["--big", "--keep", "{out}/user_wait"], ["--quick", "--keep", "{out}/user_wait"]),
+    "export_stage": ("export_throughput", "docs/formats.md",
+                     ["--run", "{out}/user_wait/pipeline/run.h5", "--stage", "--ab-runs", "3"],
+                     ["--run", "{out}/user_wait/pipeline/run.h5", "--stage", "--ab-runs", "1"]),
+    "report_run": ("report_time", "docs/reports.md",
+                   ["--run", "{out}/user_wait/pipeline/run.h5", "--fresh"],
+                   ["--run", "{out}/user_wait/pipeline/run.h5", "--repeat", "1"]),
+    "metrics_run": ("metrics_throughput", "docs/evaluation.md",
+                    ["--run", "{out}/user_wait/pipeline/run.h5"],
+                    ["--run", "{out}/user_wait/pipeline/run.h5", "--repeats", "1"]),
+    "fidelity_tradeoff": ("fidelity_tradeoff", "docs/scale.md", ["--seeds", "1", "2"],
+                          ["--seeds", "1", "--", "scene.duration_s=300",
+                           "vehicles.random.count=100"]),
+    "stonesoup_peer": ("stonesoup_peer", "docs/scale.md", [], ["--quick"]),
+    "truth_windows": ("truth_windows", "docs/scale.md", [],
+                      ["--repeat", "1", "--only", "peer 10 x", "default"]),
+    "sweep_parallel": ("sweep_parallel", "docs/scale.md", [], ["--jobs", "2"]),
+    "sensor_throughput": ("sensor_throughput", "docs/scale.md, docs/sensor.md",
+                          ["--vehicles", "10000", "--workers", "1", "--plain"],
                           ["--vehicles", "10000", "--workers", "1", "--repeat", "3"]),
-    "truth_throughput": ("docs/scene.md", [], ["--counts", "100", "1000", "--repeat", "1"]),
-    "effects_scaling": ("docs/effects.md", [], ["--quick"]),
-    "clutter_throughput": ("docs/scale.md, docs/effects.md", ["--baseline", "20b4222"],
-                           ["--quick"]),
-    "terrain_los": ("docs/terrain.md", [], ["--rays", "10000", "--repeat", "1"]),
-    "export_throughput": ("docs/formats.md, docs/exports.md", [],
+    "truth_throughput": ("truth_throughput", "docs/scene.md", [],
+                         ["--counts", "100", "1000", "--repeat", "1"]),
+    "effects_scaling": ("effects_scaling", "docs/effects.md", [], ["--quick"]),
+    "clutter_throughput": ("clutter_throughput", "docs/scale.md, docs/effects.md",
+                           ["--baseline", "20b4222"], ["--quick"]),
+    "terrain_los": ("terrain_los", "docs/terrain.md", [], ["--rays", "10000", "--repeat", "1"]),
+    "export_throughput": ("export_throughput", "docs/formats.md, docs/exports.md",
+                          ["--detections", "100000", "--dwells", "1000", "--repeat", "1"],
                           ["--detections", "50000", "--dwells", "500", "--repeat", "1"]),
-    "read_4607_throughput": ("docs/formats.md", [], ["--packets", "100000", "--repeat", "1"]),
-    "metrics_throughput": ("docs/evaluation.md", [], []),
-    "tracker_protocol_overhead": ("docs/evaluation.md", [],
+    "read_4607_throughput": ("read_4607_throughput", "docs/formats.md", [],
+                             ["--packets", "100000", "--repeat", "1"]),
+    "metrics_throughput": ("metrics_throughput", "docs/evaluation.md", [], []),
+    "metrics_scaling": ("metrics_throughput", "docs/evaluation.md", ["--scaling"], ["--scaling"]),
+    "tracker_protocol_overhead": ("tracker_protocol_overhead", "docs/evaluation.md",
+                                  ["--vehicles", "1000", "--duration-s", "300", "--repeats", "2"],
                                   ["--vehicles", "200", "--duration-s", "120", "--repeats", "1"]),
-    "two_orbits": ("docs/evaluation.md", ["--seeds", "1", "2", "3"], ["--seeds", "1"]),
-    "report_time": ("docs/reports.md", [], ["--big", "30", "--repeat", "1"]),
-    "startup_time": ("README.md", [], ["--repeat", "2"]),
-    "reliability_table": ("docs/reliability.md", [],
+    "two_orbits": ("two_orbits", "docs/evaluation.md", ["--seeds", "1", "2", "3"],
+                   ["--seeds", "1"]),
+    "report_time": ("report_time", "docs/reports.md", [], ["--big", "30", "--repeat", "1"]),
+    "startup_time": ("startup_time", "README.md", [], ["--repeat", "2"]),
+    "reliability_table": ("reliability_table", "docs/reliability.md", [],
                           ["--fuzz-cases", "100", "--config-runs", "5"]),
-    "benchmark_suite": ("docs/benchmark.md", [], ["--quick"]),
+    "benchmark_suite": ("benchmark_suite", "docs/benchmark.md", [], ["--quick"]),
 }
 #: Left out of --quick: they run whole tracker suites or sweeps of processes (minutes each).
 SLOW = {"benchmark_suite", "sweep_parallel", "reliability_table"}
+#: Entries that read what another entry keeps: --only adds that one first.
+NEEDS = {"export_stage": "user_wait", "report_run": "user_wait", "metrics_run": "user_wait"}
 
 
 def stamp() -> str:
@@ -72,18 +100,20 @@ def main(argv=None) -> None:
     ap.add_argument("--out", type=Path, default=Path("outputs/benchmarks/all"))
     args = ap.parse_args(argv)
     if args.list:
-        for name, (doc, full, quick) in BENCHMARKS.items():
-            print(f"{name:26s} {doc:36s} full: {' '.join(full) or '-'}   quick: "
+        for name, (script, doc, full, quick) in BENCHMARKS.items():
+            print(f"{name:26s} {doc:32s} {script}.py full: {' '.join(full) or '-'}   quick: "
                   f"{'skipped' if name in SLOW else ' '.join(quick) or '-'}")
         return
     names = args.only or [n for n in BENCHMARKS if not (args.quick and n in SLOW)]
+    names = [n for n in BENCHMARKS if n in names or n in {NEEDS.get(m) for m in names}]
     args.out.mkdir(parents=True, exist_ok=True)
     print(f"benchmarks/all.py{' --quick' if args.quick else ''}: {len(names)} scripts; "
           f"started {stamp()}", flush=True)
     failed, t_all = [], time.perf_counter()
     for name in names:
-        doc, full, quick = BENCHMARKS[name]
-        cmd = [sys.executable, str(HERE / f"{name}.py"), *(quick if args.quick else full)]
+        script, doc, full, quick = BENCHMARKS[name]
+        cmd = [sys.executable, str(HERE / f"{script}.py"),
+               *(a.replace("{out}", str(args.out)) for a in (quick if args.quick else full))]
         print(f"\n=== {name} (quoted in {doc}): {' '.join(cmd[1:])}\n    start {stamp()}",
               flush=True)
         t0 = time.perf_counter()

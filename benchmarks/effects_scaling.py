@@ -23,6 +23,7 @@ false alarm.  Linear means the µs per false alarm stays flat as the count grows
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -157,8 +158,11 @@ def main(argv=None):
         args.sizes, args.densities, args.repeats = [1_000, 3_000, 10_000], [1.0, 10.0], 3
         args.pfas, args.fa_densities, args.fa_revisits = [1e-5, 1e-4], [1.0, 10.0], 20
     worst = 0.0
+    print(f"load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)\n")
     if args.stage_only:
-        return _print_stage(args)
+        _print_stage(args)
+        print(f"\nload after: {os.getloadavg()[0]:.2f}")
+        return 0
 
     print("## Merging (cells 15 m x 5 mrad)\n")
     print("| layout | mode | n | time (s) | merged reports |\n|---|---|---|---|---|")
@@ -178,6 +182,7 @@ def main(argv=None):
     for dens, nd, count, t in bench_clutter(args.densities, args.repeats):
         print(f"| {dens:g} | {count:,} | {t:.4f} | {1e6 * t / max(count, 1):.2f} |")
     _print_stage(args)
+    print(f"\nload after: {os.getloadavg()[0]:.2f}")
     return 0 if worst <= 1.1 or args.quick else 1
 
 

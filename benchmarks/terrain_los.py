@@ -57,7 +57,7 @@ def main():
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     print(f"python {platform.python_version()}, numpy {np.__version__}, {platform.processor()}, "
-          f"{os.cpu_count()} CPUs")
+          f"{os.cpu_count()} CPUs, load before {os.getloadavg()[0]:.2f} (1-min average)")
     print(f"{'terrain':14s} {'rays':>8s} {'step_m':>7s} {'seconds':>8s} {'rays/s':>10s} {'visible':>8s}")
     for name, ter in terrains().items():
         for n in args.rays:
@@ -70,6 +70,7 @@ def main():
                     best = min(best, time.perf_counter() - t0)
                 print(f"{name:14s} {n:8d} {step:7.0f} {best:8.3f} {n / best:10.0f} "
                       f"{seen.mean():8.3f}")
+    print(f"load after: {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

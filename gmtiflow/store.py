@@ -39,6 +39,7 @@ from typing import Any, Dict, Mapping, Optional
 import h5py
 import numpy as np
 import yaml
+from h5py import h5a, h5d, h5p, h5s, h5t
 
 from gmtiflow import __version__
 from gmtiflow.errors import StoreError
@@ -91,6 +92,65 @@ def required_columns() -> Dict[str, tuple]:
 _CHUNK_ROWS = 65536
 _STR = h5py.string_dtype("utf-8")
 _DEFLATE_LEVEL = 1
+_INLINE_BYTES = 16 * 1024
+"""Chunks smaller than this are deflated on the calling thread (:class:`_ChunkDeflater`)."""
+
+# The run file's objects are made with h5py's low-level API: ``Group.create_dataset`` and
+# ``attrs[...] =`` rebuild the same property lists, types and dataspaces for every column
+# (~0.2 ms a dataset, most of a small run's file cost).  These are built once; the objects
+# they make are the ones the high-level calls made (same types, shapes, filters, chunks).
+_SCALAR_SPACE = h5s.create_simple(())
+_STR_TYPE = h5t.py_create(_STR, logical=True)
+_STR_MEMORY_TYPE = h5t.py_create(_STR)       # Python str objects, converted to _STR_TYPE
+_FILE_TYPES: Dict[np.dtype, Any] = {}
+_DCPLS: Dict[tuple, Any] = {}
+
+
+def _file_type(dtype: np.dtype):
+    """The HDF5 type h5py gives a dataset of ``dtype`` (bool: its enum; text: UTF-8 strings)."""
+    if dtype.kind == "O":         # numpy's dtype equality ignores h5py's string metadata
+        return _STR_TYPE
+    tid = _FILE_TYPES.get(dtype)
+    if tid is None:
+        tid = _FILE_TYPES[dtype] = h5t.py_create(dtype, logical=True)
+    return tid
+
+
+def _dcpl(chunk_rows: int, compressed: bool):
+    """Creation properties of a resizable column: chunks of ``chunk_rows``; shuffle + deflate
+    when ``compressed``; no timestamps."""
+    key = (chunk_rows, compressed)
+    plist = _DCPLS.get(key)
+    if plist is None:
+        plist = h5p.create(h5p.DATASET_CREATE)
+        plist.set_chunk((chunk_rows,))
+        if compressed:
+            plist.set_shuffle()
+            plist.set_deflate(_DEFLATE_LEVEL)
+        plist.set_obj_track_times(False)
+        plist.set_attr_creation_order(0)
+        _DCPLS[key] = plist
+    return plist
+
+
+def _auto_chunk_rows(itemsize: int) -> int:
+    """The chunk h5py picks for an empty resizable column (``chunks=True``)."""
+    try:
+        from h5py._hl.filters import guess_chunk
+        return int(guess_chunk((0,), (None,), itemsize)[0])
+    except (ImportError, TypeError, ValueError, IndexError):
+        return 1024
+
+
+def _set_text_attr(oid, name: bytes, value: str) -> None:
+    """Attribute ``name`` = ``value``, a scalar UTF-8 string (as ``attrs[name] = value``)."""
+    if h5a.exists(oid, name):
+        h5a.delete(oid, name)
+    attr = h5a.create(oid, name, _STR_TYPE, _SCALAR_SPACE)
+    try:
+        attr.write(np.array(value, dtype=_STR), mtype=_STR_MEMORY_TYPE)
+    finally:
+        attr.close()
 
 
 def _deflated_chunk(values: np.ndarray) -> bytes:
@@ -114,51 +174,57 @@ class _ChunkDeflater:
     rest of a chunk waits for more rows (or :meth:`finish`, which pads the last chunk with zeros,
     as HDF5 stores an edge chunk).  Compressed chunks are written on the calling thread, in the
     order they were submitted and at points that do not depend on the threads' timing, so the
-    file's layout does not either; at most :attr:`max_pending` chunks wait in memory.
+    file's layout does not either; at most :attr:`max_pending` chunks wait in memory.  A chunk
+    of fewer than :data:`_INLINE_BYTES` is compressed and written at once on the calling thread
+    (a thread hand-off costs more than its deflate); which chunks those are depends on their
+    sizes only, so the order of the HDF5 calls still does not depend on the threads.
     """
 
     def __init__(self, workers: int, max_pending: int = 64):
-        self.pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="deflate") \
-            if workers > 0 else None
+        self.workers = workers
+        self.pool: Optional[ThreadPoolExecutor] = None     # started with the first big chunk
         self.max_pending = max_pending
         self.pending: deque = deque()
-        self.tails: Dict[str, tuple] = {}      # dataset name -> (dataset, first row, rows)
+        self.tails: Dict[str, tuple] = {}      # dataset path -> (id, chunk rows, first row, rows)
 
-    def add(self, ds: h5py.Dataset, start: int, values: np.ndarray) -> None:
-        """Rows ``values`` of ``ds`` from row ``start`` (the dataset already has that size)."""
-        tail = self.tails.pop(ds.name, None)
+    def add(self, key: str, dsid, chunk_rows: int, start: int, values: np.ndarray) -> None:
+        """Rows ``values`` of dataset ``dsid`` (path ``key``, chunks of ``chunk_rows``) from row
+        ``start`` (the dataset already has that size)."""
+        tail = self.tails.pop(key, None)
         if tail is not None:
-            start = tail[1]
-            values = np.concatenate([tail[2], values])
-        rows = ds.chunks[0]
-        full = (len(values) // rows) * rows
-        for i in range(0, full, rows):
-            self._submit(ds, start + i, values[i:i + rows])
+            start = tail[2]
+            values = np.concatenate([tail[3], values])
+        full = (len(values) // chunk_rows) * chunk_rows
+        for i in range(0, full, chunk_rows):
+            self._submit(dsid, start + i, values[i:i + chunk_rows])
         if full < len(values):
-            self.tails[ds.name] = (ds, start + full, values[full:])
+            self.tails[key] = (dsid, chunk_rows, start + full, values[full:])
         self.write_done()
 
-    def _submit(self, ds, offset: int, chunk: np.ndarray) -> None:
+    def _submit(self, dsid, offset: int, chunk: np.ndarray) -> None:
         chunk = np.ascontiguousarray(chunk)
-        if self.pool is None:
-            ds.id.write_direct_chunk((offset,), _deflated_chunk(chunk))
+        if self.workers <= 0 or chunk.nbytes < _INLINE_BYTES:
+            dsid.write_direct_chunk((offset,), _deflated_chunk(chunk))
             return
-        self.pending.append((ds, offset, self.pool.submit(_deflated_chunk, chunk)))
+        if self.pool is None:
+            self.pool = ThreadPoolExecutor(max_workers=self.workers,
+                                           thread_name_prefix="deflate")
+        self.pending.append((dsid, offset, self.pool.submit(_deflated_chunk, chunk)))
 
     def write_done(self, wait: bool = False) -> None:
         """Write the oldest compressed chunks, in order, until at most ``max_pending`` remain
         (none with ``wait``).  Never "whichever are ready": the HDF5 calls then come in the same
         order in every run, and so does the file's layout (byte-identical files)."""
         while self.pending and (wait or len(self.pending) > self.max_pending):
-            ds, offset, future = self.pending.popleft()
-            ds.id.write_direct_chunk((offset,), future.result())
+            dsid, offset, future = self.pending.popleft()
+            dsid.write_direct_chunk((offset,), future.result())
 
     def finish(self) -> None:
         """Pad and write every dataset's last, partial chunk; wait for every chunk."""
-        for ds, start, values in self.tails.values():
-            chunk = np.zeros(ds.chunks[0], values.dtype)
+        for dsid, chunk_rows, start, values in self.tails.values():
+            chunk = np.zeros(chunk_rows, values.dtype)
             chunk[:len(values)] = values
-            self._submit(ds, start, chunk)
+            self._submit(dsid, start, chunk)
         self.tails.clear()
         self.write_done(wait=True)
 
@@ -167,6 +233,7 @@ class _ChunkDeflater:
         self.tails.clear()
         if self.pool is not None:
             self.pool.shutdown(wait=True, cancel_futures=True)
+            self.pool = None
         self.pending.clear()
 
 
@@ -263,26 +330,28 @@ class RunWriter:
         n_rows(table)
         self._check_space(sum(np.asarray(v).nbytes for v in table.values()))
         group = self._file.require_group(name)
+        prefix = group.name.rstrip("/") + "/"
         for column, values in table.items():
             data = _as_storable(values)
-            kwargs = dict(maxshape=(None,), chunks=(_CHUNK_ROWS,) if len(data) else True,
-                          track_times=False)
-            if data.dtype.kind != "O":
-                kwargs.update(compression="gzip", compression_opts=_DEFLATE_LEVEL, shuffle=True)
-            if growing:
-                kwargs["chunks"] = (_CHUNK_ROWS,)
-            elif len(data) and len(data) < _CHUNK_ROWS:
-                kwargs["chunks"] = (len(data),)
-            dtype = _STR if data.dtype.kind == "O" else data.dtype
-            if data.dtype.kind != "O" and len(data):
-                # compressed by the deflater's threads, written when ready
-                ds = group.create_dataset(column, shape=data.shape, dtype=dtype, **kwargs)
-                self._deflater.add(ds, 0, data)
+            text = data.dtype.kind == "O"
+            dtype = _STR if text else data.dtype
+            n = len(data)
+            if growing or n >= _CHUNK_ROWS:
+                chunk_rows = _CHUNK_ROWS
+            elif n:
+                chunk_rows = n
             else:
-                ds = group.create_dataset(column, data=data, dtype=dtype, **kwargs)
-            ds.attrs["units"] = unit_of(column)
+                chunk_rows = _auto_chunk_rows(dtype.itemsize)
+            space = h5s.create_simple((n,), (h5s.UNLIMITED,))
+            dsid = h5d.create(group.id, column.encode(), _file_type(dtype), space,
+                              dcpl=_dcpl(chunk_rows, not text))
+            if n and not text:      # compressed by the deflater (threads), written when ready
+                self._deflater.add(prefix + column, dsid, chunk_rows, 0, data)
+            elif n:
+                dsid.write(h5s.ALL, h5s.ALL, np.asarray(data, dtype=_STR))
+            _set_text_attr(dsid, b"units", unit_of(column))
             if descriptions and column in descriptions:
-                ds.attrs["description"] = descriptions[column]
+                _set_text_attr(dsid, b"description", descriptions[column])
 
     def append_table(self, name: str, table: Mapping[str, np.ndarray]) -> None:
         """Append rows to an existing table (for time-chunked streaming), or create it."""
@@ -302,7 +371,8 @@ class RunWriter:
             data = _as_storable(values)
             if ds.compression == "gzip" and ds.chunks is not None and old % ds.chunks[0] == 0 \
                     or ds.name in self._deflater.tails:
-                self._deflater.add(ds, old, data.astype(ds.dtype, copy=False))
+                self._deflater.add(ds.name, ds.id, ds.chunks[0], old,
+                                   data.astype(ds.dtype, copy=False))
             else:
                 ds[old:] = data
 

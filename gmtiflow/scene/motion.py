@@ -73,7 +73,9 @@ so the kernel is deterministic.  ξ depends on the draws alone, so it is compute
 drawn (the same sequential recurrence as a step loop).
 
 Windows.  Each profile runs in its own local time, at its own pace, in rounds.  In a round a
-profile in ``TRACK`` takes a *window* of up to :data:`NOISE_BLOCK_STEPS` steps at once: from a
+profile in ``TRACK`` takes a *window* of up to W steps at once (W = :func:`window_length`:
+:data:`NOISE_BLOCK_STEPS`, longer for a fleet of few profiles, whose cost is per window; the
+result does not depend on W): from a
 guess of every step's start position and speed, the desired speeds v* of all steps are
 computed; the start speeds follow from them by the step recurrence in v alone (a step within
 its limits ends at v* whatever its start speed — the speeds are within a factor 2, so
@@ -142,13 +144,14 @@ def _bridge(x0, x1, kappa, f):
     integral_l = x0 * f + 0.5 * b * f * f
     return delta, d_delta, integral_n - integral_l
 
-#: Steps of noise drawn per block for the active profiles (bounded temporaries).
+#: Steps of noise drawn per block for the active profiles (bounded temporaries), and of a
+#: window; fewer than 128 profiles get longer blocks and windows (:func:`window_length`).
 NOISE_BLOCK_STEPS = 128
 
 #: ``noise(profiles, k0, n) -> (normal, u_stop, u_wait)``, each (n, len(profiles)) (fewer rows
 #: allowed past the last step there is): the noise of local steps k0 .. k0 + n - 1 of the given
-#: profiles (ids ascending), n = NOISE_BLOCK_STEPS; each profile's blocks are asked for in order
-#: (k0 = 0, n, 2n, …), one block ahead of the step the profile is at (so a profile may get
+#: profiles (ids ascending), n = the kernel's block length W (:func:`window_length`); each
+#: profile's blocks are asked for in order (k0 = 0, n, 2n, …), one block ahead of the step the profile is at (so a profile may get
 #: one block it does not use), different profiles at different k0 in separate calls.
 NoiseSource = Callable[[np.ndarray, int, int], Tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -408,8 +411,24 @@ _SEG_AHEAD = 6
 #: Profiles per window computation: its (rows, W) temporaries stay cache-sized.
 _WINDOW_ROWS = 512
 
+#: A window's (profiles, steps) cells up to which the window length grows for few profiles
+#: (their per-window Python cost is then spread over more steps; many profiles keep
+#: NOISE_BLOCK_STEPS: their windows are cut short more often, at limits and segment ends);
+#: and the longest window.
+WINDOW_CELLS = 128 * NOISE_BLOCK_STEPS
+MAX_WINDOW_STEPS = 1024
+
 #: Most passes of the fixed-point iteration of one window of tracking steps (module doc).
 MAX_SWEEPS = 2
+
+
+def window_length(n_profiles: int) -> int:
+    """Steps per window (and noise block) for ``n_profiles``: NOISE_BLOCK_STEPS doubled while
+    the (profiles, steps) temporaries stay within WINDOW_CELLS, at most MAX_WINDOW_STEPS."""
+    w = NOISE_BLOCK_STEPS
+    while 2 * w <= MAX_WINDOW_STEPS and max(n_profiles, 1) * 2 * w <= WINDOW_CELLS:
+        w *= 2
+    return w
 
 
 def _leading_true(ok: np.ndarray) -> np.ndarray:
@@ -499,7 +518,7 @@ def _track_speeds(v0, v_des, amax, dmax, dt, known=None):
 
 
 def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
-                      windows: bool = True) -> Profiles:
+                      windows: bool = True, window_steps: Optional[int] = None) -> Profiles:
     """Run the fleet's speed profiles, each for its own horizon or until done (module docstring).
 
     ``progress`` shows a tqdm bar over the steps (on a terminal only).  ``windows=False``
@@ -507,7 +526,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     tests)."""
     P = len(inp.length_m)
     dt = float(dt_s)
-    W = NOISE_BLOCK_STEPS
+    W = window_length(P) if window_steps is None else int(window_steps)
     horizon = np.asarray(inp.horizon_steps, dtype=np.int64)
     K = int(horizon.max()) if P else 0
 
@@ -588,10 +607,21 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         xi = rho_c[pids] * normal                  # ξ_k = ρ ξ_{k-1} + √(1-ρ²) n_k, in order
         prev = xi_buf[pids, col0 - 1]
         xi[0] = np.where(blocks == 0, normal[0], rh * prev + xi[0])
-        tmp = np.empty(pids.size)
-        for r in range(1, W):
-            np.multiply(rh, xi[r - 1], out=tmp)
-            np.add(tmp, xi[r], out=xi[r])
+        # the recurrence, step by step, over the profiles with correlated noise only: with
+        # ρ = 0 a step adds 0·ξ_{k-1} = ±0, which leaves a non-zero finite ξ_k as it is
+        # (normals by inversion of u + 2^-54 are never 0; any 0 takes the full loop)
+        loop = np.flatnonzero(rh != 0.0)
+        if loop.size < pids.size and not np.all(np.isfinite(xi) & (xi != 0.0)):
+            loop = np.arange(pids.size)
+        if loop.size:
+            part = xi if loop.size == pids.size else xi[:, loop]
+            rl = rh[loop]
+            tmp = np.empty(loop.size)
+            for r in range(1, W):
+                np.multiply(rl, part[r - 1], out=tmp)
+                np.add(tmp, part[r], out=part[r])
+            if part is not xi:
+                xi[:, loop] = part
         xi_buf[pids, col0:col0 + W] = xi.T
 
     ar = np.arange(W)

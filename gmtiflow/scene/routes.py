@@ -10,6 +10,7 @@ no limit).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -52,9 +53,15 @@ class Route:
         return self.xyz_m[j] + f[..., None] * (self.xyz_m[j + 1] - self.xyz_m[j])
 
 
+def _seg_lengths(xyz: np.ndarray) -> np.ndarray:
+    """Euclidean length of each segment of a polyline (n, 3) (np.linalg.norm's sum of
+    squares, without its overhead)."""
+    d = xyz[1:] - xyz[:-1]
+    return np.sqrt(np.add.reduce(d * d, axis=1))
+
+
 def _polyline(xyz: np.ndarray):
-    seg = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
-    return np.concatenate([[0.0], np.cumsum(seg)])
+    return np.concatenate([[0.0], np.cumsum(_seg_lengths(xyz))])
 
 
 def _csr(roadmap: RoadMap):
@@ -121,19 +128,23 @@ def off_road_route(waypoints_m: Sequence[Sequence[float]], who: str = "vehicle")
         vals = [float(c) for c in p]
         if len(vals) == 2:
             vals.append(0.0)
-        if len(vals) != 3 or not np.all(np.isfinite(vals)):
+        if len(vals) != 3 or not all(map(math.isfinite, vals)):
             raise RoadMapError(f"{who}: off_road waypoint {list(p)!r} must be [x, y] or "
                                f"[x, y, z] in finite metres")
         pts.append(vals)
     xyz = np.asarray(pts, dtype=float).reshape(-1, 3)
     if len(xyz) < 2:
         raise RoadMapError(f"{who}: off_road needs at least two waypoints")
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(xyz, axis=0), axis=1) > 0])
-    xyz = xyz[keep]
-    if len(xyz) < 2:
-        raise RoadMapError(f"{who}: off_road waypoints all coincide; the route would be empty")
+    seg = _seg_lengths(xyz)
+    if not seg.all():           # coinciding waypoints: dropped
+        xyz = xyz[np.concatenate([[True], seg > 0])]
+        if len(xyz) < 2:
+            raise RoadMapError(f"{who}: off_road waypoints all coincide; the route would be "
+                               f"empty")
+        seg = _seg_lengths(xyz)
     n = len(xyz)
-    return Route(node_ids=np.full(n, -1, dtype=np.int64), xyz_m=xyz, s_m=_polyline(xyz),
+    return Route(node_ids=np.full(n, -1, dtype=np.int64), xyz_m=xyz,
+                 s_m=np.concatenate([[0.0], np.cumsum(seg)]),
                  edge_id=np.full(n - 1, -1, dtype=np.int64),
                  invisible=np.zeros(n - 1, dtype=bool),
                  speed_limit_mps=np.full(n - 1, np.nan))

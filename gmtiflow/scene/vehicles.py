@@ -277,13 +277,13 @@ def _trip_noise(seed: int, names: List[str]) -> motion.NoiseSource:
     gens: Dict[int, np.random.Generator] = {}
 
     def draw(profiles, k0, n):
-        u = np.empty((n, len(profiles), 3))
+        buf = np.empty((len(profiles), n, 6))      # each profile's rows in place, as drawn
         for c, p in enumerate(profiles.tolist()):
             if k0 == 0:
                 gens[p] = rng.stream(seed, "truth", "vehicle", names[p])
-            u[:, c, :] = gens[p].random((n, 6))[:, :3]
-        u += _HALF_ULP
-        return ndtri(u[:, :, 0]), u[:, :, 1], u[:, :, 2]
+            gens[p].random(out=buf[c])
+        u = buf[:, :, :3] + _HALF_ULP
+        return ndtri(u[:, :, 0]).T, u[:, :, 1].T, u[:, :, 2].T
     return draw
 
 

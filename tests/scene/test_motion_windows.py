@@ -25,13 +25,15 @@ def default_map():
 REAL = motion.simulate_profiles
 
 
-def both(monkeypatch, cfg, roadmap, duration_s, dt_s, seed=3):
-    """The fleet's profiles with windows and step by step (the same draws)."""
+def both(monkeypatch, cfg, roadmap, duration_s, dt_s, seed=3, windows=(True, False),
+         window_steps=None):
+    """The fleet's profiles with windows and step by step (the same draws); ``window_steps``
+    the window length (None: the kernel's choice for the fleet's size)."""
     out = []
-    for windows in (True, False):
+    for w in windows:
         monkeypatch.setattr(motion, "simulate_profiles",
-                            lambda inp, dt, progress=False, w=windows: REAL(inp, dt, progress,
-                                                                            windows=w))
+                            lambda inp, dt, progress=False, w=w: REAL(
+                                inp, dt, progress, windows=w, window_steps=window_steps))
         out.append(build_fleet(cfg, roadmap, seed, duration_s, dt_s).profiles)
     monkeypatch.setattr(motion, "simulate_profiles", REAL)
     return out
@@ -76,6 +78,34 @@ def test_windows_reproduce_the_step_loop_stop_points_convoys(monkeypatch, defaul
     a, b = both(monkeypatch, cfg, default_map, 300.0, dt_s)
     assert_identical(a, b)
     assert np.any(a.mode_flat == motion.MODE_STOPPED)
+
+
+def test_window_length_follows_the_fleet_size():
+    # few profiles: longer windows (the per-window cost spread over more steps), bounded
+    assert motion.window_length(1) == motion.MAX_WINDOW_STEPS
+    assert motion.window_length(10) == 1024
+    assert motion.window_length(100) == 128
+    assert motion.window_length(10_000) == motion.NOISE_BLOCK_STEPS
+    for n in (1, 3, 10, 50, 129, 10_000):
+        w = motion.window_length(n)
+        assert w >= motion.NOISE_BLOCK_STEPS and w & (w - 1) == 0
+        assert w == motion.NOISE_BLOCK_STEPS or n * w <= motion.WINDOW_CELLS
+
+
+@pytest.mark.parametrize("window_steps", [2, 37, 128, 1024])
+def test_window_length_does_not_change_the_profiles(monkeypatch, default_map, window_steps):
+    # the windows' length (and the noise blocks') is the kernel's choice: the profiles are
+    # those of the step loop whatever it is (a trip longer than a window, stops, waits)
+    cfg = VehiclesConfig(random=RandomFleetSpec(**{**RANDOM, "count": 6}))
+    a, = both(monkeypatch, cfg, default_map, 300.0, 1.0, windows=(False,))
+    b, = both(monkeypatch, cfg, default_map, 300.0, 1.0, windows=(True,),
+              window_steps=window_steps)
+    c, = both(monkeypatch, cfg, default_map, 300.0, 1.0, windows=(False,),
+              window_steps=window_steps)
+    assert_identical(a, b)
+    assert_identical(a, c)
+    assert np.any(a.mode_flat == motion.MODE_STOPPED)
+    assert a.n_steps_p.max() > 128
 
 
 def test_windows_reproduce_the_step_loop_short_horizon(monkeypatch, default_map):

@@ -84,3 +84,11 @@ def test_off_road_route():
     assert np.all(r.edge_id == -1) and not r.invisible.any()
     with pytest.raises(RoadMapError, match="two waypoints"):
         off_road_route([[1, 2]])
+    # the repeated waypoint is dropped; the arc length is the segments' running sum
+    assert r.xyz_m.tolist() == [[0, 0, 0], [30, 40, 0], [30, 100, 5]]
+    assert r.s_m.tolist() == [0.0, 50.0, 50.0 + float(np.hypot(60, 5))]
+    with pytest.raises(RoadMapError, match="all coincide"):
+        off_road_route([[1, 2], [1, 2, 0], [1.0, 2.0]])
+    for bad in ([1, float("nan")], [1, 2, float("inf")], [1, 2, 3, 4], [1]):
+        with pytest.raises(RoadMapError, match="finite metres"):
+            off_road_route([[0, 0], bad])
