@@ -71,7 +71,8 @@ _WGS84 = pymap3d.Ellipsoid.from_name("wgs84")
 
 def _ecef_to_lat_lon_deg(x, y, z):
     """Latitude and longitude (deg) of ECEF points: ``pymap3d.ecef2geodetic``'s own arithmetic
-    (You 2000, the same operations in the same order, so the same values bit for bit) without
+    (You 2000, the same operations in the same order, common subexpressions
+    taken once, so the same values bit for bit) without
     the altitude, which :func:`enu_to_geodetic` does not use, and without its masked indexing,
     which only the degenerate points need (at the poles or the earth's centre: those go to
     pymap3d itself).  A sensor chunk converts every detection: this halves that cost."""
@@ -81,7 +82,8 @@ def _ecef_to_lat_lon_deg(x, y, z):
     a, b = _WGS84.semimajor_axis, _WGS84.semiminor_axis
     r = np.sqrt(x**2 + y**2 + z**2)
     E = np.sqrt(a**2 - b**2)
-    u = np.sqrt(0.5 * (r**2 - E**2) + 0.5 * np.hypot(r**2 - E**2, 2 * E * z))
+    r2_e2 = r**2 - E**2
+    u = np.sqrt(0.5 * r2_e2 + 0.5 * np.hypot(r2_e2, 2 * E * z))
     hxy = np.hypot(x, y)
     huE = np.hypot(u, E)
     lim_pi2 = math.pi / 2 - np.finfo(float).eps
@@ -90,8 +92,9 @@ def _ecef_to_lat_lon_deg(x, y, z):
         lat, lon, _ = pymap3d.ecef2geodetic(x, y, z)
         return lat, lon
     beta = np.arctan(huE / u * z / hxy)
-    beta += ((b * u - a * huE + E**2) * np.sin(beta)) / (a * huE * 1 / np.cos(beta)
-                                                         - E**2 * np.cos(beta))
+    # pymap3d writes a·huE·1/cos β − E² cos β: ·1 is exact, so cos β is taken once
+    cos_beta = np.cos(beta)
+    beta += ((b * u - a * huE + E**2) * np.sin(beta)) / (a * huE / cos_beta - E**2 * cos_beta)
     if np.any(np.abs(beta) >= lim_pi2):
         lat, lon, _ = pymap3d.ecef2geodetic(x, y, z)
         return lat, lon

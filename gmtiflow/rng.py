@@ -68,11 +68,22 @@ def _mixed_counters(counters) -> list:
                 for c in counters]
 
 
+def mix_counter(counter) -> np.ndarray:
+    """One counter array mixed (the per-counter half of :func:`pair_hash`): mixing each distinct
+    value once (per dwell, per vehicle) and gathering gives ``Counters(mixed=...)`` for pairs."""
+    return _mixed_counters([counter])[0]
+
+
 def _hash_mixed(key: np.uint64, mixed: list) -> np.ndarray:
     shape = np.broadcast_shapes(*(m.shape for m in mixed)) if mixed else ()
     with np.errstate(over="ignore"):
-        h = np.full(shape, key, dtype=np.uint64)
-        for m in mixed:
+        if not mixed:
+            return np.full(shape, key, dtype=np.uint64)
+        # (key + G) + m with wrapping uint64 addition is key + G + m in any order: the key's
+        # part is one scalar, added to the first counter without a full array of keys
+        h = np.asarray(mixed[0]) + (np.uint64(key) + _GOLDEN)
+        h = _mix(np.broadcast_to(h, shape) if h.shape != shape else h)
+        for m in mixed[1:]:
             h = _mix(h + _GOLDEN + m)
     return h
 

@@ -6,6 +6,8 @@ evaluates them exactly at any instant (``state_at``, vectorised over (time, vehi
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from gmtiflow import frames
@@ -60,16 +62,8 @@ class Fleet:
         self._vx_key = self._vx_s + route_of_vx * self._span
         # Road-frame heading per segment (indexed by its first vertex) and the corner blend
         # (half-width, turn) per vertex, for the wander's smoothly turning frame.
-        psi, blend, turn = [], [], []
-        for r in routes:
-            h = wander_mod.segment_headings(r.xyz_m)
-            b, t = wander_mod.corner_blends(r.s_m, h)
-            psi.append(pad(h, h[-1] if len(h) else 0.0))
-            blend.append(b)
-            turn.append(t)
-        self._seg_psi = np.concatenate(psi) if routes else np.zeros(0)
-        self._vx_blend = np.concatenate(blend) if routes else np.zeros(0)
-        self._vx_turn = np.concatenate(turn) if routes else np.zeros(0)
+        self._seg_psi, self._vx_blend, self._vx_turn = _road_frames(
+            routes, self._vx_xyz, self._vx_s, self._vx_off)
 
     @property
     def n_vehicles(self) -> int:
@@ -88,25 +82,30 @@ class Fleet:
         t = t.ravel()
         vid = vid.ravel()
         n = t.size
-        valid = (vid >= 0) & (vid < self.n_vehicles)
-        vs = np.where(valid, vid, 0)
         out = _empty_truth(n)
         out["time_s"] = t.copy()
         out["vehicle_id"] = vid.copy()
         if self.n_vehicles == 0:
             out["active"] = np.zeros(n, bool)
             return {k: c.reshape(shape) for k, c in out.items()}
-        tau = t - self._t0[vs]
-        active = (valid & (tau >= self._on[vs]) & (tau < self._off[vs])
-                  & (tau <= self._horizon[vs])
-                  & np.isfinite(t))
+        active, valid, vs, tau = self._active(t, vid)
         idx = np.flatnonzero(active)
         out["active"] = active
         out["convoy_id"] = np.where(valid, self.vehicles["convoy_id"][vs], -1)
+        whole = idx.size == n       # every row active (truth_table): no gather, no scatter
+
+        def put(names, values):
+            for name, val in zip(names, values):
+                if whole:
+                    out[name] = np.asarray(val, dtype=out[name].dtype)
+                else:
+                    out[name][idx] = val
+
         if idx.size:
-            v_ids = vs[idx]
+            v_ids = vs if whole else vs[idx]
+            t_a = t if whole else t[idx]
             p = self._profile[v_ids]
-            s_p, speed, acc, mode = self.profiles.evaluate(tau[idx], p)
+            s_p, speed, acc, mode = self.profiles.evaluate(tau if whole else tau[idx], p)
             r = self._route[v_ids]
             length = self._vx_s[self._vx_off[r + 1] - 1]
             s = np.clip(s_p - self._offset[v_ids], 0.0, length)
@@ -133,7 +132,7 @@ class Fleet:
             moving = np.flatnonzero(self._w_off[v_ids + 1] > self._w_off[v_ids])
             if moving.size:
                 m_ids = v_ids[moving]
-                n, nd, ndd = wander_mod.evaluate(t[idx][moving], m_ids, self._w_knots,
+                n, nd, ndd = wander_mod.evaluate(t_a[moving], m_ids, self._w_knots,
                                                  self._w_off, self._w_t0, self._w_h)
                 jm = j[moving]
                 psi, dpsi, d2psi = wander_mod.corner_heading(
@@ -145,16 +144,23 @@ class Fleet:
                 pos[:, moving] += off.T
                 vel[:, moving] += v_off.T
                 accel[:, moving] += a_off.T
-            out["x_m"][idx], out["y_m"][idx], out["z_m"][idx] = pos
-            out["vx_mps"][idx], out["vy_mps"][idx], out["vz_mps"][idx] = vel
-            out["ax_mps2"][idx], out["ay_mps2"][idx], out["az_mps2"][idx] = accel
-            out["speed_mps"][idx] = speed
-            out["heading_rad"][idx] = frames.heading_rad(unit[0], unit[1])
-            out["route_s_m"][idx] = s
-            out["edge_id"][idx] = self._seg_edge[j]
-            out["mode"][idx] = mode
-            out["invisible"][idx] = self._seg_inv[j]
+            put(("x_m", "y_m", "z_m"), pos)
+            put(("vx_mps", "vy_mps", "vz_mps"), vel)
+            put(("ax_mps2", "ay_mps2", "az_mps2"), accel)
+            put(("speed_mps", "heading_rad", "route_s_m", "edge_id", "mode", "invisible"),
+                (speed, frames.heading_rad(unit[0], unit[1]), s, self._seg_edge[j], mode,
+                 self._seg_inv[j]))
         return {k: c.reshape(shape) for k, c in out.items()}
+
+    def _active(self, t, vid):
+        """(active, valid, clipped vehicle ids, local time) of flat (time, vehicle) pairs."""
+        valid = (vid >= 0) & (vid < self.n_vehicles)
+        vs = np.where(valid, vid, 0)
+        tau = t - self._t0[vs]
+        active = (valid & (tau >= self._on[vs]) & (tau < self._off[vs])
+                  & (tau <= self._horizon[vs])
+                  & np.isfinite(t))
+        return active, valid, vs, tau
 
     def truth_table(self, times_s, chunk_rows: int = 500_000) -> Table:
         """``/truth`` rows of the active vehicles at ``times_s``, sorted by time then vehicle.
@@ -177,16 +183,53 @@ class Fleet:
             if len(vid) else np.zeros(0, np.int64)
         order = np.argsort(ti * max(n, 1) + vid, kind="stable")
         vid, ti = vid[order], ti[order]
+        if len(vid):        # the active pairs only (state_at then neither gathers nor scatters)
+            keep = self._active(times[ti], vid)[0]
+            vid, ti = vid[keep], ti[keep]
         parts = []
         for a in range(0, len(vid), chunk_rows):
             st = self.state_at(times[ti[a:a + chunk_rows]], vid[a:a + chunk_rows])
             mask = st.pop("active")
-            parts.append({k: c[mask] for k, c in st.items()})
+            parts.append(st if mask.all() else {k: c[mask] for k, c in st.items()})
         if not parts:
             st = self.state_at(np.zeros(0), np.zeros(0, np.int64))
             st.pop("active")
             return st
+        if len(parts) == 1:
+            return parts[0]
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def _road_frames(routes, xyz, s, off):
+    """Per vertex of the flat routes (``xyz``, ``s``, route r at ``off[r]:off[r + 1]``): the
+    heading of the segment it starts (a route's last vertex: its last segment's), and the
+    corner blend half-width and turn (:func:`wander.segment_headings`,
+    :func:`wander.corner_blends` of each route, the same operations on all routes at once;
+    a route with a segment without horizontal extent takes them route by route)."""
+    nv = len(s)
+    if not routes:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    last = off[1:] - 1                    # each route's last vertex
+    d = xyz[1:] - xyz[:-1]                # row i: vertex i to i + 1 (across routes at `last`)
+    psi = np.empty(nv)
+    psi[:-1] = np.arctan2(d[:, 0], d[:, 1])
+    flat = ~(np.hypot(d[:, 0], d[:, 1]) > 0)
+    flat[last[:-1]] = False
+    psi[last] = psi[last - 1]
+    seg = s[1:] - s[:-1]
+    blend = np.zeros(nv)
+    turn = np.zeros(nv)
+    blend[1:-1] = np.minimum(wander_mod.CORNER_BLEND_M, 0.5 * np.minimum(seg[:-1], seg[1:]))
+    turn[1:-1] = np.mod(psi[1:-1] - psi[:-2] + math.pi, 2.0 * math.pi) - math.pi
+    blend[off[:-1]] = blend[last] = 0.0
+    turn[off[:-1]] = turn[last] = 0.0
+    if flat.any():                          # those routes as wander does them
+        for r in np.unique(np.searchsorted(off, np.flatnonzero(flat), side="right") - 1):
+            a, b = int(off[r]), int(off[r + 1])
+            h = wander_mod.segment_headings(routes[r].xyz_m)
+            psi[a:b - 1], psi[b - 1] = h, h[-1]
+            blend[a:b], turn[a:b] = wander_mod.corner_blends(routes[r].s_m, h)
+    return psi, blend, turn
 
 
 TRUTH_COLUMNS = ("time_s", "vehicle_id", "convoy_id", "x_m", "y_m", "z_m", "vx_mps", "vy_mps",

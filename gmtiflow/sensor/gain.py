@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from gmtiflow.sensor import antenna
+from gmtiflow.sensor import antenna, fastnp
 
 LN2 = math.log(2.0)
 
@@ -57,7 +57,7 @@ def blind_offset(own_range_rate_mps, blind_speed_mps=None):
     v = np.asarray(own_range_rate_mps, float)
     if blind_speed_mps is None:
         return v
-    return np.mod(v + 0.5 * blind_speed_mps, blind_speed_mps) - 0.5 * blind_speed_mps
+    return fastnp.mod(v + 0.5 * blind_speed_mps, blind_speed_mps) - 0.5 * blind_speed_mps
 
 
 def stap_notch(own_range_rate_mps, mdv_mps: float, blind_speed_mps=None, offset=None):

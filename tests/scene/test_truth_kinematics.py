@@ -149,3 +149,29 @@ def test_time_at_inverts_a_bridged_profile(long_road):
     s, *_ = prof.evaluate(t, 0)
     back = np.array([prof.time_at(0, x) for x in s])
     assert np.max(np.abs(back - t)) < 1e-9
+
+
+def test_road_frames_of_all_routes_at_once_are_each_routes_own():
+    # Fleet keeps the road frame (segment heading, corner blend and turn) of all routes in
+    # flat arrays computed at once; they are wander's per-route ones bit for bit, also for
+    # a single-segment route and routes with a vertical segment (no heading of its own)
+    from gmtiflow.scene import wander
+    from gmtiflow.scene.fleet import _road_frames
+    from gmtiflow.scene.routes import off_road_route
+    routes = [off_road_route(w) for w in (
+        [[0, 0], [100, 0], [100, 300], [-50.5, 320.25, 3.0], [0, 2]],
+        [[5, 5], [9, 9]],
+        [[0, 0, 0], [0, 0, 10], [30, 40, 10], [30, 40, 12], [30, 90, 12], [30, 90, 15]],
+        [[0, 0, 0], [0, 0, 10], [0, 0, 15]],
+        [[1e5, -2e4], [1e5 + 3.0, -2e4 + 4.0], [1e5 + 3.0, -2e4 + 14.0]])]
+    for order in (routes, routes[::-1], routes[:2], routes[2:3]):
+        off = np.concatenate([[0], np.cumsum([len(r.s_m) for r in order])])
+        psi, blend, turn = _road_frames(order, np.concatenate([r.xyz_m for r in order]),
+                                        np.concatenate([r.s_m for r in order]), off)
+        for r, a, b in zip(order, off[:-1], off[1:]):
+            h = wander.segment_headings(r.xyz_m)
+            bl, tu = wander.corner_blends(r.s_m, h)
+            assert psi[a:b].tobytes() == np.append(h, h[-1]).tobytes()
+            assert blend[a:b].tobytes() == bl.tobytes()
+            assert turn[a:b].tobytes() == tu.tobytes()
+    assert np.any(turn != 0) and np.any(blend != 0)

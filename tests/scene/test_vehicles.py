@@ -384,6 +384,27 @@ def test_truth_table_columns_and_order(default_map):
     assert fl.state_at(150.0, [-1, 99])["active"].tolist() == [False, False]
 
 
+def test_truth_table_is_state_at_of_the_active_pairs_whatever_the_chunks(default_map):
+    # truth_table evaluates the active (time, vehicle) pairs only, in chunks; every row is
+    # state_at's for that pair bit for bit, also among inactive rows (its other path)
+    cfg = VehiclesConfig(random=RandomFleetSpec(count=12, start_time_max_s=100.0,
+                                                random_stop_rate_per_s=0.02))
+    fl = build_fleet(cfg, default_map, 5, 200.0, 0.5)
+    times = np.arange(0.0, 200.0, 0.7)
+    whole = fl.truth_table(times)
+    tt, vv = np.meshgrid(times, np.arange(fl.n_vehicles), indexing="ij")
+    grid = fl.state_at(tt.ravel(), vv.ravel())
+    act = grid.pop("active")
+    assert 0 < act.sum() < act.size
+    assert list(whole) == list(TRUTH_COLUMNS) and len(whole["time_s"]) == act.sum()
+    for chunk in (7, 1000, 10**6):
+        part = fl.truth_table(times, chunk_rows=chunk)
+        for k in TRUTH_COLUMNS:
+            assert part[k].dtype == grid[k].dtype, k
+            assert part[k].tobytes() == grid[k][act].tobytes(), k
+            assert whole[k].tobytes() == part[k].tobytes(), k
+
+
 def test_empty_fleet_and_empty_times(default_map):
     empty = build_fleet(VehiclesConfig(), default_map, 1, 100.0, 1.0)
     tt = empty.truth_table(np.arange(10.0))
