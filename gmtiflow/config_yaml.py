@@ -128,6 +128,8 @@ class _Writer:
                 lines.append(head + " " + self.string(value, len(head) + 1))
             elif cls in _SCALARS:
                 lines.append(head + " " + _SCALARS[cls](value))
+            elif cls is list and not value:
+                lines.append(head + " []")
             else:
                 self.value(head, value, indent, in_mapping=True)
 
@@ -154,7 +156,8 @@ class _Writer:
         if not flat or not set(map(type, flat)) <= {float, int}:
             return False
         texts = list(map(repr, flat))                  # repr is str for an int
-        if "e" in "".join(texts) or "n" in "".join(texts):
+        joined = "".join(texts)
+        if "e" in joined or "n" in joined:
             texts = [float_text(v) if type(v) is float else repr(v) for v in flat]
         pad = " " * indent
         row = pad + "- - %s" + ("\n" + pad + "  - %s") * (len(items[0]) - 1)
