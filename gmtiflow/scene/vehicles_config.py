@@ -101,8 +101,7 @@ class VehicleSpec:
         if self.off_road:
             if len(self.off_road) < 2:
                 out.append(schema.Problem("off_road", "needs at least two waypoints"))
-            for i, point in enumerate(self.off_road):
-                out += schema.point_problems(f"off_road[{i}]", point, geodetic=True)
+            out += schema.points_problems("off_road", self.off_road, geodetic=True)
             if self.stop_points or self.speed_changes:
                 out.append(schema.Problem("off_road", "an off-road vehicle has no road nodes for "
                                                       "stop_points or speed_changes"))
