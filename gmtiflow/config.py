@@ -23,7 +23,8 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from gmtiflow.cache import CacheConfig
-from gmtiflow.config_tree import numeric_leaves
+from gmtiflow.config_tree import (SCALARS, field_names, field_values, holds_only_scalars,
+                                  is_empty, numeric_leaves)
 from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.export import ExportConfig
@@ -259,18 +260,30 @@ def to_object(cfg: DictConfig) -> AppConfig:
     return obj
 
 
-def problems_of(obj, prefix: str = "") -> List[Problem]:
-    """All problems of a dataclass tree, with full key paths."""
+def problems_of(obj, prefix: str = "", reported: bool = False) -> List[Problem]:
+    """All problems of a dataclass tree, with full key paths.
+
+    Plain leaves and empty containers are skipped without a call, and so are lists (or lists
+    of lists, such as waypoints) of plain scalars, checked in bulk: no dataclass inside, nothing
+    to check.  A dataclass whose ``problems()`` already reports those of the dataclasses in some
+    of its fields (directly or as their list items) names them in a class attribute
+    ``problems_include``; their ``problems()`` is not called again (``reported``): the same
+    problems, each listed once (:func:`validate`), at half the calls for a long vehicle list.
+    """
     out: List[Problem] = []
     if dataclasses.is_dataclass(obj):
         check = getattr(obj, "problems", None)
-        if callable(check):
+        if callable(check) and not reported:
             out += [Problem(f"{prefix}{p.key}", p.message) for p in check()]
-        for f in dataclasses.fields(obj):
-            out += problems_of(getattr(obj, f.name), f"{prefix}{f.name}.")
+        included = getattr(obj, "problems_include", ())
+        for name, value in zip(field_names(obj), field_values(obj)):
+            if type(value) not in SCALARS and not is_empty(value):
+                out += problems_of(value, f"{prefix}{name}.", name in included)
     elif isinstance(obj, (list, tuple)):
+        if holds_only_scalars(obj):
+            return out
         for i, item in enumerate(obj):
-            out += problems_of(item, f"{prefix[:-1]}[{i}].")
+            out += problems_of(item, f"{prefix[:-1]}[{i}].", reported)
     elif isinstance(obj, dict):
         for key, item in obj.items():
             out += problems_of(item, f"{prefix}{key}.")
@@ -288,7 +301,7 @@ _MAGNITUDE_EXEMPT = {"seed"}
 def magnitude_problems(obj) -> List[Problem]:
     """A Problem for every numeric leaf of the tree beyond ±:data:`MAX_MAGNITUDE`."""
     return [Problem(key, f"must be within ±{MAX_MAGNITUDE:g}, got {value!r}")
-            for key, value in numeric_leaves(obj)
+            for key, value in numeric_leaves(obj, bound=MAX_MAGNITUDE)
             if key not in _MAGNITUDE_EXEMPT and math.isfinite(value)
             and abs(value) > MAX_MAGNITUDE]
 
@@ -305,10 +318,38 @@ def validate(obj: AppConfig) -> None:
 def to_yaml(obj: AppConfig) -> str:
     """The resolved config as YAML (stored as /config in the run file): the text of
     ``OmegaConf.to_yaml(OmegaConf.structured(obj))``, written from the dataclasses directly
-    (that round trip deep-copies every node: ~70 s for a scene that lists 1,000 vehicles)."""
+    (that round trip deep-copies every node: ~70 s for a scene that lists 1,000 vehicles).
+
+    :mod:`gmtiflow.config_yaml` writes the text of plain values itself (PyYAML's representer
+    walks every node in Python: ~0.5 s for those 1,000 vehicles); where it cannot be sure of
+    PyYAML's text, PyYAML writes the whole document (:func:`pyyaml_text`)."""
+    from gmtiflow import config_yaml
+    if not _yaml_dumper().yaml_path_resolvers:
+        text = config_yaml.dump(obj, _resolves_as_str)
+        if text is not None:
+            return text
+    return pyyaml_text(obj)
+
+
+def pyyaml_text(obj) -> str:
+    """The YAML PyYAML writes for the config tree as plain data: what :func:`to_yaml` gives."""
     import yaml
     return yaml.dump(_plain(obj), default_flow_style=False, allow_unicode=True,
                      sort_keys=False, Dumper=_yaml_dumper())
+
+
+def _resolves_as_str(text: str) -> bool:
+    """A bare ``text`` reads back as the string itself: OmegaConf's dumper does not quote it
+    (it quotes what reads as a bool or number) and no implicit resolver of the dumper claims it
+    (null, timestamps ...), as ``Resolver.resolve`` decides."""
+    from omegaconf._utils import is_float, is_int, yaml_is_bool
+    if yaml_is_bool(text) or is_int(text) or is_float(text):
+        return False
+    resolvers = _yaml_dumper().yaml_implicit_resolvers
+    for tag, regexp in resolvers.get(text[0] if text else "", []) + resolvers.get(None, []):
+        if regexp.match(text):
+            return tag == "tag:yaml.org,2002:str"
+    return True
 
 
 @functools.lru_cache(maxsize=None)

@@ -7,25 +7,104 @@ Key paths are the dotted names a user writes on the command line, with list item
 from __future__ import annotations
 
 import dataclasses
+import operator
 import re
-from typing import Iterator, Tuple
+from itertools import chain
+from typing import Callable, Dict, Iterator, Optional, Set, Tuple
 
 _PART = re.compile(r"[^.\[\]]+|\[\d+\]")
 
 
-def numeric_leaves(obj, prefix: str = "") -> Iterator[Tuple[str, object]]:
-    """(key path, value) of every int/float leaf (bools excluded) of a config tree."""
+def numeric_leaves(obj, prefix: str = "", bound: Optional[float] = None
+                   ) -> Iterator[Tuple[str, object]]:
+    """(key path, value) of every int/float leaf (bools excluded) of a config tree.
+
+    With ``bound``, leaves known to lie within ±``bound`` may be left out: a list of numbers
+    (or of lists of numbers, such as waypoints) all within it is checked in bulk and skipped, as
+    is an int/float field within it.  Every leaf beyond ±``bound``, NaN or not a number after
+    all (a huge int) is still yielded, in the same order.
+    """
     if dataclasses.is_dataclass(obj):
-        for f in dataclasses.fields(obj):
-            yield from numeric_leaves(getattr(obj, f.name), f"{prefix}{f.name}.")
+        for name, value in zip(field_names(obj), field_values(obj)):
+            kind = type(value)
+            if kind is int or kind is float:         # a scalar field, without a call
+                if bound is None or not -bound <= value <= bound:
+                    yield f"{prefix}{name}", value
+            elif kind not in _NOT_NUMERIC and not is_empty(value):
+                yield from numeric_leaves(value, f"{prefix}{name}.", bound)
     elif isinstance(obj, (list, tuple)):
+        if bound is not None and numbers_within(obj, bound):
+            return
         for i, item in enumerate(obj):
-            yield from numeric_leaves(item, f"{prefix[:-1]}[{i}].")
+            yield from numeric_leaves(item, f"{prefix[:-1]}[{i}].", bound)
     elif isinstance(obj, dict):
         for key, item in obj.items():
-            yield from numeric_leaves(item, f"{prefix}{key}.")
+            yield from numeric_leaves(item, f"{prefix}{key}.", bound)
     elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
         yield prefix[:-1], obj
+
+
+_NOT_NUMERIC = frozenset({str, bool, type(None)})
+SCALARS = frozenset({int, float, bool, str, type(None)})
+"""The exact types of plain leaves: none of them is a container or a dataclass."""
+
+_FIELD_NAMES: Dict[type, Tuple[str, ...]] = {}
+_FIELD_GETTERS: Dict[type, Callable[[object], tuple]] = {}
+
+
+def field_names(obj) -> Tuple[str, ...]:
+    """The names of ``dataclasses.fields(obj)`` in order (cached per class)."""
+    cls = obj if isinstance(obj, type) else type(obj)
+    names = _FIELD_NAMES.get(cls)
+    if names is None:
+        names = _FIELD_NAMES[cls] = tuple(f.name for f in dataclasses.fields(cls))
+    return names
+
+
+def field_values(obj) -> tuple:
+    """The values of those fields, in one call (``operator.attrgetter``)."""
+    cls = obj if isinstance(obj, type) else type(obj)
+    getter = _FIELD_GETTERS.get(cls)
+    if getter is None:
+        names = field_names(obj)
+        if len(names) == 1:
+            getter = lambda o, name=names[0]: (getattr(o, name),)    # noqa: E731
+        else:
+            getter = operator.attrgetter(*names) if names else (lambda o: ())
+        _FIELD_GETTERS[cls] = getter
+    return getter(obj)
+
+
+def is_empty(value) -> bool:
+    """An empty list, tuple or dict: no leaves and nothing to check below it."""
+    return type(value) in (list, tuple, dict) and not value
+
+
+def flat_items(items) -> Tuple[list, Set[type]]:
+    """The items of a list and their exact types, a list of lists (or tuples) flattened one
+    level first: bulk checks of scalar lists and waypoint lists without a call per item."""
+    kinds = set(map(type, items))
+    if kinds and kinds <= {list, tuple}:
+        items = list(chain.from_iterable(items))
+        kinds = set(map(type, items))
+    return items, kinds
+
+
+def holds_only_scalars(items) -> bool:
+    """The list (or list of lists) holds plain scalars only: no dataclass or dict inside."""
+    return flat_items(items)[1] <= SCALARS
+
+
+def numbers_within(items, bound: float) -> bool:
+    """Every item of the list (or list of lists) is an int, float or bool within ±``bound``.
+
+    ``min`` and ``max`` skip NaNs after the first item and return NaN when it is the first
+    (then the comparison fails): a True answer is never wrong about a number beyond ``bound``.
+    """
+    flat, kinds = flat_items(items)
+    if not kinds <= {int, float, bool}:
+        return False
+    return not flat or (-bound <= min(flat) and max(flat) <= bound)
 
 
 def child(obj, part: str):

@@ -11,6 +11,7 @@ and the allowed range.
 from __future__ import annotations
 
 import math
+from itertools import chain
 from dataclasses import dataclass
 from typing import Any, List, Optional
 
@@ -115,3 +116,34 @@ def point_problems(key: str, point: Any, dims=(2, 3), what: str = "[x, y] or [x,
     shown = list(point) if isinstance(point, (list, tuple)) else point
     alt = " or {lat_deg, lon_deg, height_m}" if geodetic else ""
     return [Problem(key, f"must be {what} in finite metres{alt}, got {shown!r}")]
+
+
+def points_problems(key: str, points: Any, dims=(2, 3), what: str = "[x, y] or [x, y, z]",
+                    geodetic: bool = False) -> List[Problem]:
+    """:func:`point_problems` of every item of a list of points, keyed ``key[i]``.
+
+    Lists of number lists of the right lengths are checked in bulk (a scene may list thousands
+    of waypoints); anything else, or any non-finite value, is checked point by point.
+    """
+    if _finite_rows(points, dims):
+        return []
+    return [problem for i, point in enumerate(points)
+            for problem in point_problems(f"{key}[{i}]", point, dims, what, geodetic)]
+
+
+def _finite_rows(points: Any, dims) -> bool:
+    """``points`` is a list of lists (or tuples) of ``dims`` finite ints and floats.
+
+    ``math.fsum`` of finite values is finite (or raises on overflow); one NaN or infinity, or
+    an int too large for a float, makes it NaN, infinite or raise: then the answer is False.
+    """
+    kinds = set(map(type, points))
+    if not kinds or not kinds <= {list, tuple} or not set(map(len, points)) <= set(dims):
+        return False
+    flat = list(chain.from_iterable(points))
+    if not set(map(type, flat)) <= {int, float}:
+        return False
+    try:
+        return math.isfinite(math.fsum(flat))
+    except (OverflowError, ValueError):
+        return False

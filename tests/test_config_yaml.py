@@ -1,8 +1,16 @@
-"""/config text: ``config.to_yaml`` writes what OmegaConf's structured round trip writes."""
+"""/config text: ``config.to_yaml`` writes what OmegaConf's structured round trip writes, and
+``gmtiflow.config_yaml`` (its fast writer) exactly what PyYAML writes, or nothing."""
+import math
+import sys
+from pathlib import Path
+
 import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from gmtiflow import config
+from gmtiflow import config, config_yaml
 from gmtiflow.compose import compose
 from gmtiflow.scene.vehicles import VehicleSpec, VehiclesConfig
 
@@ -35,3 +43,146 @@ def test_to_yaml_quotes_and_wraps_as_omegaconf_does():
     text = config.to_yaml(cfg)
     assert text == OmegaConf.to_yaml(OmegaConf.structured(cfg))
     assert "name: 'yes'" in text and "name: héllo ✓" in text
+
+
+# --- gmtiflow.config_yaml: the text PyYAML writes, without PyYAML's per-node representer -------
+
+CONF = Path(__file__).resolve().parents[1] / "conf"
+
+
+def fast_text(tree):
+    """config_yaml's own text of ``tree``, or None where it leaves the document to PyYAML."""
+    return config_yaml.dump(tree, config._resolves_as_str)
+
+
+def group_options():
+    """``group=option`` for every option file of the shipped config groups."""
+    for group in sorted(p for p in CONF.iterdir() if p.is_dir() and p.name not in ("hydra",
+                                                                                    "bench")):
+        for path in sorted(group.rglob("*.yaml")):
+            yield f"{group.name}={path.relative_to(group).with_suffix('').as_posix()}"
+
+
+NEEDS_A_FILE = {"platform=trajectory", "roadmap=geojson", "roadmap=osm", "tracker=python"}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("option", sorted(set(group_options()) - NEEDS_A_FILE))
+def test_every_shipped_option_is_written_as_pyyaml_writes_it(option):
+    cfg = compose([option])
+    assert fast_text(cfg) is not None        # no fallback: the fast writer is what runs
+    assert config.to_yaml(cfg) == config.pyyaml_text(cfg)
+
+
+def test_shipped_options_are_found():
+    options = set(group_options())
+    assert {"sensor=wide_fov", "experiment=challenge/offroad", "vehicles=random"} <= options
+    assert len(options) > 40
+
+
+@pytest.mark.parametrize("overrides", [[], ["experiment=monaco"], ["vehicles=random",
+                                       "clutter=windfarm", "export=stream", "terrain=hills"]])
+def test_composed_configs_are_written_as_pyyaml_writes_them(overrides):
+    cfg = compose(overrides)
+    assert fast_text(cfg) is not None
+    assert config.to_yaml(cfg) == config.pyyaml_text(cfg)
+
+
+def test_the_peer_benchmarks_listed_vehicles_are_written_as_pyyaml_writes_them():
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    try:
+        from stonesoup_peer import peer_vehicles
+    finally:
+        sys.path.pop(0)
+    cfg = compose(["fidelity=fast", "scene.duration_s=600"])
+    cfg.vehicles = peer_vehicles(50, 600.0)
+    text = fast_text(cfg)
+    assert text is not None and text == config.pyyaml_text(cfg)
+    assert "  - - -3" in text                   # waypoints written as rows of the list
+
+
+AWKWARD_STRINGS = [
+    "", " ", "yes", "No", "on", "OFF", "y", "true", "1.5", "10", "-3", "+4", "1e5", "1E-5", ".5",
+    "0x1F", "0o17", "0b101", "1_000", "1,000", "null", "Null", "NULL", "~", "2026-06-01",
+    "2026-06-01T08:00:00Z", "2026-06-01 08:00:00", "12:30", "1:20:30.5", ".inf", "-.Inf",
+    ".NaN", "nan", "inf", "=", "<<", " lead", "trail ", "a: b", "a:b", "a:", ":a", ": a", "#c",
+    "a #c", "a#c", "'q'", "it's", 'say "hi"', "- x", "-x", "-", "--", "---", "--- x", "...",
+    "..x", "?x", "? x", "?", "[a]", "{a}", "a,b", "&a", "*a", "!a", "|a", ">a", "%a", "@a", "`a",
+    "back\\slash", "a  b", "x" * 200, "word " * 40, "a " * 39 + "b", "héllo ✓", "line\nbreak",
+    "trail\n", "tab\there", "\x85", "\u2028", "\ufeff", "\x7f", "\x00", "é" * 90,
+    "udp://127.0.0.1:4607", "../shared/data/map.osm", "GMTIFLOW"]
+AWKWARD_NUMBERS = [0, 1, -1, 2 ** 63, -(2 ** 80), 0.0, -0.0, 1.0, 1e-7, 1e16, 1e17, -1e22, 1e300,
+                   5e-324, 123456789.123456789, 0.1 + 0.2, math.inf, -math.inf, math.nan, True,
+                   False, None]
+
+ONE_LINE_ASCII = "".join(map(chr, range(32, 127)))
+numbers = st.one_of(st.floats(), st.integers(), st.sampled_from(AWKWARD_NUMBERS[:-3]))
+
+
+def plain_trees(strings, keys, max_leaves=25):
+    """Nested dicts, lists and tuples of scalars, and lists of equally long number lists."""
+    scalars = st.one_of(strings, numbers, st.none(), st.booleans())
+    rows = st.integers(1, 3).flatmap(
+        lambda k: st.lists(st.lists(numbers, min_size=k, max_size=k), max_size=5))
+    inner = st.recursive(st.one_of(scalars, rows),
+                         lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                 st.tuples(inner, inner),
+                                                 st.dictionaries(keys, inner, max_size=4)),
+                         max_leaves=max_leaves)
+    return st.dictionaries(keys, inner, max_size=6)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(plain_trees(st.one_of(st.sampled_from(AWKWARD_STRINGS), st.text(max_size=12),
+                             st.text(alphabet=ONE_LINE_ASCII, max_size=90)),
+                   st.one_of(st.sampled_from(AWKWARD_STRINGS), st.text(max_size=8))))
+def test_plain_data_is_written_as_pyyaml_writes_it_or_left_to_pyyaml(tree):
+    text = fast_text(tree)
+    if text is not None:
+        assert text == config.pyyaml_text(tree)
+
+
+SHORT_ASCII = st.text(alphabet=ONE_LINE_ASCII, max_size=12)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(plain_trees(st.one_of(st.sampled_from([s for s in AWKWARD_STRINGS if len(s) <= 12
+                                              and all(" " <= c <= "~" for c in s)]),
+                             SHORT_ASCII),
+                   st.one_of(SHORT_ASCII.filter(bool), st.sampled_from(["a", "yes", "1.5"])),
+                   max_leaves=12))
+def test_one_line_ascii_data_is_written_as_pyyaml_writes_it(tree):
+    # nesting <= 12 levels, keys and strings <= 12 characters: no string reaches column 80,
+    # where PyYAML would fold it, so the fast writer always writes these
+    text = fast_text(tree)
+    assert text is not None and text == config.pyyaml_text(tree)
+
+
+@pytest.mark.parametrize("value", AWKWARD_STRINGS + AWKWARD_NUMBERS)
+@pytest.mark.parametrize("where", ["value", "key", "item", "deep"])
+def test_each_awkward_value_in_each_place(value, where):
+    if where == "key" and not isinstance(value, str):
+        return
+    tree = {"value": {"k": value}, "key": {value: 1.5}, "item": {"k": [value, "x"]},
+            "deep": {"a": [[{"b": [value]}], {}, []]}}[where]
+    text = fast_text(tree)
+    if text is not None:
+        assert text == config.pyyaml_text(tree)
+    one_line_ascii = isinstance(value, str) and all(" " <= c <= "~" for c in value)
+    short = isinstance(value, str) and (" " not in value or len(value) < 50)
+    key_ok = where != "key" or 0 < len(value) <= config_yaml.MAX_KEY
+    if not isinstance(value, str) or (one_line_ascii and short and key_ok):
+        assert text is not None, "written by PyYAML although config_yaml covers it"
+
+
+@pytest.mark.parametrize("value", [1e-7, 1e16, -0.0, 5e-324, 1e300, math.inf, -math.inf, math.nan,
+                                   0.1, -2.5e-12])
+def test_float_text_is_pyyamls(value):
+    pyyaml = yaml.dump(value, Dumper=config._yaml_dumper()).split()[0]
+    assert config_yaml.float_text(value) == pyyaml
+
+
+def test_values_pyyaml_writes_as_objects_are_left_to_it():
+    import numpy as np
+    for odd in (np.float64(1.5), np.int64(3), Path("x"), {1: "int key"}, b"bytes", 1j):
+        assert fast_text({"k": odd}) is None

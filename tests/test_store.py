@@ -112,21 +112,61 @@ def test_big_tables_round_trip_through_the_chunk_deflater(tmp_path, workers):
         assert f["whole/invisible"].dtype == bool
 
 
+def _mixed_planes(n, seed=2):
+    """uint32 values whose byte planes alternate: zeros, random bytes, zeros, random bytes."""
+    rng = np.random.default_rng(seed)
+    return (rng.integers(0, 256, n, dtype=np.uint32) << 8) | \
+        (rng.integers(0, 256, n, dtype=np.uint32) << 24)
+
+
 def test_deflated_chunk_is_what_the_hdf5_filters_decode(tmp_path):
-    """A chunk made by _deflated_chunk, written raw, reads back through HDF5's own shuffle and
-    deflate filters as the values it was made of (element sizes 8 and 1)."""
+    """Chunks made by _deflated_chunk, written raw, read back through HDF5's own shuffle and
+    deflate filters as the values they were made of: element sizes 8, 4 and 1; byte planes
+    that are noise (stored blocks) between planes that are deflated; and, for each dataset, a
+    second chunk made by the same (reused) compressor, which must not refer back to the first
+    (all-zero int64: every byte equals the one before)."""
     path = tmp_path / "c.h5"
-    values = {"f": np.random.default_rng(1).normal(size=store._CHUNK_ROWS),
-              "b": np.arange(store._CHUNK_ROWS) % 3 == 0}
+    rng = np.random.default_rng(1)
+    n = store._CHUNK_ROWS
+    values = {"f": rng.normal(size=2 * n), "b": np.arange(2 * n) % 3 == 0,
+              "u": rng.integers(0, 2**63, 2 * n, dtype=np.uint64),
+              "mixed": _mixed_planes(2 * n), "zeros": np.zeros(2 * n, np.int64),
+              "runs": np.repeat(rng.normal(size=n // 8), 16)}
     with h5py.File(path, "w") as f:
         for name, v in values.items():
             ds = f.create_dataset(name, shape=v.shape, dtype=v.dtype,
                                   chunks=(store._CHUNK_ROWS,), compression="gzip",
                                   compression_opts=1, shuffle=True)
-            ds.id.write_direct_chunk((0,), store._deflated_chunk(v))
+            for i in (0, 1):
+                ds.id.write_direct_chunk((i * n,), store._deflated_chunk(v[i * n:(i + 1) * n]))
     with h5py.File(path) as f:
         for name, v in values.items():
-            assert np.array_equal(f[name][()], v)
+            assert np.array_equal(f[name][()], v), name
+
+
+def test_noise_planes_are_stored_and_the_rest_deflated():
+    """Byte planes that are noise (random low bytes of measured values) cost deflate's time for
+    nothing, so they go into the stream as stored blocks; planes with any structure are still
+    deflated (runs of equal values even when their bytes look random)."""
+    rng = np.random.default_rng(3)
+    n = store._CHUNK_ROWS
+
+    def planes(v):
+        return np.ascontiguousarray(v.view(np.uint8).reshape(-1, v.dtype.itemsize).T)
+
+    u = rng.integers(0, 2**63, n, dtype=np.uint64)
+    assert store._noise_planes(planes(u))[:7].all()
+    assert len(store._deflated_chunk(u)) < u.nbytes + 100        # stored, not expanded
+    assert store._noise_planes(planes(_mixed_planes(n))).tolist() == [False, True, False, True]
+    time_s = np.arange(n) * 0.1
+    assert not store._noise_planes(planes(time_s)).any()
+    assert len(store._deflated_chunk(time_s)) < 0.5 * time_s.nbytes
+    runs = np.repeat(rng.normal(size=n // 16), 16)
+    assert not store._noise_planes(planes(runs)).any()
+    assert len(store._deflated_chunk(runs)) < 0.3 * runs.nbytes
+    x = rng.normal(size=n)       # low mantissa bytes stored, sign and exponent deflated
+    assert store._noise_planes(planes(x)).tolist() == [True] * 6 + [False] * 2
+    assert len(store._deflated_chunk(x)) < 0.9 * x.nbytes
 
 
 def test_a_sink_closed_before_its_first_block_writes_exact_chunks(tmp_path):

@@ -82,6 +82,9 @@ class VehicleSpec:
     convoy: ConvoySpec = field(default_factory=ConvoySpec)
     off_road: List[Any] = field(default_factory=list)   # [[x, y(, z)], ...] metres
 
+    problems_include = ("convoy", "speed_changes")
+    """Fields whose problems :meth:`problems` reports (``config.problems_of``)."""
+
     def problems(self) -> List[schema.Problem]:
         out = []
         if not self.name or self.name == "???":
@@ -101,8 +104,7 @@ class VehicleSpec:
         if self.off_road:
             if len(self.off_road) < 2:
                 out.append(schema.Problem("off_road", "needs at least two waypoints"))
-            for i, point in enumerate(self.off_road):
-                out += schema.point_problems(f"off_road[{i}]", point, geodetic=True)
+            out += schema.points_problems("off_road", self.off_road, geodetic=True)
             if self.stop_points or self.speed_changes:
                 out.append(schema.Problem("off_road", "an off-road vehicle has no road nodes for "
                                                       "stop_points or speed_changes"))
@@ -171,6 +173,9 @@ class VehiclesConfig:
 
     vehicles: List[VehicleSpec] = field(default_factory=list)
     random: RandomFleetSpec = field(default_factory=RandomFleetSpec)
+
+    problems_include = ("vehicles", "random")
+    """Fields whose problems :meth:`problems` reports (``config.problems_of``)."""
 
     def problems(self) -> List[schema.Problem]:
         out = []

@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gmtiflow.sensor import fastnp
+
 
 def dot(a, b):
     """Dot product of two vectors given as 3-tuples of arrays."""
@@ -34,7 +36,11 @@ def dot(a, b):
 
 
 def take(v, index):
-    """Rows ``index`` of each component of a vector."""
+    """Rows ``index`` (integers, or a boolean mask) of each component of a vector."""
+    index = np.asarray(index)
+    if index.dtype.kind in "iu" and index.ndim == 1 and all(np.ndim(c) == 1 for c in v):
+        # np.take: the same rows as fancy indexing, ~25 % cheaper on long index arrays
+        return (np.take(v[0], index), np.take(v[1], index), np.take(v[2], index))
     return (v[0][index], v[1][index], v[2][index])
 
 
@@ -67,16 +73,9 @@ def target_angles(los, b, h, u):
     horiz = np.hypot(lb, lh)
     az = np.arctan2(lh, lb)
     el = np.arctan2(lu, horiz)
-    sin_az = ratio(lh, horiz)
+    sin_az = fastnp.ratio(lh, horiz)
     return az, el, sin_az, lb
 
-
-def ratio(num, den, fill: float = 0.0):
-    """``num / den`` where ``den > 0``, ``fill`` elsewhere.  The plain division when every
-    ``den`` is positive (the usual case): numpy's ``where=`` path costs ~5x as much."""
-    if np.all(den > 0):
-        return num / den
-    return np.divide(num, den, out=np.full_like(num, fill), where=den > 0)
 
 
 def direction(az_rad, el_rad, b, h, u):

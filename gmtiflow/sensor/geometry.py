@@ -66,13 +66,23 @@ def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M, target_frame: b
     """(o_P, o_T): the target from the platform in the platform's local ENU frame and the
     platform from the target in the target's local frame (module doc), each a 3-tuple (m);
     ``target_frame=False``: o_T is not computed (None)."""
+    o_p, t_h, t_up = _offsets(platform_xyz, target_xyz, radius_m, target_frame)
+    if t_h is None:
+        return o_p, None
+    return o_p, (-t_h[0], -t_h[1], t_up)
+
+
+def _offsets(platform_xyz, target_xyz, radius_m, target_frame: bool = True):
+    """o_P, and o_T as ``(Δx·k_T, Δy·k_T)`` (its horizontal part *negated*: o_T's is −Δ·k_T,
+    and (−Δx)·k_T = −(Δx·k_T) exactly) and its up component; None, None without the target
+    frame.  Flat (``radius_m`` None): k_T = 1."""
     dx = np.asarray(target_xyz[0], float) - np.asarray(platform_xyz[0], float)
     dy = np.asarray(target_xyz[1], float) - np.asarray(platform_xyz[1], float)
     zp = np.asarray(platform_xyz[2], float)
     zt = np.asarray(target_xyz[2], float)
     if radius_m is None:
         dz = zt - zp
-        return (dx, dy, dz), (-dx, -dy, -dz)
+        return (dx, dy, dz), (dx, dy), -dz
     sinc, vers = _curvature(dx * dx + dy * dy, radius_m)
     b = radius_m + zt
     s_r = sinc / radius_m
@@ -80,11 +90,10 @@ def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M, target_frame: b
     dz = zt - zp
     o_p = (dx * kp, dy * kp, dz - b * vers)
     if not target_frame:
-        return o_p, None
+        return o_p, None, None
     a = radius_m + zp
     kt = a * s_r
-    o_t = (-dx * kt, -dy * kt, -dz - a * vers)
-    return o_p, o_t
+    return o_p, (dx * kt, dy * kt), -dz - a * vers
 
 
 def slant_range(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
@@ -132,10 +141,21 @@ def line_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
 
 def lines_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
     """:func:`line_of_sight` and :func:`target_line_of_sight` from one :func:`offsets`:
-    ``(range_m, ℓ in the platform's frame, ℓ_T in the target's frame)``."""
-    o_p, o_t = offsets(platform_xyz, target_xyz, radius_m)
+    ``(range_m, ℓ in the platform's frame, ℓ_T in the target's frame)``.
+
+    ℓ_T = −o_T/|o_T| is taken from o_T's horizontal part before its negation (``_offsets``):
+    (−a)² = a² and (−a)·(−c) = a·c exactly, so the values are those of −o_T·(1/|o_T|) without
+    two negations of every pair."""
+    o_p, (hx, hy), t_up = _offsets(platform_xyz, target_xyz, radius_m)
     rng, los = _unit(o_p)
-    return rng, los, _unit(o_t, -1.0)[1]
+    rng_t = np.sqrt(hx * hx + hy * hy + t_up * t_up)
+    inv = 1.0 / np.maximum(rng_t, MIN_RANGE_M)
+    los_t = (hx * inv, hy * inv, t_up * -inv)
+    small = rng_t < MIN_RANGE_M
+    if np.any(small):           # straight down, as _unit gives it
+        los_t = (np.where(small, 0.0, los_t[0]), np.where(small, 0.0, los_t[1]),
+                 np.where(small, -1.0, los_t[2]))
+    return rng, los, los_t
 
 
 def true_velocity(v_map, z_m, radius_m=DEFAULT_RADIUS_M):
@@ -144,7 +164,11 @@ def true_velocity(v_map, z_m, radius_m=DEFAULT_RADIUS_M):
     (R + z)/R (0.09 % at 6 km); the vertical is unchanged.  ``radius_m=None``: unchanged."""
     if radius_m is None:
         return tuple(np.asarray(c, float) for c in v_map)
-    k = 1.0 + np.asarray(z_m, float) / radius_m
+    z = np.asarray(z_m, float)
+    if z.ndim == 1 and z.size > 64 and not np.any(z):
+        # on the sphere itself (z = ±0): k = 1 exactly and v·1 = v, bit for bit
+        return tuple(np.broadcast_to(np.asarray(c, float), z.shape) for c in v_map)
+    k = 1.0 + z / radius_m
     return (np.asarray(v_map[0], float) * k, np.asarray(v_map[1], float) * k,
             np.asarray(v_map[2], float))
 

@@ -16,7 +16,7 @@ from typing import Dict
 
 import numpy as np
 
-from gmtiflow.sensor import antenna, geometry
+from gmtiflow.sensor import antenna, fastnp, geometry
 from gmtiflow.sensor.context import SensorRun
 from gmtiflow.sensor.poses import Poses
 from gmtiflow.tables import Table
@@ -99,7 +99,7 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     lh = d[0] * h[0] + d[1] * h[1] + d[2] * h[2]
     rng_m = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).ravel()
     horiz = np.hypot(lb, lh)
-    sin_az = antenna.ratio(lh, horiz)
+    sin_az = fastnp.ratio(lh, horiz)
     # behind the antenna: beyond every beam, on the side it is turned to
     s = np.where(lb > 0, sin_az, np.where(lh >= 0, 2.0, -2.0)).ravel()
     return st, d_rep, v_rep, active, rng_m, s
@@ -133,9 +133,10 @@ def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
     cosang = bx * bx[:, mid:mid + 1] + by * by[:, mid:mid + 1] + bz * bz[:, mid:mid + 1]
     rot = np.arccos(np.clip(cosang, -1.0, 1.0)).max(axis=1)          # per revisit
     vt = _speed(*(st[k] for k in ("vx_mps", "vy_mps", "vz_mps")))
-    move = (vp[d_ref] + vt) * dt
-    margin = move / np.maximum(rng_m - move, 1.0) + np.repeat(rot, n_v) + 0.02 * bw
-    w = cfg.footprint_beamwidths * bw + margin
+    # per (revisit, vehicle), revisit-major: the revisit's values broadcast, not gathered
+    move = ((vp[d_ref[::n_v]][:, None] + vt.reshape(n_rev, n_v)) * dt).ravel() if n_v else vt
+    margin = (move / np.maximum(rng_m - move, 1.0)).reshape(n_rev, n_v) + rot[:, None]
+    w = (cfg.footprint_beamwidths * bw + (margin + 0.02 * bw)).ravel()
     rev = np.repeat(np.arange(n_rev), n_v)
     mid_active = active
     if not np.all(active):
@@ -234,7 +235,8 @@ def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
     # ṙ − ṙ_MLC: the target's velocity (its own local frame) on the LOS seen there
     own_rr = antenna.dot(geometry.true_velocity(vel_t, pos_t[2], poses.radius_m), los_t)
     vel_p = antenna.take(geometry.true_velocity(poses.vel, poses.pos[2], poses.radius_m), dl)
-    rr = own_rr + geometry.clutter_range_rate(vel_p, los)   # ṙ
+    # ṙ = (ṙ − ṙ_MLC) + ṙ_MLC with ṙ_MLC = −v_p·ℓ: a + (−b) is a − b in IEEE arithmetic
+    rr = own_rr - antenna.dot(vel_p, los)
     return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],
             "az": az, "el": el, "sin_az": sin_az, "lb": lb, "own_rr": own_rr,
             "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2],
@@ -270,7 +272,8 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
             # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps
             # one row: its first candidate of least sine-space distance (the nearest dwell)
             gidx = group                # groups are numbered 0, 1, 2, ... in row order
-            g_active = np.logical_or.reduceat(active, starts)
+            g_active = (np.ones(len(starts), bool) if active.all() else
+                        np.logical_or.reduceat(active, starts))
             # active at the middle dwell but at none of its candidate dwells (it left or
             # appeared mid-scan): one more candidate, the middle dwell itself
             lost = np.flatnonzero(~g_active & mid_active[group[starts]])
@@ -326,14 +329,18 @@ class Rows:
 
     def __init__(self, columns: Dict[str, np.ndarray], sel: np.ndarray):
         self.columns, self.sel, self.cache = columns, sel, {}
+        self._at = (None, None)       # the last ``index`` of :meth:`at` and sel[index]
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name not in self.cache:
-            self.cache[name] = self.columns[name][self.sel]
+            self.cache[name] = np.take(self.columns[name], self.sel)
         return self.cache[name]
 
     def at(self, name: str, index: np.ndarray) -> np.ndarray:
-        """Column ``name`` at selected rows ``index`` (without gathering the others)."""
+        """Column ``name`` at selected rows ``index`` (an integer array; without gathering the
+        other rows).  Successive calls with the same ``index`` object compose it once."""
         if name in self.cache:
-            return self.cache[name][index]
-        return self.columns[name][self.sel[index]]
+            return np.take(self.cache[name], index)
+        if self._at[0] is not index:
+            self._at = (index, np.take(self.sel, index))
+        return np.take(self.columns[name], self._at[1])

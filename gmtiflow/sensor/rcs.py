@@ -23,6 +23,7 @@ import numpy as np
 
 from gmtiflow.errors import ConfigError, InputFileError
 from gmtiflow.frames import heading_rad
+from gmtiflow.sensor import fastnp
 from gmtiflow.paths import check_input_file, excerpt
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -125,6 +126,12 @@ class RcsModels:
     constant_dbsm: np.ndarray
     tables: Tuple[Optional[Tuple[np.ndarray, np.ndarray]], ...]
 
+    def __post_init__(self):
+        # each table prepared once for its periodic interpolation (np.interp's values)
+        object.__setattr__(self, "_interp", tuple(
+            None if t is None else fastnp.PeriodicInterp(t[0], t[1], 2.0 * np.pi)
+            for t in self.tables))
+
     @classmethod
     def from_config(cls, rcs_cfg: Mapping) -> "RcsModels":
         names, consts, tables = [], [], []
@@ -156,8 +163,8 @@ class RcsModels:
         """
         type_code = np.asarray(type_code)
         out = self.constant_dbsm[type_code]
-        for code, table in enumerate(self.tables):
-            if table is None:
+        for code, interp in enumerate(self._interp):
+            if interp is None:
                 continue
             sel = np.flatnonzero(type_code == code)
             if sel.size:
@@ -165,5 +172,5 @@ class RcsModels:
                 los_az = (np.arctan2(np.asarray(los_east)[sel], np.asarray(los_north)[sel])
                           if los_azimuth_rad is None else np.asarray(los_azimuth_rad)[sel])
                 aspect = np.asarray(vehicle_heading_rad)[sel] - los_az
-                out[sel] = np.interp(aspect, table[0], table[1], period=2.0 * np.pi)
+                out[sel] = interp(aspect)           # np.interp(..., period=2π)
         return out

@@ -1,0 +1,244 @@
+"""The /config text of a run file, written straight from the config tree.
+
+:func:`gmtiflow.config.to_yaml` must give exactly the text PyYAML gives for the tree as plain
+data (``yaml.dump(..., default_flow_style=False, allow_unicode=True, sort_keys=False)`` with
+OmegaConf's dumper on libyaml): run files are compared and hashed by that text.  PyYAML's
+representer costs a Python call per node, ~0.5 s for a scene that lists 1,000 off-road vehicles;
+:func:`dump` writes the same block-style text itself for the values whose YAML form is simple and
+certain (dicts, lists, ints, floats, bools, None and plain-looking strings), and returns None for
+anything else (unusual characters, strings long enough to be wrapped, keys that are not
+strings, types other than those) so that the caller lets PyYAML write the whole document.
+
+The rules followed are PyYAML's and libyaml's for block style with the default 80-column width:
+
+* a mapping is ``key: value`` lines; a nested mapping is indented by 2 under its ``key:``; a
+  list inside a mapping is not indented (``key:`` then ``- item`` at the key's column); a list
+  or mapping inside a list starts on the item's line (``- - 1.0``, ``- name: a``);
+* empty lists and mappings are written ``[]`` and ``{}``;
+* floats are ``repr`` with ``.0`` put before a bare exponent (``1.0e+16``), ``.nan``, ``.inf``,
+  ``-.inf``; ints ``str``; ``true``/``false``; ``null``;
+* a one-line printable ASCII string is written bare unless a YAML reader would take it for
+  something else (a number, a bool, null, a timestamp: the dumper's implicit resolvers, and
+  OmegaConf's own quoting of strings that read as bools or numbers) or it holds an indicator
+  a bare scalar cannot (libyaml's ``yaml_emitter_analyze_scalar``: a leading ``#``, ``- ``,
+  ``: `` anywhere, a leading or trailing space ...); then it is single-quoted, ``'`` doubled.
+"""
+from __future__ import annotations
+
+import dataclasses
+import re
+from enum import Enum
+from itertools import chain
+from typing import Callable, Dict, List, Optional, Tuple
+
+from gmtiflow.config_tree import field_names, field_values
+
+WIDTH = 80
+"""PyYAML's default line width: a bare or quoted string is folded at a space past this column."""
+
+MAX_KEY = 128
+"""libyaml writes longer keys as complex keys (``? key``)."""
+
+_ONE_LINE_ASCII = re.compile(r"[\x20-\x7e]*")
+"""Strings of printable ASCII on one line: bare or single-quoted, never escaped (libyaml's
+``yaml_emitter_analyze_scalar`` finds no special characters or breaks in them)."""
+
+_LEADING_INDICATORS = frozenset("#,[]{}&*!|>'\"%@`")
+"""Characters that cannot start a bare scalar."""
+
+
+class Unsupported(Exception):
+    """A value whose YAML text this module does not reproduce (PyYAML writes the document)."""
+
+
+def dump(tree, resolves_as_str: Callable[[str], bool]) -> Optional[str]:
+    """The block-style YAML of a config tree (dataclasses, Enums, dicts, lists, scalars), or
+    None where PyYAML must write it.  ``resolves_as_str(s)``: a bare ``s`` reads back as the
+    string ``s`` (the dumper's implicit resolvers and OmegaConf's quoting say so)."""
+    lines: List[str] = []
+    writer = _Writer(lines, resolves_as_str)
+    try:
+        mapping = _mapping_of(tree)
+        if mapping is None:
+            return None
+        if not mapping[0]:
+            return "{}\n"
+        writer.mapping(*mapping, 0, "")
+    except Unsupported:
+        return None
+    lines.append("")
+    return "\n".join(lines)
+
+
+def float_text(value: float) -> str:
+    """PyYAML's text of a float (``SafeRepresenter.represent_float``)."""
+    text = repr(value)
+    if "e" in text or "n" in text:          # an exponent, inf or nan
+        if value != value:
+            return ".nan"
+        if value in (float("inf"), float("-inf")):
+            return ".inf" if value > 0 else "-.inf"
+        if "." not in text:
+            text = text.replace("e", ".0e", 1)
+    return text
+
+
+_SCALARS: Dict[type, Callable[[object], str]] = {
+    float: float_text,
+    int: str,
+    bool: lambda v: "true" if v else "false",
+    type(None): lambda v: "null",
+}
+"""Text of the non-string scalars (exact types: subclasses such as numpy floats go to PyYAML)."""
+
+def _mapping_of(node) -> Optional[Tuple[tuple, tuple]]:
+    """(keys, values) of a mapping node (a dataclass or a dict; Enum keys by name), else None."""
+    cls = type(node)
+    if cls is dict:
+        return (tuple(k.name if isinstance(k, Enum) else k for k in node),
+                tuple(node.values()))
+    if dataclasses.is_dataclass(cls) and not isinstance(node, type):
+        return field_names(node), field_values(node)
+    if isinstance(node, dict):
+        raise Unsupported(cls)
+    return None
+
+
+class _Writer:
+    """Appends the lines of one document; raises :class:`Unsupported` on what it cannot write."""
+
+    def __init__(self, lines: List[str], resolves_as_str: Callable[[str], bool]):
+        self.lines = lines
+        self.resolves_as_str = resolves_as_str
+        self.strings: Dict[str, str] = {}
+        self.heads: Dict[Tuple[tuple, int], List[str]] = {}
+
+    def mapping(self, keys: tuple, values: tuple, indent: int, lead: str) -> None:
+        """``key: value`` lines at ``indent``; the first line starts with ``lead``."""
+        lines = self.lines
+        for i, (head, value) in enumerate(zip(self.key_heads(keys, indent), values)):
+            if not i:
+                head = lead + head[indent:]
+            cls = type(value)
+            if cls is float:                           # the common cases, inline
+                text = repr(value)
+                lines.append(head + " " + (float_text(value) if "e" in text or "n" in text
+                                           else text))
+            elif cls is str:
+                lines.append(head + " " + self.string(value, len(head) + 1))
+            elif cls in _SCALARS:
+                lines.append(head + " " + _SCALARS[cls](value))
+            elif cls is list and not value:
+                lines.append(head + " []")
+            else:
+                self.value(head, value, indent, in_mapping=True)
+
+    def sequence(self, items, indent: int, lead: str) -> None:
+        """``- item`` lines at ``indent``; the first line starts with ``lead``."""
+        if self.rows(items, indent, lead):
+            return
+        pad = " " * indent
+        scalar = _SCALARS.get
+        for i, item in enumerate(items):
+            head = (pad if i else lead) + "- "
+            text = scalar(type(item))
+            if text is not None:                       # the common case, inline
+                self.lines.append(head + text(item))
+            else:
+                self.value(head, item, indent + 2, in_mapping=False)
+
+    def rows(self, items, indent: int, lead: str) -> bool:
+        """Write a list of equally long, non-empty lists of ints and floats (waypoints ...)
+        in bulk, ``- - x`` then ``  - y`` per row; False (nothing written) for other lists."""
+        if not items or set(map(type, items)) != {list} or len(set(map(len, items))) != 1:
+            return False
+        flat = list(chain.from_iterable(items))
+        if not flat or not set(map(type, flat)) <= {float, int}:
+            return False
+        texts = list(map(repr, flat))                  # repr is str for an int
+        joined = "".join(texts)
+        if "e" in joined or "n" in joined:
+            texts = [float_text(v) if type(v) is float else repr(v) for v in flat]
+        pad = " " * indent
+        row = pad + "- - %s" + ("\n" + pad + "  - %s") * (len(items[0]) - 1)
+        first = len(self.lines)
+        self.lines.extend(map(row.__mod__, zip(*[iter(texts)] * len(items[0]))))
+        self.lines[first] = lead + self.lines[first][indent:]
+        return True
+
+    def value(self, head: str, value, indent: int, in_mapping: bool) -> None:
+        """``value`` after ``head`` (``key:`` or ``- ``): inline if a scalar or empty, else
+        on the following lines."""
+        sep = " " if in_mapping else ""
+        cls = type(value)
+        text = _SCALARS.get(cls)
+        if text is not None:
+            self.lines.append(head + sep + text(value))
+        elif cls is str or isinstance(value, Enum):
+            string = value.name if isinstance(value, Enum) else value
+            self.lines.append(head + sep + self.string(string, len(head) + len(sep)))
+        elif cls is list or cls is tuple:
+            if not value:
+                self.lines.append(head + sep + "[]")
+            elif in_mapping:                            # not indented under its key
+                self.lines.append(head)
+                self.sequence(value, indent, " " * indent)
+            else:
+                self.sequence(value, indent, head)
+        else:
+            mapping = _mapping_of(value)
+            if mapping is None:
+                raise Unsupported(cls)
+            if not mapping[0]:
+                self.lines.append(head + sep + "{}")
+            elif in_mapping:
+                self.lines.append(head)
+                self.mapping(*mapping, indent + 2, " " * (indent + 2))
+            else:
+                self.mapping(*mapping, indent, head)
+
+    def key_heads(self, keys: tuple, indent: int) -> List[str]:
+        """``key:`` of each key at ``indent`` (cached: a dataclass's are the same every time).
+        Keys are strings, never folded (libyaml's simple keys)."""
+        heads = self.heads.get((keys, indent))
+        if heads is None:
+            pad = " " * indent
+            heads = [pad + self.key(key) + ":" for key in keys]
+            self.heads[(keys, indent)] = heads
+        return heads
+
+    def key(self, key) -> str:
+        """The text of one mapping key."""
+        if type(key) is not str or not 0 < len(key) <= MAX_KEY:
+            raise Unsupported(key)
+        return _str_text(key, self.resolves_as_str)
+
+    def string(self, value: str, column: int) -> str:
+        """The text of a string value starting at ``column``."""
+        cached = self.strings.get(value)
+        if cached is None:
+            cached = self.strings[value] = _str_text(value, self.resolves_as_str)
+        if " " in value and column + len(cached) > WIDTH:
+            raise Unsupported("a string PyYAML may fold")
+        return cached
+
+
+def _str_text(value: str, resolves_as_str: Callable[[str], bool]) -> str:
+    """A string bare, or single-quoted where a bare one would not read back as itself."""
+    if not _ONE_LINE_ASCII.fullmatch(value):
+        raise Unsupported("a string with breaks, tabs or non-ASCII characters")
+    if _bare_allowed(value) and resolves_as_str(value):
+        return value
+    return "'" + value.replace("'", "''") + "'"
+
+
+def _bare_allowed(value: str) -> bool:
+    """libyaml's ``block_plain_allowed`` for a one-line printable ASCII string: no leading or
+    trailing space, no document marker, no indicator where a reader would take it as one."""
+    if not value:
+        return True          # (the empty string resolves as null: it is quoted all the same)
+    first, second = value[0], value[1:2]
+    return not (first == " " or value[-1] == " " or value.startswith(("---", "..."))
+                or first in _LEADING_INDICATORS
+                or (first in "?-" and second in ("", " "))
+                or ": " in value or value.endswith(":") or " #" in value)

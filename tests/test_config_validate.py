@@ -1,0 +1,206 @@
+"""``config.validate`` reports exactly what the plain tree walk reports, however it gets there.
+
+Validation skips plain leaves and checks lists of numbers (waypoints ...) in bulk; the reference
+here is the walk it replaced, node by node (``reference_validate``), and every case compares the
+two outcomes: the same ConfigError text (keys, messages, order), or the same other exception.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gmtiflow import config, schema
+from gmtiflow.compose import compose
+from gmtiflow.config_tree import get_path, numeric_leaves, set_leaf
+from gmtiflow.errors import ConfigError
+from gmtiflow.scene.vehicles_config import SpeedChangeSpec, VehicleSpec, VehiclesConfig
+
+
+def reference_numeric_leaves(obj, prefix=""):
+    if dataclasses.is_dataclass(obj):
+        for f in dataclasses.fields(obj):
+            yield from reference_numeric_leaves(getattr(obj, f.name), f"{prefix}{f.name}.")
+    elif isinstance(obj, (list, tuple)):
+        for i, item in enumerate(obj):
+            yield from reference_numeric_leaves(item, f"{prefix[:-1]}[{i}].")
+    elif isinstance(obj, dict):
+        for key, item in obj.items():
+            yield from reference_numeric_leaves(item, f"{prefix}{key}.")
+    elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
+        yield prefix[:-1], obj
+
+
+def reference_problems_of(obj, prefix=""):
+    out = []
+    if dataclasses.is_dataclass(obj):
+        check = getattr(obj, "problems", None)
+        if callable(check):
+            out += [schema.Problem(f"{prefix}{p.key}", p.message) for p in check()]
+        for f in dataclasses.fields(obj):
+            out += reference_problems_of(getattr(obj, f.name), f"{prefix}{f.name}.")
+    elif isinstance(obj, (list, tuple)):
+        for i, item in enumerate(obj):
+            out += reference_problems_of(item, f"{prefix[:-1]}[{i}].")
+    elif isinstance(obj, dict):
+        for key, item in obj.items():
+            out += reference_problems_of(item, f"{prefix}{key}.")
+    return out
+
+
+def reference_validate(obj):
+    found = reference_problems_of(obj)
+    big = [schema.Problem(key, f"must be within ±{config.MAX_MAGNITUDE:g}, got {value!r}")
+           for key, value in reference_numeric_leaves(obj)
+           if key != "seed" and math.isfinite(value) and abs(value) > config.MAX_MAGNITUDE]
+    found = list(dict.fromkeys(found + big))
+    if found:
+        raise ConfigError("invalid config: " + "; ".join(f"{p.key}: {p.message}" for p in found))
+
+
+def reference_points_problems(key, points, **kw):
+    return [p for i, point in enumerate(points)
+            for p in schema.point_problems(f"{key}[{i}]", point, **kw)]
+
+
+def outcome(check, cfg):
+    """What validating ``cfg`` gives: None, or the exception's type and text."""
+    try:
+        check(cfg)
+    except Exception as exc:          # noqa: BLE001 - compared, not swallowed
+        return type(exc).__name__, str(exc)
+    return None
+
+
+def assert_same_outcome(cfg):
+    expected = outcome(reference_validate, cfg)
+    assert outcome(config.validate, cfg) == expected
+    return expected
+
+
+def peer_config(n, duration_s=600.0):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    try:
+        from stonesoup_peer import peer_vehicles
+    finally:
+        sys.path.pop(0)
+    cfg = compose(["fidelity=fast", f"scene.duration_s={duration_s:g}"])
+    cfg.vehicles = peer_vehicles(n, duration_s)
+    return cfg
+
+
+BAD_NUMBERS = [math.nan, -1, 2e12, True, 10 ** 400]
+SLOW = pytest.mark.slow
+
+
+@pytest.mark.parametrize("overrides", [[], pytest.param(["vehicles=random", "clutter=windfarm",
+                                                         "platform=racetrack", "sensor=wide_fov",
+                                                         "terrain=hills"], marks=SLOW),
+                                       pytest.param(["experiment=challenge/offroad",
+                                                     "clutter=urban"], marks=SLOW)])
+def test_every_numeric_leaf_set_wrong_gives_the_same_problems(overrides):
+    cfg = compose(overrides)
+    keys = [key for key, _ in reference_numeric_leaves(cfg)]
+    assert keys == [key for key, _ in numeric_leaves(cfg)] and len(keys) > 100
+    errors = 0
+    for key in keys:
+        original = get_path(cfg, key)
+        for value in BAD_NUMBERS:
+            set_leaf(cfg, key, value)
+            errors += assert_same_outcome(cfg) is not None
+        set_leaf(cfg, key, original)
+    assert errors > len(keys)          # most bad values are refused
+    assert assert_same_outcome(cfg) is None
+
+
+def test_a_large_vehicle_list_with_one_bad_value_deep_inside():
+    cfg = peer_config(1000)
+    assert assert_same_outcome(cfg) is None
+    waypoints = cfg.vehicles.vehicles[731].off_road
+    for bad in (math.nan, -math.inf, 5e12, "x", None, True):
+        waypoints[7] = [waypoints[7][0], bad]
+        expected = assert_same_outcome(cfg)
+        assert expected is not None and "vehicles.vehicles[731].off_road[7]" in expected[1]
+    waypoints[7] = [waypoints[7][0], -2000.0]
+    cfg.vehicles.vehicles[998].off_road[3] = [1.0, 2.0, 3.0, 4.0]
+    expected = assert_same_outcome(cfg)
+    assert expected == ("ConfigError", "invalid config: vehicles.vehicles[998].off_road[3]: must "
+                        "be [x, y] or [x, y, z] in finite metres or {lat_deg, lon_deg, height_m}, "
+                        "got [1.0, 2.0, 3.0, 4.0]")
+
+
+def test_a_large_vehicle_list_with_many_bad_values_keeps_their_order():
+    cfg = peer_config(200)
+    for i in (150, 3, 77):
+        cfg.vehicles.vehicles[i].off_road[i % 7] = [7e12, 0.0]
+        cfg.vehicles.vehicles[i].position_noise_m[2] = math.nan
+    cfg.vehicles.vehicles[5].off_road[2] = {"lat_deg": 95.0, "lon_deg": 7.0}
+    cfg.vehicles.vehicles[9].off_road = [[0.0, 0.0]]
+    cfg.vehicles.vehicles[12].speed_changes = [SpeedChangeSpec(at=None, cruise_speed_mps=-1.0)]
+    cfg.vehicles.vehicles[13].convoy.count = 0           # problems its parents report
+    cfg.vehicles.random.count = -1
+    kind, text = assert_same_outcome(cfg)
+    assert "vehicles.vehicles[13].convoy.count" in text and "vehicles.random.count" in text
+    assert text.count("must be within ±1e+12") == 3 and text.count("lat_deg must be") == 1
+
+
+waypoint_values = st.one_of(st.floats(), st.integers(-10 ** 400, 10 ** 400), st.booleans(),
+                            st.none(), st.sampled_from([1e308, -1e308, 0.0, -0.0, "1.0", 3]))
+points = st.one_of(st.lists(waypoint_values, min_size=0, max_size=4),
+                   st.tuples(waypoint_values, waypoint_values),
+                   st.sampled_from([{"lat_deg": 1.0, "lon_deg": 2.0}, {"lat": 1.0}, "x", None]))
+
+
+def same_result(fn, *args, **kw):
+    try:
+        return fn(*args, **kw)
+    except Exception as exc:          # noqa: BLE001 - compared, not swallowed
+        return type(exc).__name__, str(exc)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.one_of(st.lists(points, max_size=6),
+                 st.lists(st.lists(st.floats(-1e308, 1e308), min_size=2, max_size=2), max_size=6)),
+       st.sampled_from([(2, 3), (3,)]), st.booleans())
+def test_points_problems_are_those_of_each_point(pts, dims, geodetic):
+    assert (same_result(schema.points_problems, "p", pts, dims=dims, geodetic=geodetic)
+            == same_result(reference_points_problems, "p", pts, dims=dims, geodetic=geodetic))
+
+
+leaf_values = st.one_of(st.floats(), st.integers(-10 ** 20, 10 ** 20), st.booleans(), st.none(),
+                        st.text(max_size=3))
+plain = st.recursive(leaf_values, lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                          st.tuples(inner),
+                                                          st.dictionaries(st.text(max_size=2),
+                                                                          inner, max_size=3)),
+                     max_leaves=20)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(plain, st.sampled_from([0.5, 1e12, math.inf]))
+def test_numeric_leaves_within_a_bound_leave_out_only_leaves_within_it(tree, bound):
+    every = list(numeric_leaves(tree))
+    assert every == list(reference_numeric_leaves(tree))
+    some = list(numeric_leaves(tree, bound=bound))
+    assert [leaf for leaf in every if not -bound <= leaf[1] <= bound] == [
+        leaf for leaf in some if not -bound <= leaf[1] <= bound]
+    assert all(leaf in every for leaf in some)
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(plain, st.integers(0, 5))
+def test_problems_are_found_inside_plain_looking_lists(tree, depth):
+    # a dataclass with problems inside lists of scalars (possible from Python) is still checked
+    bad = VehicleSpec(name="", off_road=[[0.0, 0.0]])
+    holder = bad
+    for _ in range(depth):
+        holder = [tree, holder] if depth % 2 else [[1.0, holder]]
+    cfg = VehiclesConfig(vehicles=[VehicleSpec(name="a", off_road=[[0.0, 0.0], [1.0, 1.0]],
+                                               stopovers=[tree, holder])])
+    assert config.problems_of(cfg) == reference_problems_of(cfg)
+    assert config.problems_of(cfg)
