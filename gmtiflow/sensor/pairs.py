@@ -321,7 +321,7 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
         sel = sel[np.argsort(key, kind="stable")]
     else:     # the extra middle-dwell rows come last: sort on (dwell, vehicle) explicitly
         sel = sel[np.lexsort((veh[sel], dl[sel]))]
-    return dl[sel], veh[sel], Rows(geo, sel), n_eval
+    return np.take(dl, sel), np.take(veh, sel), Rows(geo, sel), n_eval
 
 
 class Rows:
