@@ -51,6 +51,7 @@ BENCHMARKS = {
                           ["--seeds", "1", "--", "scene.duration_s=300",
                            "vehicles.random.count=100"]),
     "stonesoup_peer": ("stonesoup_peer", "docs/scale.md", [], ["--quick"]),
+    "run_file_write": ("run_file_write", "docs/scale.md", [], ["--rounds", "1", "--repeat", "2"]),
     "truth_windows": ("truth_windows", "docs/scale.md", [],
                       ["--repeat", "1", "--only", "peer 10 x", "default"]),
     "sweep_parallel": ("sweep_parallel", "docs/scale.md", [], ["--jobs", "2"]),

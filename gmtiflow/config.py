@@ -260,26 +260,30 @@ def to_object(cfg: DictConfig) -> AppConfig:
     return obj
 
 
-def problems_of(obj, prefix: str = "") -> List[Problem]:
+def problems_of(obj, prefix: str = "", reported: bool = False) -> List[Problem]:
     """All problems of a dataclass tree, with full key paths.
 
     Plain leaves and empty containers are skipped without a call, and so are lists (or lists
     of lists, such as waypoints) of plain scalars, checked in bulk: no dataclass inside, nothing
-    to check.
+    to check.  A dataclass whose ``problems()`` already reports those of the dataclasses in some
+    of its fields (directly or as their list items) names them in a class attribute
+    ``problems_include``; their ``problems()`` is not called again (``reported``): the same
+    problems, each listed once (:func:`validate`), at half the calls for a long vehicle list.
     """
     out: List[Problem] = []
     if dataclasses.is_dataclass(obj):
         check = getattr(obj, "problems", None)
-        if callable(check):
+        if callable(check) and not reported:
             out += [Problem(f"{prefix}{p.key}", p.message) for p in check()]
+        included = getattr(obj, "problems_include", ())
         for name, value in zip(field_names(obj), field_values(obj)):
             if type(value) not in SCALARS and not is_empty(value):
-                out += problems_of(value, f"{prefix}{name}.")
+                out += problems_of(value, f"{prefix}{name}.", name in included)
     elif isinstance(obj, (list, tuple)):
         if holds_only_scalars(obj):
             return out
         for i, item in enumerate(obj):
-            out += problems_of(item, f"{prefix[:-1]}[{i}].")
+            out += problems_of(item, f"{prefix[:-1]}[{i}].", reported)
     elif isinstance(obj, dict):
         for key, item in obj.items():
             out += problems_of(item, f"{prefix}{key}.")

@@ -29,7 +29,7 @@ import dataclasses
 import re
 from enum import Enum
 from itertools import chain
-from typing import Callable, Dict, List, Optional
+from typing import Callable, Dict, List, Optional, Tuple
 
 from gmtiflow.config_tree import field_names, field_values
 
@@ -58,12 +58,12 @@ def dump(tree, resolves_as_str: Callable[[str], bool]) -> Optional[str]:
     lines: List[str] = []
     writer = _Writer(lines, resolves_as_str)
     try:
-        pairs = _pairs(tree)
-        if pairs is None:
+        mapping = _mapping_of(tree)
+        if mapping is None:
             return None
-        if not pairs:
+        if not mapping[0]:
             return "{}\n"
-        writer.mapping(pairs, 0, "")
+        writer.mapping(*mapping, 0, "")
     except Unsupported:
         return None
     lines.append("")
@@ -91,13 +91,14 @@ _SCALARS: Dict[type, Callable[[object], str]] = {
 }
 """Text of the non-string scalars (exact types: subclasses such as numpy floats go to PyYAML)."""
 
-def _pairs(node) -> Optional[List[tuple]]:
-    """(key, value) pairs of a mapping node (a dataclass or a dict), else None."""
+def _mapping_of(node) -> Optional[Tuple[tuple, tuple]]:
+    """(keys, values) of a mapping node (a dataclass or a dict; Enum keys by name), else None."""
     cls = type(node)
     if cls is dict:
-        return [(k.name if isinstance(k, Enum) else k, v) for k, v in node.items()]
+        return (tuple(k.name if isinstance(k, Enum) else k for k in node),
+                tuple(node.values()))
     if dataclasses.is_dataclass(cls) and not isinstance(node, type):
-        return list(zip(field_names(node), field_values(node)))
+        return field_names(node), field_values(node)
     if isinstance(node, dict):
         raise Unsupported(cls)
     return None
@@ -110,17 +111,25 @@ class _Writer:
         self.lines = lines
         self.resolves_as_str = resolves_as_str
         self.strings: Dict[str, str] = {}
-        self.keys: Dict[object, str] = {}
+        self.heads: Dict[Tuple[tuple, int], List[str]] = {}
 
-    def mapping(self, pairs, indent: int, lead: str) -> None:
+    def mapping(self, keys: tuple, values: tuple, indent: int, lead: str) -> None:
         """``key: value`` lines at ``indent``; the first line starts with ``lead``."""
-        pad = " " * indent
-        scalar = _SCALARS.get
-        for i, (key, value) in enumerate(pairs):
-            head = (pad if i else lead) + self.key(key) + ":"
-            text = scalar(type(value))
-            if text is not None:                       # the common case, inline
-                self.lines.append(head + " " + text(value))
+        lines = self.lines
+        for i, (head, value) in enumerate(zip(self.key_heads(keys, indent), values)):
+            if not i:
+                head = lead + head[indent:]
+            cls = type(value)
+            if cls is float:                           # the common cases, inline
+                text = repr(value)
+                lines.append(head + " " + (float_text(value) if "e" in text or "n" in text
+                                           else text))
+            elif cls is str:
+                lines.append(head + " " + self.string(value, len(head) + 1))
+            elif cls in _SCALARS:
+                lines.append(head + " " + _SCALARS[cls](value))
+            elif cls is list and not value:
+                lines.append(head + " []")
             else:
                 self.value(head, value, indent, in_mapping=True)
 
@@ -147,7 +156,8 @@ class _Writer:
         if not flat or not set(map(type, flat)) <= {float, int}:
             return False
         texts = list(map(repr, flat))                  # repr is str for an int
-        if "e" in "".join(texts) or "n" in "".join(texts):
+        joined = "".join(texts)
+        if "e" in joined or "n" in joined:
             texts = [float_text(v) if type(v) is float else repr(v) for v in flat]
         pad = " " * indent
         row = pad + "- - %s" + ("\n" + pad + "  - %s") * (len(items[0]) - 1)
@@ -176,25 +186,32 @@ class _Writer:
             else:
                 self.sequence(value, indent, head)
         else:
-            pairs = _pairs(value)
-            if pairs is None:
+            mapping = _mapping_of(value)
+            if mapping is None:
                 raise Unsupported(cls)
-            if not pairs:
+            if not mapping[0]:
                 self.lines.append(head + sep + "{}")
             elif in_mapping:
                 self.lines.append(head)
-                self.mapping(pairs, indent + 2, " " * (indent + 2))
+                self.mapping(*mapping, indent + 2, " " * (indent + 2))
             else:
-                self.mapping(pairs, indent, head)
+                self.mapping(*mapping, indent, head)
+
+    def key_heads(self, keys: tuple, indent: int) -> List[str]:
+        """``key:`` of each key at ``indent`` (cached: a dataclass's are the same every time).
+        Keys are strings, never folded (libyaml's simple keys)."""
+        heads = self.heads.get((keys, indent))
+        if heads is None:
+            pad = " " * indent
+            heads = [pad + self.key(key) + ":" for key in keys]
+            self.heads[(keys, indent)] = heads
+        return heads
 
     def key(self, key) -> str:
-        """The text of a mapping key (a string: never folded; libyaml's simple keys)."""
-        cached = self.keys.get(key)
-        if cached is None:
-            if type(key) is not str or not 0 < len(key) <= MAX_KEY:
-                raise Unsupported(key)
-            cached = self.keys[key] = _str_text(key, self.resolves_as_str)
-        return cached
+        """The text of one mapping key."""
+        if type(key) is not str or not 0 < len(key) <= MAX_KEY:
+            raise Unsupported(key)
+        return _str_text(key, self.resolves_as_str)
 
     def string(self, value: str, column: int) -> str:
         """The text of a string value starting at ``column``."""

@@ -142,7 +142,10 @@ def test_a_large_vehicle_list_with_many_bad_values_keeps_their_order():
     cfg.vehicles.vehicles[5].off_road[2] = {"lat_deg": 95.0, "lon_deg": 7.0}
     cfg.vehicles.vehicles[9].off_road = [[0.0, 0.0]]
     cfg.vehicles.vehicles[12].speed_changes = [SpeedChangeSpec(at=None, cruise_speed_mps=-1.0)]
+    cfg.vehicles.vehicles[13].convoy.count = 0           # problems its parents report
+    cfg.vehicles.random.count = -1
     kind, text = assert_same_outcome(cfg)
+    assert "vehicles.vehicles[13].convoy.count" in text and "vehicles.random.count" in text
     assert text.count("must be within ±1e+12") == 3 and text.count("lat_deg must be") == 1
 
 

@@ -82,6 +82,9 @@ class VehicleSpec:
     convoy: ConvoySpec = field(default_factory=ConvoySpec)
     off_road: List[Any] = field(default_factory=list)   # [[x, y(, z)], ...] metres
 
+    problems_include = ("convoy", "speed_changes")
+    """Fields whose problems :meth:`problems` reports (``config.problems_of``)."""
+
     def problems(self) -> List[schema.Problem]:
         out = []
         if not self.name or self.name == "???":
@@ -170,6 +173,9 @@ class VehiclesConfig:
 
     vehicles: List[VehicleSpec] = field(default_factory=list)
     random: RandomFleetSpec = field(default_factory=RandomFleetSpec)
+
+    problems_include = ("vehicles", "random")
+    """Fields whose problems :meth:`problems` reports (``config.problems_of``)."""
 
     def problems(self) -> List[schema.Problem]:
         out = []
