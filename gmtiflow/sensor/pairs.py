@@ -35,9 +35,25 @@ def _nearest_beam(u_beam, s):
     n = len(u_beam)
     if n == 1:
         return np.zeros(len(s), np.int64)
-    right = np.clip(np.searchsorted(u_beam, s), 1, n - 1)
+    right = np.clip(_searchsorted_uniform(u_beam, s), 1, n - 1)
     left_closer = np.abs(u_beam[right - 1] - s) <= np.abs(u_beam[right] - s)
     return np.where(left_closer, right - 1, right)
+
+
+def _searchsorted_uniform(u, s):
+    """``np.searchsorted(u, s)`` (side left) for ascending ``u`` of about equal steps (the beams
+    in sine space): the position from the step, kept where u[i−1] < s ≤ u[i] holds, searched
+    where it does not (uneven steps, NaN)."""
+    n = len(u)
+    with np.errstate(invalid="ignore"):
+        guess = np.ceil((s - u[0]) / (u[-1] - u[0]) * (n - 1))
+    pos = np.clip(np.nan_to_num(guess, nan=0.0), 0, n).astype(np.int64)
+    lower = np.concatenate(([-np.inf], u))      # u[pos − 1], −inf before the first
+    upper = np.concatenate((u, [np.inf]))       # u[pos], +inf after the last
+    bad = np.flatnonzero(~((lower[pos] < s) & (s <= upper[pos])))
+    if bad.size:
+        pos[bad] = np.searchsorted(u, s[bad])
+    return pos
 
 
 def _may_be_active(fleet, time_s, vehicle_id):

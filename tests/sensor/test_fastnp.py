@@ -74,3 +74,15 @@ def test_hypot_with_a_zero_is_the_magnitude():
     for zero in (0.0, -0.0):
         assert _same(np.hypot(h, zero), h)
         assert _same(np.hypot(x, zero), np.abs(x))
+
+
+def test_beam_position_search_is_searchsorted():
+    """pairs._searchsorted_uniform (the beams' position from their step, checked) gives
+    np.searchsorted's positions, also for uneven steps, knots and non-finite values."""
+    from gmtiflow.sensor.pairs import _searchsorted_uniform
+    g = np.random.default_rng(7)
+    for n in (2, 3, 14, 50):
+        for u in (np.sin(np.linspace(-0.17, 0.17, n)), np.sort(g.uniform(-1, 1, n))):
+            s = np.concatenate([g.uniform(-2.5, 2.5, 20_000), u, np.nextafter(u, 5),
+                                np.nextafter(u, -5), [np.nan, np.inf, -np.inf, 2.0, -2.0]])
+            assert np.array_equal(_searchsorted_uniform(u, s), np.searchsorted(u, s))
