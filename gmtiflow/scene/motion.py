@@ -89,8 +89,11 @@ desired speeds it found (at most :data:`MAX_SWEEPS` passes; steady cruise needs 
 that crosses a segment or brakes for a lower limit a few).  So the result is the step loop's,
 bit for bit (``windows=False`` runs that loop; tests/scene/test_motion_windows.py compares
 them), while the Python cost is per window, not per step.  A profile at rest takes its whole
-wait at once; braking, stop points and the step after a wait take single steps (the step loop's
-body, vectorised over the profiles that need it).
+wait at once, and one braking for a random stop (no stop point ahead) the rest of its braking,
+to rest, at once (the speeds by repeated additions of aΔt, as the steps make them); the step
+that starts a random stop, stop points and the step after a wait take single steps (the step
+loop's body, vectorised over the profiles that need it).  In one round a profile can take a
+window, a single step, its braking and its wait, so a random stop costs one or two rounds.
 
 Cost follows the trips: a profile is stepped from its start until it is done (past its length)
 or reaches its own horizon (the scene's end), and then leaves the active set, so work and
@@ -784,9 +787,10 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     def wait(ids):
         """Profiles at rest with whole steps of their wait left: those steps at once."""
         kk = k_at[ids]
-        m = np.minimum(np.minimum(wait_at[ids], horizon[ids] - kk), W)
+        m = np.minimum(np.minimum(wait_at[ids], horizon[ids] - kk),
+                       np.minimum(W, 2 * W - (kk - base[ids])))     # within the buffer
         took = ar < m[:, None]
-        cols = (kk - base[ids] + 1)[:, None] + ar
+        cols = np.minimum((kk - base[ids] + 1)[:, None] + ar, 2 * W)
         rows = np.broadcast_to(ids[:, None], took.shape)
         n = int(took.sum())
         sig = np.broadcast_to(sigma_all[ids][:, None], took.shape)
@@ -798,6 +802,76 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         k_at[ids] += m
         v_at[ids] = 0.0
         done[ids] = k_at[ids] >= horizon[ids]
+
+    def brake(ids):
+        """Profiles braking for a random stop (no stop point left ahead): the rest of their
+        braking at once, up to and including the step in which they come to rest, as
+        :func:`general` takes them (a = -max_decel; the speeds by the same additions, the
+        positions by the same terms in the same order), and the wait drawn there."""
+        if points:
+            ids = ids[stop_ptr_at[ids] >= stop_end_all[ids]]
+        if not ids.size:
+            return
+        kk, s0, v0 = k_at[ids], s_at[ids], v_at[ids]
+        dmax = dmax_all[ids]
+        a = -dmax
+        # speeds at the steps' starts by repeated additions of a·Δt (a step that does not
+        # stop ends at max(v + aΔt, 0); taken only while that is the plain sum, > 0)
+        chain = np.empty((ids.size, W + 1))
+        chain[:, 0] = v0
+        chain[:, 1:] = (a * dt)[:, None]
+        V = np.add.accumulate(chain, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_stop = V / dmax[:, None]
+        stop = t_stop <= dt * (1.0 + 1e-9)
+        e = _first_true(stop[:, :W])                       # the step that comes to rest
+        pos = _leading_true(V[:, 1:W] > 0.0)              # steps whose end speed is > 0
+        m = np.where(pos >= e, e + 1, pos)                 # steps taken (e = W: none stops)
+        m = np.minimum(m, 2 * W - (kk - base[ids]))        # within the noise buffer
+        # the steps' kinematics (general(): tau = Δt, or the time to rest in the stop step)
+        Vs = V[:, :W]
+        ar_ = ar[None, :]
+        is_stop = ar_ == e[:, None]
+        tau = np.where(is_stop, np.minimum(t_stop[:, :W], dt), dt)
+        v_end = np.where(is_stop, 0.0, np.maximum(Vs + a[:, None] * tau, 0.0))
+        a2 = np.broadcast_to(a[:, None], Vs.shape)
+        x = np.empty((ids.size, 3 * W + 1))
+        x[:, 0] = s0
+        x[:, 1::3] = Vs * tau
+        x[:, 2::3] = 0.5 * a2 * tau * tau
+        x[:, 3::3] = v_end * (dt - tau)
+        s_end = np.add.accumulate(x, axis=1)[:, 3::3]
+        # the profile's end or horizon: the step that reaches it is its last
+        step = kk[:, None] + ar_
+        fin = (s_end >= length_all[ids][:, None]) | (step + 1 >= horizon[ids][:, None])
+        m = np.minimum(m, _first_true(fin) + 1)
+        took = ar_ < m[:, None]
+        if not took.any():
+            return
+        cols = np.minimum((kk - base[ids] + 1)[:, None] + ar_, 2 * W)
+        rows = np.broadcast_to(ids[:, None], took.shape)
+        n = int(took.sum())
+        sig = np.broadcast_to(sigma_all[ids][:, None], took.shape)
+        rec.append((rows[took], step[took], a2[took], tau[took],
+                    np.full(n, MODE_DECEL, np.uint8), np.zeros(n, bool), s_end[took],
+                    v_end[took], sig[took] * xi_buf[rows[took], cols[took]]))
+        moved = m > 0
+        r, last = np.flatnonzero(moved), m[moved] - 1
+        mid = ids[moved]
+        s_at[mid] = s_end[r, last]
+        v_at[mid] = v_end[r, last]
+        k_at[mid] += m[moved]
+        rested = moved & (m == e + 1)
+        if rested.any():
+            q = inp.q_wait[ids][rested]
+            q_safe = np.where(q >= 1.0, 0.5, q)
+            u_wait = uw_buf[ids[rested], cols[rested, e[rested]]]
+            w = np.where(q >= 1.0, 1.0, np.ceil(np.log(u_wait) / np.log1p(-q_safe)))
+            w = np.maximum(w, 1.0)
+            w = np.minimum(w, inp.max_wait_steps[ids][rested]).astype(np.int64)
+            wait_at[ids[rested]] = w
+            state_at[ids[rested]] = STOPPED
+        done[mid] = ~((s_end[r, last] < length_all[mid]) & (horizon[mid] > k_at[mid]))
 
     def general(ids):
         """One step of profiles ``ids`` (each at its own local step), any state: the state
@@ -931,19 +1005,34 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             base[sh] += W
             need = sh[horizon[sh] > base[sh] + W]
             fill(need, base[need] // W + 1, W + 1)
+        # A round: windows for the tracking profiles, then one step each (general) for the
+        # others and for those whose window was cut short (a random stop, a stop point
+        # ahead, no fixed point), then the rest of a random stop's braking and whole waits
+        # for the profiles now braking or at rest: a stop takes one or two rounds, not one a
+        # step.  Any order gives the step loop's result (each profile's steps are its own);
+        # every part stays within the noise buffer (column 2W at most).
         st = state_at[act]
-        moved = np.zeros(act.size, bool)
+        took = np.zeros(act.size, np.int64)
         tr = np.flatnonzero(st == TRACK) if windows else np.zeros(0, np.int64)
         for c0 in range(0, tr.size, _WINDOW_ROWS):    # bounded (cache-sized) temporaries
             part = tr[c0:c0 + _WINDOW_ROWS]
-            moved[part] = speculate(act[part]) > 0
-        wt = np.flatnonzero((st == STOPPED) & (wait_at[act] > 0) & windows)
-        if wt.size:
-            wait(act[wt])
-            moved[wt] = True
-        rest = act[~moved]
+            took[part] = speculate(act[part])
+        one = took == 0
+        if windows:
+            one &= ~((st == STOPPED) & (wait_at[act] > 0))
+            one |= (took > 0) & (took < W) & (state_at[act] == TRACK) & ~done[act]
+        rest = act[one]
         if rest.size:
             general(rest)
+        if windows:
+            live = act[~done[act] & (k_at[act] - base[act] < 2 * W)]
+            br = live[state_at[live] == BRAKE_RANDOM]
+            if br.size:
+                brake(br)
+                live = live[~done[live]]
+            wt = live[(state_at[live] == STOPPED) & (wait_at[live] > 0)]
+            if wt.size:
+                wait(wt)
         act = act[~done[act]]
         if act.size and progress:
             low = int(k_at[act].min())

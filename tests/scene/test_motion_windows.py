@@ -92,15 +92,19 @@ def test_window_length_follows_the_fleet_size():
         assert w == motion.NOISE_BLOCK_STEPS or n * w <= motion.WINDOW_CELLS
 
 
-@pytest.mark.parametrize("window_steps", [2, 37, 128, 1024])
-def test_window_length_does_not_change_the_profiles(monkeypatch, default_map, window_steps):
+@pytest.mark.parametrize("window_steps, dt_s", [(2, 1.0), (37, 1.0), (128, 1.0), (1024, 1.0),
+                                                 (3, 0.1), (16, 0.1)])
+def test_window_length_does_not_change_the_profiles(monkeypatch, default_map, window_steps,
+                                                     dt_s):
     # the windows' length (and the noise blocks') is the kernel's choice: the profiles are
-    # those of the step loop whatever it is (a trip longer than a window, stops, waits)
-    cfg = VehiclesConfig(random=RandomFleetSpec(**{**RANDOM, "count": 6}))
-    a, = both(monkeypatch, cfg, default_map, 300.0, 1.0, windows=(False,))
-    b, = both(monkeypatch, cfg, default_map, 300.0, 1.0, windows=(True,),
+    # those of the step loop whatever it is (a trip longer than a window, stops, waits, and
+    # brakings and waits longer than the noise buffer's two blocks at dt = 0.1 s)
+    cfg = VehiclesConfig(random=RandomFleetSpec(**{**RANDOM, "count": 6,
+                                                   "random_stop_rate_per_s": 0.03}))
+    a, = both(monkeypatch, cfg, default_map, 300.0, dt_s, windows=(False,))
+    b, = both(monkeypatch, cfg, default_map, 300.0, dt_s, windows=(True,),
               window_steps=window_steps)
-    c, = both(monkeypatch, cfg, default_map, 300.0, 1.0, windows=(False,),
+    c, = both(monkeypatch, cfg, default_map, 300.0, dt_s, windows=(False,),
               window_steps=window_steps)
     assert_identical(a, b)
     assert_identical(a, c)
