@@ -245,7 +245,11 @@ def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
         pos_t = tuple(np.where(active, c, 0.0) for c in pos_t)
         vel_t = tuple(np.where(active, c, 0.0) for c in vel_t)
     plat = antenna.take(poses.pos, dl)
-    rng_m, los, los_t = geometry.lines_of_sight(plat, pos_t, poses.radius_m)
+    rng_m, los, los_t, d2 = geometry.lines_of_sight(plat, pos_t, poses.radius_m,
+                                                    ground_d2=True)
+    if d2 is None:      # flat geometry: Δx² + Δy² as the horizon test writes it
+        dx, dy = pos_t[0] - plat[0], pos_t[1] - plat[1]
+        d2 = dx * dx + dy * dy
     az, el, sin_az, lb = antenna.target_angles(los, antenna.take(poses.b, dl),
                                                antenna.take(poses.h, dl),
                                                antenna.take(poses.u, dl))
@@ -256,7 +260,7 @@ def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
     rr = own_rr - antenna.dot(vel_p, los)
     return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],
             "az": az, "el": el, "sin_az": sin_az, "lb": lb, "own_rr": own_rr,
-            "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2],
+            "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2], "ground_d2": d2,
             "heading_rad": np.asarray(st["heading_rad"], float),
             "invisible": np.asarray(st["invisible"], bool)}
 
