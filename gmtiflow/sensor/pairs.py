@@ -217,6 +217,23 @@ def _active_at_ends(run: SensorRun, poses: Poses, v_rep, rev):
     return out
 
 
+def _nearest_rows(dist, active, starts, groups):
+    """The fallback row of each group in ``groups`` (contiguous candidate runs beginning at
+    ``starts``, the last one ending with ``dist``): its first active row whose ``dist`` is the
+    group's least (over all its rows; none when that is NaN).  Only these groups' rows are
+    read, not every candidate's."""
+    if groups.size == 0:
+        return np.zeros(0, np.int64)
+    ends = np.append(starts[1:], len(dist))
+    count = ends[groups] - starts[groups]
+    offset = np.cumsum(count) - count
+    rows = np.repeat(starts[groups] - offset, count) + np.arange(int(count.sum()))
+    d = dist[rows]
+    least = np.repeat(np.minimum.reduceat(d, offset), count)
+    is_min = active[rows] & (d <= least)
+    return rows[_first_in_group(np.repeat(np.arange(groups.size), count), is_min)]
+
+
 def _first_in_group(group, mask):
     """Mask of the first True of ``mask`` in each (sorted, contiguous) group."""
     idx = np.flatnonzero(mask)
@@ -318,19 +335,19 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
                 np.logical_or.at(any_fp, gidx, in_fp)
                 gmin = np.full(len(starts), np.inf)
                 np.minimum.at(gmin, gidx, dist)
-            else:
-                any_fp = np.logical_or.reduceat(in_fp, starts)
-                gmin = np.minimum.reduceat(dist, starts)
-            is_min = active & (dist <= gmin[gidx])
-            if extra:
+                is_min = active & (dist <= gmin[gidx])
                 first = np.zeros(len(dl), bool)
                 cand = np.flatnonzero(is_min)
                 _, first_of = np.unique(gidx[cand], return_index=True)
                 first[cand[first_of]] = True
+                fallback = ~any_fp[gidx] & g_active[gidx] & first
+                sel = np.flatnonzero((in_fp & active) | fallback)
             else:
-                first = _first_in_group(gidx, is_min)
-            fallback = ~any_fp[gidx] & g_active[gidx] & first
-            sel = np.flatnonzero((in_fp & active) | fallback)
+                any_fp = np.logical_or.reduceat(in_fp, starts)
+                keep = in_fp & active
+                keep[_nearest_rows(dist, active, starts, np.flatnonzero(~any_fp & g_active))] \
+                    = True
+                sel = np.flatnonzero(keep)
             geo["in_fp"] = in_fp
         else:
             geo["in_fp"] = np.zeros(0, bool)
