@@ -349,8 +349,10 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
                     = True
                 sel = np.flatnonzero(keep)
             geo["in_fp"] = in_fp
+            geo["beam_offset_sine"] = dist     # |u_t − u_b| where in front and active
         else:
             geo["in_fp"] = np.zeros(0, bool)
+            geo["beam_offset_sine"] = np.zeros(0)
     # candidates come grouped by (revisit, vehicle), dwells ascending: a stable sort on the
     # dwell orders rows by (dwell, vehicle); int16 keys sort by radix
     if sched.instant or not extra:
