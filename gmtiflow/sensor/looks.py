@@ -44,7 +44,7 @@ def _pair_counters(dwell_ids, vehicle_ids, dl, veh) -> rng.Counters:
     vehicles indexed by id, like the run's type codes)."""
     by_id = np.zeros(int(vehicle_ids.max()) + 1 if len(vehicle_ids) else 0, np.uint64)
     by_id[vehicle_ids] = rng.mix_counter(vehicle_ids)
-    return rng.Counters(mixed=[rng.mix_counter(dwell_ids)[dl], by_id[veh]])
+    return rng.Counters(mixed=[np.take(rng.mix_counter(dwell_ids), dl), np.take(by_id, veh)])
 
 
 def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
@@ -57,12 +57,12 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     instant = sched.instant
     dl, veh, geo, n_eval = select_pairs(run, poses, vehicle_ids)
     n = len(dl)
-    veh = veh.astype(np.int64)
+    veh = veh.astype(np.int64, copy=False)
     rng_m, az, el, rr = (geo[k] for k in ("range_m", "az", "el", "rr"))
     beam_index = dl % n_d
-    beam = sched.beam_scan_rad[beam_index]
-    dwell_id = dwell_ids[dl]
-    time_s = poses.time_s[dl]
+    beam = np.take(sched.beam_scan_rad, beam_index)       # np.take: per-dwell lookups
+    dwell_id = np.take(dwell_ids, dl)
+    time_s = np.take(poses.time_s, dl)
     true_az_world, los_az = _azimuths(geo["los_e"], geo["los_n"])
     in_fp = geo["in_fp"]
 

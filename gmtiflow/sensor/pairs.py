@@ -87,7 +87,7 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     ref = np.arange(n_rev) * n_d + n_d // 2
     d_rep = np.repeat(ref, n_v)
     v_rep = np.tile(vehicle_ids, n_rev)
-    st = _state_at(fleet, poses.time_s[d_rep], v_rep)
+    st = _state_at(fleet, np.repeat(poses.time_s[ref], n_v), v_rep)   # = time_s[d_rep]
     active = np.asarray(st["active"], bool)
     xyz = [(c if np.all(active) else np.where(active, c, 0.0)).reshape(n_rev, n_v)
            for c in _xyz(st)]
@@ -160,13 +160,14 @@ def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
     count = hi - lo
     count[none] = 1
     total = int(count.sum())
+    # per-group values spread over their candidates with np.repeat (x[group], cheaper)
     group = np.repeat(np.arange(len(lo)), count)
     starts = np.cumsum(count) - count
-    within = np.arange(total) - starts[group]
-    beam = lo[group] + within
-    dwell_local = rev[group] * n_d + beam
-    return (dwell_local, v_rep[group], group, mid_active, rev * n_d + n_d // 2, starts,
-            beam)
+    within = np.arange(total) - np.repeat(starts, count)
+    beam = np.repeat(lo, count) + within
+    dwell_local = np.repeat(rev * n_d, count) + beam
+    return (dwell_local, np.repeat(v_rep, count), group, mid_active, rev * n_d + n_d // 2,
+            starts, beam)
 
 
 def _finite(v):
@@ -321,7 +322,7 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
         sel = sel[np.argsort(key, kind="stable")]
     else:     # the extra middle-dwell rows come last: sort on (dwell, vehicle) explicitly
         sel = sel[np.lexsort((veh[sel], dl[sel]))]
-    return dl[sel], veh[sel], Rows(geo, sel), n_eval
+    return np.take(dl, sel), np.take(veh, sel), Rows(geo, sel), n_eval
 
 
 class Rows:
