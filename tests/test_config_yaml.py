@@ -9,6 +9,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
+from omegaconf.errors import GrammarParseError
 
 from gmtiflow import config, config_yaml
 from gmtiflow.compose import compose
@@ -199,7 +200,12 @@ def test_enum_keys_are_written_by_name_once():
 # --- the stage cache's key text: OmegaConf.to_yaml(OmegaConf.create(tree), sort_keys=True) -----
 
 def omegaconf_sorted_text(tree):
-    return OmegaConf.to_yaml(OmegaConf.create(tree), sort_keys=True)
+    """OmegaConf's text, or None where OmegaConf refuses the tree (a string such as ``${``
+    that is not a valid interpolation)."""
+    try:
+        return OmegaConf.to_yaml(OmegaConf.create(tree), sort_keys=True)
+    except GrammarParseError:
+        return None
 
 
 def fast_sorted_text(tree):
@@ -213,16 +219,16 @@ def fast_sorted_text(tree):
                    st.one_of(st.sampled_from(AWKWARD_STRINGS),
                              st.text(alphabet=ONE_LINE_ASCII, min_size=1, max_size=8))))
 def test_sorted_plain_data_is_written_as_omegaconf_writes_it(tree):
-    text = fast_sorted_text(tree)
-    if text is not None:
-        assert text == omegaconf_sorted_text(tree)
+    text, expected = fast_sorted_text(tree), omegaconf_sorted_text(tree)
+    if text is not None and expected is not None:
+        assert text == expected
 
 
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(ONE_LINE_ASCII_TREES)
 def test_sorted_one_line_ascii_data_is_written_as_omegaconf_writes_it(tree):
-    text = fast_sorted_text(tree)
-    assert text is not None and text == omegaconf_sorted_text(tree)
+    text, expected = fast_sorted_text(tree), omegaconf_sorted_text(tree)
+    assert text is not None and (expected is None or text == expected)
 
 
 @pytest.mark.parametrize("length", [121, 122, 123, 127, 128, 129])
