@@ -69,6 +69,9 @@ def stap_notch(own_range_rate_mps, mdv_mps: float, blind_speed_mps=None, offset=
     """
     mdv = np.asarray(mdv_mps, float)
     off = blind_offset(own_range_rate_mps, blind_speed_mps) if offset is None else offset
+    if np.all(mdv > 0):     # every notch has a width: the same values without the np.where's
+        x = off / mdv
+        return -np.expm1(-LN2 * x * x)
     x = off / np.where(mdv > 0, mdv, 1.0)
     return np.where(mdv > 0, -np.expm1(-LN2 * x * x), 1.0)   # width 0: no notch
 

@@ -74,17 +74,19 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     cand = fov & ~invisible
     clear = np.zeros(n, bool)
     ci = np.flatnonzero(cand)
-    p_ci = antenna.take(poses.pos, dl[ci])
-    t_ci = tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m"))
+    dl_ci = np.take(dl, ci)
     reach_p = visibility.horizon_distance_m(poses.pos[2], cfg.horizon_k_factor,
                                             poses.radius_m)      # per dwell, not per pair
-    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor, poses.radius_m,
-                                          platform_reach_m=reach_p[dl[ci]])
+    # the pair's squared map separation as its geometry computed it (the same Δx² + Δy²)
+    clear[ci] = visibility.within_reach(geo.at("ground_d2", ci), geo.at("z_m", ci),
+                                        cfg.horizon_k_factor, poses.radius_m,
+                                        np.take(reach_p, dl_ci))
     if not getattr(terrain, "flat", False):
-        cc = np.flatnonzero(clear[ci])
-        clear[ci[cc]] = visibility.terrain_clear(terrain, antenna.take(p_ci, cc),
-                                                 antenna.take(t_ci, cc), los_step_m,
-                                                 cfg.horizon_k_factor * poses.radius_m)
+        cc = ci[np.flatnonzero(clear[ci])]
+        c_dl = np.take(dl, cc)
+        clear[cc] = visibility.terrain_clear(terrain, antenna.take(poses.pos, c_dl),
+                                             tuple(geo.at(k, cc) for k in ("x_m", "y_m", "z_m")),
+                                             los_step_m, cfg.horizon_k_factor * poses.radius_m)
     outcome[np.flatnonzero(cand & ~clear)] = Outcome.TERRAIN
 
     # --- SNR and the Swerling-I draw for the visible pairs -------------------------------
