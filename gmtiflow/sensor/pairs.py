@@ -310,11 +310,13 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
             # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps
             # one row: its first candidate of least sine-space distance (the nearest dwell)
             gidx = group                # groups are numbered 0, 1, 2, ... in row order
-            g_active = (np.ones(len(starts), bool) if active.all() else
+            all_active = active.all()
+            g_active = (np.ones(len(starts), bool) if all_active else
                         np.logical_or.reduceat(active, starts))
             # active at the middle dwell but at none of its candidate dwells (it left or
             # appeared mid-scan): one more candidate, the middle dwell itself
-            lost = np.flatnonzero(~g_active & mid_active[group[starts]])
+            lost = (np.zeros(0, np.int64) if all_active else
+                    np.flatnonzero(~g_active & mid_active[group[starts]]))
             if lost.size:
                 extra = True
                 g_lost = group[starts[lost]]
