@@ -88,6 +88,7 @@ def _cut(calls: list, rows: int) -> list:
 
 def _replay(calls: list, path: Path) -> None:
     from gmtiflow import store
+    path.unlink(missing_ok=True)    # as a run's rundir.prepare does: no rename over a file
     w = None
     for name, a, k in calls:
         if name == "__init__":

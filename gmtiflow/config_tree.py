@@ -20,9 +20,9 @@ def numeric_leaves(obj, prefix: str = "", bound: Optional[float] = None
     """(key path, value) of every int/float leaf (bools excluded) of a config tree.
 
     With ``bound``, leaves known to lie within ±``bound`` may be left out: a list of numbers
-    (or of lists of numbers, such as waypoints) all within it is checked in bulk and skipped, as
-    is an int/float field within it.  Every leaf beyond ±``bound``, NaN or not a number after
-    all (a huge int) is still yielded, in the same order.
+    (or of lists of numbers, such as waypoints) whose numbers all lie within it, NaNs aside, is
+    checked in bulk and skipped (its NaNs with it), as is an int/float field within it.  Every
+    other leaf, every one beyond ±``bound`` among them, is still yielded, in the same order.
     """
     if dataclasses.is_dataclass(obj):
         for name, value in zip(field_names(obj), field_values(obj)):

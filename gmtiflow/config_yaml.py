@@ -39,6 +39,10 @@ WIDTH = 80
 MAX_KEY = 128
 """libyaml writes longer keys as complex keys (``? key``)."""
 
+PYTHON_MAX_KEY = 122
+"""PyYAML's pure-Python emitter (``yaml.Dumper``, what ``OmegaConf.to_yaml`` uses) counts the
+key's ``!!str`` tag too and needs the total below 128: longer keys are complex keys there."""
+
 _ONE_LINE_ASCII = re.compile(r"[\x20-\x7e]*")
 """Strings of printable ASCII on one line: bare or single-quoted, never escaped (libyaml's
 ``yaml_emitter_analyze_scalar`` finds no special characters or breaks in them)."""
@@ -51,14 +55,19 @@ class Unsupported(Exception):
     """A value whose YAML text this module does not reproduce (PyYAML writes the document)."""
 
 
-def dump(tree, resolves_as_str: Callable[[str], bool]) -> Optional[str]:
+def dump(tree, resolves_as_str: Callable[[str], bool], *, sort_keys: bool = False,
+         max_key: int = MAX_KEY) -> Optional[str]:
     """The block-style YAML of a config tree (dataclasses, Enums, dicts, lists, scalars), or
     None where PyYAML must write it.  ``resolves_as_str(s)``: a bare ``s`` reads back as the
-    string ``s`` (the dumper's implicit resolvers and OmegaConf's quoting say so)."""
+    string ``s`` (the dumper's implicit resolvers and OmegaConf's quoting say so).
+
+    ``sort_keys`` and ``max_key=PYTHON_MAX_KEY`` give the text of ``OmegaConf.to_yaml(
+    OmegaConf.create(tree), sort_keys=True)`` instead (the stage cache's key text, for plain
+    data: ``tests/test_config_yaml.py`` compares them)."""
     lines: List[str] = []
-    writer = _Writer(lines, resolves_as_str)
+    writer = _Writer(lines, resolves_as_str, sort_keys, max_key)
     try:
-        mapping = _mapping_of(tree)
+        mapping = writer.mapping_of(tree)
         if mapping is None:
             return None
         if not mapping[0]:
@@ -91,27 +100,40 @@ _SCALARS: Dict[type, Callable[[object], str]] = {
 }
 """Text of the non-string scalars (exact types: subclasses such as numpy floats go to PyYAML)."""
 
-def _mapping_of(node) -> Optional[Tuple[tuple, tuple]]:
-    """(keys, values) of a mapping node (a dataclass or a dict; Enum keys by name), else None."""
-    cls = type(node)
-    if cls is dict:
-        return (tuple(k.name if isinstance(k, Enum) else k for k in node),
-                tuple(node.values()))
-    if dataclasses.is_dataclass(cls) and not isinstance(node, type):
-        return field_names(node), field_values(node)
-    if isinstance(node, dict):
-        raise Unsupported(cls)
-    return None
-
-
 class _Writer:
     """Appends the lines of one document; raises :class:`Unsupported` on what it cannot write."""
 
-    def __init__(self, lines: List[str], resolves_as_str: Callable[[str], bool]):
+    def __init__(self, lines: List[str], resolves_as_str: Callable[[str], bool],
+                 sort_keys: bool = False, max_key: int = MAX_KEY):
         self.lines = lines
         self.resolves_as_str = resolves_as_str
+        self.sort_keys = sort_keys
+        self.max_key = max_key
         self.strings: Dict[str, str] = {}
         self.heads: Dict[Tuple[tuple, int], List[str]] = {}
+
+    def mapping_of(self, node) -> Optional[Tuple[tuple, tuple]]:
+        """(keys, values) of a mapping node (a dataclass or a dict; Enum keys by name), sorted
+        by key if asked; None if ``node`` is not a mapping."""
+        cls = type(node)
+        if cls is dict:
+            keys = tuple(node)
+            if any(isinstance(k, Enum) for k in keys):      # by name, as config._plain does
+                node = {(k.name if isinstance(k, Enum) else k): v for k, v in node.items()}
+                keys = tuple(node)
+            values = tuple(node.values())
+        elif dataclasses.is_dataclass(cls) and not isinstance(node, type):
+            keys, values = field_names(node), field_values(node)
+        elif isinstance(node, dict):
+            raise Unsupported(cls)
+        else:
+            return None
+        if self.sort_keys and keys:
+            if set(map(type, keys)) != {str}:
+                raise Unsupported("keys PyYAML may not sort")
+            order = sorted(range(len(keys)), key=keys.__getitem__)
+            keys, values = tuple(keys[i] for i in order), tuple(values[i] for i in order)
+        return keys, values
 
     def mapping(self, keys: tuple, values: tuple, indent: int, lead: str) -> None:
         """``key: value`` lines at ``indent``; the first line starts with ``lead``."""
@@ -186,7 +208,7 @@ class _Writer:
             else:
                 self.sequence(value, indent, head)
         else:
-            mapping = _mapping_of(value)
+            mapping = self.mapping_of(value)
             if mapping is None:
                 raise Unsupported(cls)
             if not mapping[0]:
@@ -209,7 +231,7 @@ class _Writer:
 
     def key(self, key) -> str:
         """The text of one mapping key."""
-        if type(key) is not str or not 0 < len(key) <= MAX_KEY:
+        if type(key) is not str or not 0 < len(key) <= self.max_key:
             raise Unsupported(key)
         return _str_text(key, self.resolves_as_str)
 

@@ -61,6 +61,22 @@ def _mix(h: np.ndarray) -> np.ndarray:
     return h ^ (h >> np.uint64(31))
 
 
+def _mix_own(h: np.ndarray) -> np.ndarray:
+    """:func:`_mix` in place on an array the caller owns (the same operations, fewer
+    temporaries)."""
+    if h.ndim == 0:
+        return _mix(h)
+    t = h >> np.uint64(30)
+    h ^= t
+    h *= _M1
+    np.right_shift(h, np.uint64(27), out=t)
+    h ^= t
+    h *= _M2
+    np.right_shift(h, np.uint64(31), out=t)
+    h ^= t
+    return h
+
+
 def _mixed_counters(counters) -> list:
     """The per-counter half of :func:`pair_hash`, which does not depend on the key."""
     with np.errstate(over="ignore"):
@@ -82,15 +98,22 @@ def _hash_mixed(key: np.uint64, mixed: list) -> np.ndarray:
         # (key + G) + m with wrapping uint64 addition is key + G + m in any order: the key's
         # part is one scalar, added to the first counter without a full array of keys
         h = np.asarray(mixed[0]) + (np.uint64(key) + _GOLDEN)
-        h = _mix(np.broadcast_to(h, shape) if h.shape != shape else h)
+        h = _mix(np.broadcast_to(h, shape)) if h.shape != shape else _mix_own(h)
         for m in mixed[1:]:
-            h = _mix(h + _GOLDEN + m)
+            h += _GOLDEN           # h is this function's own array from here on
+            h += m
+            h = _mix_own(h)
     return h
 
 
 def _unit(h: np.ndarray) -> np.ndarray:
     """53 random bits as a float in the open interval (0, 1)."""
-    return ((h >> np.uint64(11)).astype(np.float64) + 0.5) * (2.0 ** -53)
+    f = (h >> np.uint64(11)).astype(np.float64)
+    if f.ndim == 0:
+        return (f + 0.5) * (2.0 ** -53)
+    f += 0.5
+    f *= 2.0 ** -53
+    return f
 
 
 def pair_hash(key: np.uint64, *counters) -> np.ndarray:
@@ -127,6 +150,10 @@ class Counters:
     def take(self, index) -> "Counters":
         """The draws of pairs ``index`` (an index or mask into the counters' broadcast shape)."""
         shape = np.broadcast_shapes(*(m.shape for m in self.mixed))
+        index = np.asarray(index)
+        if index.dtype.kind in "iu" and index.ndim == 1 and len(shape) == 1:
+            return Counters(mixed=[np.take(np.broadcast_to(m, shape), index)
+                                   for m in self.mixed])       # as fancy indexing, cheaper
         return Counters(mixed=[np.broadcast_to(m, shape)[index] for m in self.mixed])
 
     def uniform(self, key: np.uint64) -> np.ndarray:

@@ -9,6 +9,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
+from omegaconf.errors import GrammarParseError
 
 from gmtiflow import config, config_yaml
 from gmtiflow.compose import compose
@@ -145,15 +146,17 @@ def test_plain_data_is_written_as_pyyaml_writes_it_or_left_to_pyyaml(tree):
 SHORT_ASCII = st.text(alphabet=ONE_LINE_ASCII, max_size=12)
 
 
+ONE_LINE_ASCII_TREES = plain_trees(
+    st.one_of(st.sampled_from([s for s in AWKWARD_STRINGS if len(s) <= 12
+                               and all(" " <= c <= "~" for c in s)]), SHORT_ASCII),
+    st.one_of(SHORT_ASCII.filter(bool), st.sampled_from(["a", "yes", "1.5"])), max_leaves=12)
+"""Nesting <= 12 levels, keys and strings <= 12 characters: no string reaches column 80, where
+PyYAML would fold it, so the fast writer always writes these."""
+
+
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(plain_trees(st.one_of(st.sampled_from([s for s in AWKWARD_STRINGS if len(s) <= 12
-                                              and all(" " <= c <= "~" for c in s)]),
-                             SHORT_ASCII),
-                   st.one_of(SHORT_ASCII.filter(bool), st.sampled_from(["a", "yes", "1.5"])),
-                   max_leaves=12))
+@given(ONE_LINE_ASCII_TREES)
 def test_one_line_ascii_data_is_written_as_pyyaml_writes_it(tree):
-    # nesting <= 12 levels, keys and strings <= 12 characters: no string reaches column 80,
-    # where PyYAML would fold it, so the fast writer always writes these
     text = fast_text(tree)
     assert text is not None and text == config.pyyaml_text(tree)
 
@@ -186,3 +189,107 @@ def test_values_pyyaml_writes_as_objects_are_left_to_it():
     import numpy as np
     for odd in (np.float64(1.5), np.int64(3), Path("x"), {1: "int key"}, b"bytes", 1j):
         assert fast_text({"k": odd}) is None
+
+
+def test_enum_keys_are_written_by_name_once():
+    from gmtiflow.config import DwellMode
+    tree = {"modes": {DwellMode.instant_scan: 1, "instant_scan": 2, DwellMode.dwell_resolved: 3}}
+    assert fast_text(tree) == config.pyyaml_text(tree) == "modes:\n  instant_scan: 2\n  dwell_resolved: 3\n"
+
+
+# --- the stage cache's key text: OmegaConf.to_yaml(OmegaConf.create(tree), sort_keys=True) -----
+
+def omegaconf_sorted_text(tree):
+    """OmegaConf's text, or None where OmegaConf refuses the tree (a string such as ``${``
+    that is not a valid interpolation)."""
+    try:
+        return OmegaConf.to_yaml(OmegaConf.create(tree), sort_keys=True)
+    except GrammarParseError:
+        return None
+
+
+def fast_sorted_text(tree):
+    return config_yaml.dump(tree, config._resolves_as_str, sort_keys=True,
+                            max_key=config_yaml.PYTHON_MAX_KEY)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(plain_trees(st.one_of(st.sampled_from(AWKWARD_STRINGS), st.text(max_size=12),
+                             st.text(alphabet=ONE_LINE_ASCII, max_size=90)),
+                   st.one_of(st.sampled_from(AWKWARD_STRINGS),
+                             st.text(alphabet=ONE_LINE_ASCII, min_size=1, max_size=8))))
+def test_sorted_plain_data_is_written_as_omegaconf_writes_it(tree):
+    text, expected = fast_sorted_text(tree), omegaconf_sorted_text(tree)
+    if text is not None and expected is not None:
+        assert text == expected
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(ONE_LINE_ASCII_TREES)
+def test_sorted_one_line_ascii_data_is_written_as_omegaconf_writes_it(tree):
+    text, expected = fast_sorted_text(tree), omegaconf_sorted_text(tree)
+    assert text is not None and (expected is None or text == expected)
+
+
+@pytest.mark.parametrize("length", [121, 122, 123, 127, 128, 129])
+@pytest.mark.parametrize("start", ["k", "yes", " ", "it's"])
+def test_long_keys_as_each_emitter_writes_them(start, length):
+    tree = {(start + "k" * length)[:length]: 1.0, "a": [1]}
+    for text, expected in ((fast_text(tree), config.pyyaml_text(tree)),
+                           (fast_sorted_text(tree), omegaconf_sorted_text(tree))):
+        assert text is None or text == expected
+    assert (fast_text(tree) is None) == (length > config_yaml.MAX_KEY)
+    assert (fast_sorted_text(tree) is None) == (length > config_yaml.PYTHON_MAX_KEY)
+
+
+def test_a_stage_key_text_of_the_peer_vehicles_is_omegaconfs():
+    # the parts a stage key hashes are plain data (gmtiflow.cache): the same text, sorted
+    cfg = compose(["vehicles=random", "clutter=windfarm"])
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    try:
+        from stonesoup_peer import peer_vehicles
+    finally:
+        sys.path.pop(0)
+    cfg.vehicles.vehicles = peer_vehicles(20, 600.0).vehicles
+    parts = {"parts": {"clutter": config._plain(cfg.clutter), "scene": config._plain(cfg.scene),
+                       "vehicles": config._plain(cfg.vehicles)}, "files": []}
+    text = fast_sorted_text(parts)
+    assert text is not None and text == omegaconf_sorted_text(parts)
+
+
+def fast_key_text(**parts):
+    """What ``gmtiflow.cache.to_key_text`` gives, from config._plain and the fast writer."""
+    from enum import Enum
+
+    from gmtiflow import cache
+
+    def plain(obj):                       # cache._plain without OmegaConf's structured copy
+        if isinstance(obj, Enum):
+            return obj.value
+        return config._plain(obj)
+    tree = {name: plain(value) for name, value in sorted(parts.items())}
+    prints = []
+    cache._file_prints(tree, prints)
+    return fast_sorted_text({"parts": tree, "files": prints})
+
+
+@pytest.mark.parametrize("overrides", [[], ["vehicles=random", "clutter=windfarm",
+                                            "terrain=hills", "experiment=two_orbits"]])
+def test_stage_key_texts_can_be_written_without_omegaconf(overrides):
+    # every cached stage's key text (gmtiflow.pipeline.stages) of these configs, and of the
+    # peer's listed vehicles, comes out the same from the fast writer
+    from gmtiflow import cache, pipeline
+    cfg = compose(overrides)
+    if not overrides:
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+        try:
+            from stonesoup_peer import peer_vehicles
+        finally:
+            sys.path.pop(0)
+        cfg.vehicles = peer_vehicles(30, 600.0)
+    keyed = [st for st in pipeline.stages(cfg) if st.key is not None]
+    assert len(keyed) >= 4
+    for st in keyed:
+        parts = st.key()
+        text = fast_key_text(**parts)
+        assert text is not None and text == cache.to_key_text(**parts), st.name

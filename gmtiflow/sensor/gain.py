@@ -34,6 +34,13 @@ def mismatch(sin_target, sin_beam, beamwidth_sine):
     return np.exp(-LN2 * x * x)
 
 
+def mismatch_off(offset_sine, beamwidth_sine):
+    """:func:`mismatch` from the distance |u_t − u_b| in sine space (as the footprint test
+    computes it): the same values, since (−LN2·x)·x does not see the sign of x."""
+    x = np.asarray(offset_sine, float) / (0.5 * beamwidth_sine)
+    return np.exp(-LN2 * x * x)
+
+
 def scan_loss(scan_rad):
     """cos^{3/2} of the beam's scan angle off broadside (0 beyond ±90°, never NaN)."""
     c = np.maximum(np.cos(np.asarray(scan_rad, float)), 0.0)
@@ -69,6 +76,9 @@ def stap_notch(own_range_rate_mps, mdv_mps: float, blind_speed_mps=None, offset=
     """
     mdv = np.asarray(mdv_mps, float)
     off = blind_offset(own_range_rate_mps, blind_speed_mps) if offset is None else offset
+    if np.all(mdv > 0):     # every notch has a width: the same values without the np.where's
+        x = off / mdv
+        return -np.expm1(-LN2 * x * x)
     x = off / np.where(mdv > 0, mdv, 1.0)
     return np.where(mdv > 0, -np.expm1(-LN2 * x * x), 1.0)   # width 0: no notch
 

@@ -66,7 +66,7 @@ def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M, target_frame: b
     """(o_P, o_T): the target from the platform in the platform's local ENU frame and the
     platform from the target in the target's local frame (module doc), each a 3-tuple (m);
     ``target_frame=False``: o_T is not computed (None)."""
-    o_p, t_h, t_up = _offsets(platform_xyz, target_xyz, radius_m, target_frame)
+    o_p, t_h, t_up, _ = _offsets(platform_xyz, target_xyz, radius_m, target_frame)
     if t_h is None:
         return o_p, None
     return o_p, (-t_h[0], -t_h[1], t_up)
@@ -74,26 +74,28 @@ def offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M, target_frame: b
 
 def _offsets(platform_xyz, target_xyz, radius_m, target_frame: bool = True):
     """o_P, and o_T as ``(Δx·k_T, Δy·k_T)`` (its horizontal part *negated*: o_T's is −Δ·k_T,
-    and (−Δx)·k_T = −(Δx·k_T) exactly) and its up component; None, None without the target
-    frame.  Flat (``radius_m`` None): k_T = 1."""
+    and (−Δx)·k_T = −(Δx·k_T) exactly) and its up component (None, None without the target
+    frame), and the squared map separation d² = Δx² + Δy² (None when flat).  Flat
+    (``radius_m`` None): k_T = 1."""
     dx = np.asarray(target_xyz[0], float) - np.asarray(platform_xyz[0], float)
     dy = np.asarray(target_xyz[1], float) - np.asarray(platform_xyz[1], float)
     zp = np.asarray(platform_xyz[2], float)
     zt = np.asarray(target_xyz[2], float)
     if radius_m is None:
         dz = zt - zp
-        return (dx, dy, dz), (dx, dy), -dz
-    sinc, vers = _curvature(dx * dx + dy * dy, radius_m)
+        return (dx, dy, dz), (dx, dy), -dz, None
+    d2 = dx * dx + dy * dy
+    sinc, vers = _curvature(d2, radius_m)
     b = radius_m + zt
     s_r = sinc / radius_m
     kp = b * s_r                        # b sin θ / d
     dz = zt - zp
     o_p = (dx * kp, dy * kp, dz - b * vers)
     if not target_frame:
-        return o_p, None, None
+        return o_p, None, None, d2
     a = radius_m + zp
     kt = a * s_r
-    return o_p, (dx * kt, dy * kt), -dz - a * vers
+    return o_p, (dx * kt, dy * kt), -dz - a * vers, d2
 
 
 def slant_range(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
@@ -139,14 +141,16 @@ def line_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
     return _unit(o_p)
 
 
-def lines_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
+def lines_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M, *,
+                   ground_d2: bool = False):
     """:func:`line_of_sight` and :func:`target_line_of_sight` from one :func:`offsets`:
-    ``(range_m, ℓ in the platform's frame, ℓ_T in the target's frame)``.
+    ``(range_m, ℓ in the platform's frame, ℓ_T in the target's frame)``, and with
+    ``ground_d2`` the squared map separation Δx² + Δy² (None when flat) as a fourth item.
 
     ℓ_T = −o_T/|o_T| is taken from o_T's horizontal part before its negation (``_offsets``):
     (−a)² = a² and (−a)·(−c) = a·c exactly, so the values are those of −o_T·(1/|o_T|) without
     two negations of every pair."""
-    o_p, (hx, hy), t_up = _offsets(platform_xyz, target_xyz, radius_m)
+    o_p, (hx, hy), t_up, d2 = _offsets(platform_xyz, target_xyz, radius_m)
     rng, los = _unit(o_p)
     rng_t = np.sqrt(hx * hx + hy * hy + t_up * t_up)
     inv = 1.0 / np.maximum(rng_t, MIN_RANGE_M)
@@ -155,7 +159,7 @@ def lines_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
     if np.any(small):           # straight down, as _unit gives it
         los_t = (np.where(small, 0.0, los_t[0]), np.where(small, 0.0, los_t[1]),
                  np.where(small, -1.0, los_t[2]))
-    return rng, los, los_t
+    return (rng, los, los_t, d2) if ground_d2 else (rng, los, los_t)
 
 
 def true_velocity(v_map, z_m, radius_m=DEFAULT_RADIUS_M):

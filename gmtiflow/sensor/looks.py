@@ -44,7 +44,7 @@ def _pair_counters(dwell_ids, vehicle_ids, dl, veh) -> rng.Counters:
     vehicles indexed by id, like the run's type codes)."""
     by_id = np.zeros(int(vehicle_ids.max()) + 1 if len(vehicle_ids) else 0, np.uint64)
     by_id[vehicle_ids] = rng.mix_counter(vehicle_ids)
-    return rng.Counters(mixed=[rng.mix_counter(dwell_ids)[dl], by_id[veh]])
+    return rng.Counters(mixed=[np.take(rng.mix_counter(dwell_ids), dl), np.take(by_id, veh)])
 
 
 def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
@@ -57,12 +57,12 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     instant = sched.instant
     dl, veh, geo, n_eval = select_pairs(run, poses, vehicle_ids)
     n = len(dl)
-    veh = veh.astype(np.int64)
+    veh = veh.astype(np.int64, copy=False)
     rng_m, az, el, rr = (geo[k] for k in ("range_m", "az", "el", "rr"))
     beam_index = dl % n_d
-    beam = sched.beam_scan_rad[beam_index]
-    dwell_id = dwell_ids[dl]
-    time_s = poses.time_s[dl]
+    beam = np.take(sched.beam_scan_rad, beam_index)       # np.take: per-dwell lookups
+    dwell_id = np.take(dwell_ids, dl)
+    time_s = np.take(poses.time_s, dl)
     true_az_world, los_az = _azimuths(geo["los_e"], geo["los_n"])
     in_fp = geo["in_fp"]
 
@@ -74,17 +74,19 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     cand = fov & ~invisible
     clear = np.zeros(n, bool)
     ci = np.flatnonzero(cand)
-    p_ci = antenna.take(poses.pos, dl[ci])
-    t_ci = tuple(geo.at(k, ci) for k in ("x_m", "y_m", "z_m"))
+    dl_ci = np.take(dl, ci)
     reach_p = visibility.horizon_distance_m(poses.pos[2], cfg.horizon_k_factor,
                                             poses.radius_m)      # per dwell, not per pair
-    clear[ci] = visibility.within_horizon(p_ci, t_ci, cfg.horizon_k_factor, poses.radius_m,
-                                          platform_reach_m=reach_p[dl[ci]])
+    # the pair's squared map separation as its geometry computed it (the same Δx² + Δy²)
+    clear[ci] = visibility.within_reach(geo.at("ground_d2", ci), geo.at("z_m", ci),
+                                        cfg.horizon_k_factor, poses.radius_m,
+                                        np.take(reach_p, dl_ci))
     if not getattr(terrain, "flat", False):
-        cc = np.flatnonzero(clear[ci])
-        clear[ci[cc]] = visibility.terrain_clear(terrain, antenna.take(p_ci, cc),
-                                                 antenna.take(t_ci, cc), los_step_m,
-                                                 cfg.horizon_k_factor * poses.radius_m)
+        cc = ci[np.flatnonzero(clear[ci])]
+        c_dl = np.take(dl, cc)
+        clear[cc] = visibility.terrain_clear(terrain, antenna.take(poses.pos, c_dl),
+                                             tuple(geo.at(k, cc) for k in ("x_m", "y_m", "z_m")),
+                                             los_step_m, cfg.horizon_k_factor * poses.radius_m)
     outcome[np.flatnonzero(cand & ~clear)] = Outcome.TERRAIN
 
     # --- SNR and the Swerling-I draw for the visible pairs -------------------------------
@@ -97,8 +99,8 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
         f_mis, loss = 1.0, None
     else:   # per beam position, looked up: the same values as per pair
         b_vis = beam_index[vis]
-        f_mis = gain.mismatch(geo.at("sin_az", vis), np.sin(sched.beam_scan_rad)[b_vis],
-                              cfg.beamwidth_sine)
+        # |u_t − u_b| of the footprint test (a visible pair is in the footprint)
+        f_mis = gain.mismatch_off(geo.at("beam_offset_sine", vis), cfg.beamwidth_sine)
         loss = gain.scan_loss(sched.beam_scan_rad)[b_vis]
     g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis, loss)
     mdv = poses.mdv[dl[vis]]

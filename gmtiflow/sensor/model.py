@@ -141,6 +141,9 @@ def _renumber(detections: Table, looks: Table, offset: int) -> None:
     old = np.asarray(detections["det_id"], np.int64)
     if old.size and old[0] == 0 and np.all(np.diff(old) == 1):
         # already 0, 1, 2, ... in row order (no effect reordered them): ids + offset
+        if offset == 0:       # the first chunk's ids are the run's
+            detections["det_id"], looks["det_id"] = old, np.asarray(looks["det_id"], np.int64)
+            return
         detections["det_id"] = old + offset
         ld = np.asarray(looks["det_id"], np.int64)
         looks["det_id"] = np.where(ld >= 0, ld + offset, ld)

@@ -35,9 +35,25 @@ def _nearest_beam(u_beam, s):
     n = len(u_beam)
     if n == 1:
         return np.zeros(len(s), np.int64)
-    right = np.clip(np.searchsorted(u_beam, s), 1, n - 1)
+    right = np.clip(_searchsorted_uniform(u_beam, s), 1, n - 1)
     left_closer = np.abs(u_beam[right - 1] - s) <= np.abs(u_beam[right] - s)
     return np.where(left_closer, right - 1, right)
+
+
+def _searchsorted_uniform(u, s):
+    """``np.searchsorted(u, s)`` (side left) for ascending ``u`` of about equal steps (the beams
+    in sine space): the position from the step, kept where u[i−1] < s ≤ u[i] holds, searched
+    where it does not (uneven steps, NaN)."""
+    n = len(u)
+    with np.errstate(invalid="ignore"):
+        guess = np.ceil((s - u[0]) / (u[-1] - u[0]) * (n - 1))
+    pos = np.clip(np.nan_to_num(guess, nan=0.0), 0, n).astype(np.int64)
+    lower = np.concatenate(([-np.inf], u))      # u[pos − 1], −inf before the first
+    upper = np.concatenate((u, [np.inf]))       # u[pos], +inf after the last
+    bad = np.flatnonzero(~((lower[pos] < s) & (s <= upper[pos])))
+    if bad.size:
+        pos[bad] = np.searchsorted(u, s[bad])
+    return pos
 
 
 def _may_be_active(fleet, time_s, vehicle_id):
@@ -87,7 +103,7 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     ref = np.arange(n_rev) * n_d + n_d // 2
     d_rep = np.repeat(ref, n_v)
     v_rep = np.tile(vehicle_ids, n_rev)
-    st = _state_at(fleet, poses.time_s[d_rep], v_rep)
+    st = _state_at(fleet, np.repeat(poses.time_s[ref], n_v), v_rep)   # = time_s[d_rep]
     active = np.asarray(st["active"], bool)
     xyz = [(c if np.all(active) else np.where(active, c, 0.0)).reshape(n_rev, n_v)
            for c in _xyz(st)]
@@ -160,13 +176,14 @@ def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
     count = hi - lo
     count[none] = 1
     total = int(count.sum())
+    # per-group values spread over their candidates with np.repeat (x[group], cheaper)
     group = np.repeat(np.arange(len(lo)), count)
     starts = np.cumsum(count) - count
-    within = np.arange(total) - starts[group]
-    beam = lo[group] + within
-    dwell_local = rev[group] * n_d + beam
-    return (dwell_local, v_rep[group], group, mid_active, rev * n_d + n_d // 2, starts,
-            beam)
+    within = np.arange(total) - np.repeat(starts, count)
+    beam = np.repeat(lo, count) + within
+    dwell_local = np.repeat(rev * n_d, count) + beam
+    return (dwell_local, np.repeat(v_rep, count), group, mid_active, rev * n_d + n_d // 2,
+            starts, beam)
 
 
 def _finite(v):
@@ -200,6 +217,23 @@ def _active_at_ends(run: SensorRun, poses: Poses, v_rep, rev):
     return out
 
 
+def _nearest_rows(dist, active, starts, groups):
+    """The fallback row of each group in ``groups`` (contiguous candidate runs beginning at
+    ``starts``, the last one ending with ``dist``): its first active row whose ``dist`` is the
+    group's least (over all its rows; none when that is NaN).  Only these groups' rows are
+    read, not every candidate's."""
+    if groups.size == 0:
+        return np.zeros(0, np.int64)
+    ends = np.append(starts[1:], len(dist))
+    count = ends[groups] - starts[groups]
+    offset = np.cumsum(count) - count
+    rows = np.repeat(starts[groups] - offset, count) + np.arange(int(count.sum()))
+    d = dist[rows]
+    least = np.repeat(np.minimum.reduceat(d, offset), count)
+    is_min = active[rows] & (d <= least)
+    return rows[_first_in_group(np.repeat(np.arange(groups.size), count), is_min)]
+
+
 def _first_in_group(group, mask):
     """Mask of the first True of ``mask`` in each (sorted, contiguous) group."""
     idx = np.flatnonzero(mask)
@@ -228,7 +262,11 @@ def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
         pos_t = tuple(np.where(active, c, 0.0) for c in pos_t)
         vel_t = tuple(np.where(active, c, 0.0) for c in vel_t)
     plat = antenna.take(poses.pos, dl)
-    rng_m, los, los_t = geometry.lines_of_sight(plat, pos_t, poses.radius_m)
+    rng_m, los, los_t, d2 = geometry.lines_of_sight(plat, pos_t, poses.radius_m,
+                                                    ground_d2=True)
+    if d2 is None:      # flat geometry: Δx² + Δy² as the horizon test writes it
+        dx, dy = pos_t[0] - plat[0], pos_t[1] - plat[1]
+        d2 = dx * dx + dy * dy
     az, el, sin_az, lb = antenna.target_angles(los, antenna.take(poses.b, dl),
                                                antenna.take(poses.h, dl),
                                                antenna.take(poses.u, dl))
@@ -239,7 +277,7 @@ def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
     rr = own_rr - antenna.dot(vel_p, los)
     return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],
             "az": az, "el": el, "sin_az": sin_az, "lb": lb, "own_rr": own_rr,
-            "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2],
+            "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2], "ground_d2": d2,
             "heading_rad": np.asarray(st["heading_rad"], float),
             "invisible": np.asarray(st["invisible"], bool)}
 
@@ -272,11 +310,13 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
             # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps
             # one row: its first candidate of least sine-space distance (the nearest dwell)
             gidx = group                # groups are numbered 0, 1, 2, ... in row order
-            g_active = (np.ones(len(starts), bool) if active.all() else
+            all_active = active.all()
+            g_active = (np.ones(len(starts), bool) if all_active else
                         np.logical_or.reduceat(active, starts))
             # active at the middle dwell but at none of its candidate dwells (it left or
             # appeared mid-scan): one more candidate, the middle dwell itself
-            lost = np.flatnonzero(~g_active & mid_active[group[starts]])
+            lost = (np.zeros(0, np.int64) if all_active else
+                    np.flatnonzero(~g_active & mid_active[group[starts]]))
             if lost.size:
                 extra = True
                 g_lost = group[starts[lost]]
@@ -297,22 +337,24 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
                 np.logical_or.at(any_fp, gidx, in_fp)
                 gmin = np.full(len(starts), np.inf)
                 np.minimum.at(gmin, gidx, dist)
-            else:
-                any_fp = np.logical_or.reduceat(in_fp, starts)
-                gmin = np.minimum.reduceat(dist, starts)
-            is_min = active & (dist <= gmin[gidx])
-            if extra:
+                is_min = active & (dist <= gmin[gidx])
                 first = np.zeros(len(dl), bool)
                 cand = np.flatnonzero(is_min)
                 _, first_of = np.unique(gidx[cand], return_index=True)
                 first[cand[first_of]] = True
+                fallback = ~any_fp[gidx] & g_active[gidx] & first
+                sel = np.flatnonzero((in_fp & active) | fallback)
             else:
-                first = _first_in_group(gidx, is_min)
-            fallback = ~any_fp[gidx] & g_active[gidx] & first
-            sel = np.flatnonzero((in_fp & active) | fallback)
+                any_fp = np.logical_or.reduceat(in_fp, starts)
+                keep = in_fp & active
+                keep[_nearest_rows(dist, active, starts, np.flatnonzero(~any_fp & g_active))] \
+                    = True
+                sel = np.flatnonzero(keep)
             geo["in_fp"] = in_fp
+            geo["beam_offset_sine"] = dist     # |u_t − u_b| where in front and active
         else:
             geo["in_fp"] = np.zeros(0, bool)
+            geo["beam_offset_sine"] = np.zeros(0)
     # candidates come grouped by (revisit, vehicle), dwells ascending: a stable sort on the
     # dwell orders rows by (dwell, vehicle); int16 keys sort by radix
     if sched.instant or not extra:
@@ -321,7 +363,7 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
         sel = sel[np.argsort(key, kind="stable")]
     else:     # the extra middle-dwell rows come last: sort on (dwell, vehicle) explicitly
         sel = sel[np.lexsort((veh[sel], dl[sel]))]
-    return dl[sel], veh[sel], Rows(geo, sel), n_eval
+    return np.take(dl, sel), np.take(veh, sel), Rows(geo, sel), n_eval
 
 
 class Rows:

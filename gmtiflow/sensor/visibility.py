@@ -87,5 +87,12 @@ def within_horizon(platform_xyz, target_xyz, k_factor: float, radius_m: float = 
     dy = np.asarray(target_xyz[1], float) - np.asarray(platform_xyz[1], float)
     if platform_reach_m is None:
         platform_reach_m = horizon_distance_m(platform_xyz[2], k_factor, radius_m)
-    reach = platform_reach_m + horizon_distance_m(target_xyz[2], k_factor, radius_m)
-    return dx * dx + dy * dy <= reach * reach
+    return within_reach(dx * dx + dy * dy, target_xyz[2], k_factor, radius_m, platform_reach_m)
+
+
+def within_reach(ground_d2, target_z, k_factor: float, radius_m: float, platform_reach_m):
+    """:func:`within_horizon` from the squared map separation d² = Δx² + Δy² of platform and
+    point (as :func:`gmtiflow.sensor.geometry.offsets` computes it for the pair's geometry), the
+    point's height and the platform's horizon distance."""
+    reach = platform_reach_m + horizon_distance_m(target_z, k_factor, radius_m)
+    return ground_d2 <= reach * reach

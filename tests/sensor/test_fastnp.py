@@ -74,3 +74,36 @@ def test_hypot_with_a_zero_is_the_magnitude():
     for zero in (0.0, -0.0):
         assert _same(np.hypot(h, zero), h)
         assert _same(np.hypot(x, zero), np.abs(x))
+
+
+def test_beam_position_search_is_searchsorted():
+    """pairs._searchsorted_uniform (the beams' position from their step, checked) gives
+    np.searchsorted's positions, also for uneven steps, knots and non-finite values."""
+    from gmtiflow.sensor.pairs import _searchsorted_uniform
+    g = np.random.default_rng(7)
+    for n in (2, 3, 14, 50):
+        for u in (np.sin(np.linspace(-0.17, 0.17, n)), np.sort(g.uniform(-1, 1, n))):
+            s = np.concatenate([g.uniform(-2.5, 2.5, 20_000), u, np.nextafter(u, 5),
+                                np.nextafter(u, -5), [np.nan, np.inf, -np.inf, 2.0, -2.0]])
+            assert np.array_equal(_searchsorted_uniform(u, s), np.searchsorted(u, s))
+
+
+def test_fallback_rows_are_the_first_least_active_row_of_each_group():
+    """pairs._nearest_rows (only the groups without a footprint row are read) gives the rows
+    of the whole-array form it replaces: the first active row at the group's least distance
+    (ties, inactive rows, 1e300 and NaN distances included)."""
+    from gmtiflow.sensor.pairs import _first_in_group, _nearest_rows
+    g = np.random.default_rng(8)
+    count = g.integers(1, 6, 5000)
+    starts = np.cumsum(count) - count
+    group = np.repeat(np.arange(count.size), count)
+    dist = np.round(g.uniform(0, 0.05, count.sum()), 3)        # rounded: many ties
+    dist[g.random(dist.size) < 0.1] = 1e300
+    dist[g.random(dist.size) < 0.01] = np.nan
+    active = g.random(dist.size) < 0.8
+    wanted = g.random(count.size) < 0.5
+    gmin = np.minimum.reduceat(dist, starts)
+    first = _first_in_group(group, active & (dist <= gmin[group]))
+    expected = np.flatnonzero(wanted[group] & first)
+    assert np.array_equal(_nearest_rows(dist, active, starts, np.flatnonzero(wanted)), expected)
+    assert _nearest_rows(dist, active, starts, np.zeros(0, np.int64)).size == 0
