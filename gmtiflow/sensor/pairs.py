@@ -302,7 +302,7 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
         dl, veh, group, mid_active, mid_dwell, starts, beam = _candidate_pairs(run, poses,
                                                                                vehicle_ids)
         n_eval = len(dl)
-        geo = _pair_geometry(poses, dl, fleet.state_at(poses.time_s[dl], veh))
+        geo = _pair_geometry(poses, dl, fleet.state_at(np.take(poses.time_s, dl), veh))
         active = geo["active"]
         sel = np.zeros(0, np.int64)
         extra = False
