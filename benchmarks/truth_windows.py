@@ -8,12 +8,24 @@ steps (``simulate_profiles(..., windows=True)``, the default) and one step at a 
 (``windows=False``, the step loop the windows reproduce bit for bit), alternating in one
 process, median of ``--repeat`` runs after a warm-up; checks that both give the same profiles
 bit for bit.  Prints the load (1-min average) before and after each scene.
+
+    python benchmarks/truth_windows.py --against DIR [--repeat 5] [--only NAME ...]
+
+A/B against another checkout DIR (e.g. ``git archive REV | tar -x -C DIR``): per scene, one
+child process with ``PYTHONPATH=DIR`` and one with this checkout, alternating, ``--repeat``
+times; each child builds the scene's road map once and prints the median CPU time of
+``build_fleet`` (a fresh road map each run, so routing is counted as in a run) and of
+``Fleet.truth_table`` at the fidelity's truth output step, over three runs after a warm-up.
+Prints the medians over the children and the load.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
+import subprocess
+import sys
 import time
 
 
@@ -49,11 +61,73 @@ SCENES = {
 }
 
 
+def _scene_cfg(name):
+    from gmtiflow.compose import compose
+    cfg = SCENES[name]()
+    return compose(cfg) if isinstance(cfg, list) else cfg
+
+
+def child_times(name: str) -> dict:
+    """Median CPU s of build_fleet (fresh road map each run) and truth_table, this process's
+    gmtiflow, three runs after a warm-up."""
+    import numpy as np
+
+    from gmtiflow.scene import vehicles
+    from gmtiflow.stages import build_scene
+    cfg = _scene_cfg(name)
+    times = np.arange(0.0, cfg.scene.duration_s + 1e-9, cfg.fidelity.truth_output_dt_s)
+    build, table = [], []
+    for r in range(4):
+        roadmap, _ = build_scene(cfg)
+        t = time.process_time()
+        fl = vehicles.build_fleet(cfg.vehicles, roadmap, seed=cfg.seed,
+                                  duration_s=cfg.scene.duration_s,
+                                  dt_s=cfg.fidelity.time_step_s)
+        t1 = time.process_time()
+        fl.truth_table(times)
+        if r:
+            build.append(t1 - t)
+            table.append(time.process_time() - t1)
+    return {"build": statistics.median(build), "table": statistics.median(table)}
+
+
+def against(other: str, repeat: int, only) -> None:
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    print(f"build_fleet / truth_table CPU s: {other} (before) against {here} (after), "
+          f"{repeat} alternating child pairs, medians; load {os.getloadavg()[0]:.2f}")
+    print(f"{'scene':32s} {'build before':>12} {'after':>7} {'table before':>12} {'after':>7} "
+          f"{'load':>5}")
+    for name in SCENES:
+        if only and not any(o in name for o in only):
+            continue
+        res = {other: [], here: []}
+        for _ in range(repeat):
+            for root in (other, here):
+                proc = subprocess.run(
+                    [sys.executable, os.path.abspath(__file__), "--child-times", name],
+                    capture_output=True, text=True, check=True,
+                    env={**os.environ, "PYTHONPATH": root, "OMP_NUM_THREADS": "1"})
+                res[root].append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        med = {root: {k: statistics.median(r[k] for r in rs) for k in ("build", "table")}
+               for root, rs in res.items()}
+        print(f"{name:32s} {med[other]['build']:12.3f} {med[here]['build']:7.3f} "
+              f"{med[other]['table']:12.3f} {med[here]['table']:7.3f} "
+              f"{os.getloadavg()[0]:5.2f}", flush=True)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--only", nargs="+", default=None, help="scene names (substrings)")
+    ap.add_argument("--against", metavar="DIR", help="A/B with the checkout in DIR")
+    ap.add_argument("--child-times", metavar="SCENE", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.child_times:
+        print(json.dumps(child_times(args.child_times)))
+        return
+    if args.against:
+        against(os.path.abspath(args.against), args.repeat, args.only)
+        return
     from gmtiflow.compose import compose
     from gmtiflow.scene import motion, vehicles
     from gmtiflow.stages import build_scene

@@ -34,6 +34,13 @@ def mismatch(sin_target, sin_beam, beamwidth_sine):
     return np.exp(-LN2 * x * x)
 
 
+def mismatch_off(offset_sine, beamwidth_sine):
+    """:func:`mismatch` from the distance |u_t − u_b| in sine space (as the footprint test
+    computes it): the same values, since (−LN2·x)·x does not see the sign of x."""
+    x = np.asarray(offset_sine, float) / (0.5 * beamwidth_sine)
+    return np.exp(-LN2 * x * x)
+
+
 def scan_loss(scan_rad):
     """cos^{3/2} of the beam's scan angle off broadside (0 beyond ±90°, never NaN)."""
     c = np.maximum(np.cos(np.asarray(scan_rad, float)), 0.0)

@@ -99,8 +99,8 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
         f_mis, loss = 1.0, None
     else:   # per beam position, looked up: the same values as per pair
         b_vis = beam_index[vis]
-        f_mis = gain.mismatch(geo.at("sin_az", vis), np.sin(sched.beam_scan_rad)[b_vis],
-                              cfg.beamwidth_sine)
+        # |u_t − u_b| of the footprint test (a visible pair is in the footprint)
+        f_mis = gain.mismatch_off(geo.at("beam_offset_sine", vis), cfg.beamwidth_sine)
         loss = gain.scan_loss(sched.beam_scan_rad)[b_vis]
     g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis, loss)
     mdv = poses.mdv[dl[vis]]

@@ -310,11 +310,13 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
             # groups are contiguous runs of (revisit, vehicle); a vehicle in no footprint keeps
             # one row: its first candidate of least sine-space distance (the nearest dwell)
             gidx = group                # groups are numbered 0, 1, 2, ... in row order
-            g_active = (np.ones(len(starts), bool) if active.all() else
+            all_active = active.all()
+            g_active = (np.ones(len(starts), bool) if all_active else
                         np.logical_or.reduceat(active, starts))
             # active at the middle dwell but at none of its candidate dwells (it left or
             # appeared mid-scan): one more candidate, the middle dwell itself
-            lost = np.flatnonzero(~g_active & mid_active[group[starts]])
+            lost = (np.zeros(0, np.int64) if all_active else
+                    np.flatnonzero(~g_active & mid_active[group[starts]]))
             if lost.size:
                 extra = True
                 g_lost = group[starts[lost]]
@@ -349,8 +351,10 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
                     = True
                 sel = np.flatnonzero(keep)
             geo["in_fp"] = in_fp
+            geo["beam_offset_sine"] = dist     # |u_t − u_b| where in front and active
         else:
             geo["in_fp"] = np.zeros(0, bool)
+            geo["beam_offset_sine"] = np.zeros(0)
     # candidates come grouped by (revisit, vehicle), dwells ascending: a stable sort on the
     # dwell orders rows by (dwell, vehicle); int16 keys sort by radix
     if sched.instant or not extra:

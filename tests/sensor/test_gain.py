@@ -59,3 +59,10 @@ def test_notch_repeats_at_blind_speeds_with_a_prf():
     assert n[4] == pytest.approx(1.0)
     # without a PRF the same speeds are far from the notch
     assert np.all(gain.stap_notch(v[:3], cfg.mdv_mps) > 0.999)
+
+
+def test_mismatch_from_the_sine_distance_is_the_mismatch_bit_for_bit():
+    g = np.random.default_rng(9)
+    bw = SensorConfig().beamwidth_sine
+    u_t, u_b = g.uniform(-0.3, 0.3, 100_000), g.uniform(-0.3, 0.3, 100_000)
+    assert np.array_equal(gain.mismatch_off(np.abs(u_t - u_b), bw), gain.mismatch(u_t, u_b, bw))
