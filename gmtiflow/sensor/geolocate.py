@@ -64,7 +64,8 @@ def _intersect(platform_xyz, range_m, ca, sa, b, h, u, ground_z, radius_m):
         se = np.where(ok, se, -1.0)
     rc, rs, re = range_m * ce * ca, range_m * ce * sa, range_m * se
     o = tuple(rc * b[k] + rs * h[k] + re * u[k] for k in range(3))
-    return to_map(platform_xyz, o, radius_m, np.where(reached, ground_z, np.nan)), ce, se, reached
+    height = ground_z if reached.all() else np.where(reached, ground_z, np.nan)
+    return to_map(platform_xyz, o, radius_m, height), ce, se, reached
 
 
 def to_map(platform_xyz, o, radius_m, height_m=None):
@@ -108,8 +109,9 @@ def geolocate(platform_xyz, range_m, az_rad, b, h, u, terrain, iterations: int =
     az_rad = np.asarray(az_rad, float)
     ca, sa = np.cos(az_rad), np.sin(az_rad)
     # a terrain without data under the platform (NaN) starts from 0 m
-    ground = np.broadcast_to(np.nan_to_num(np.asarray(
-        terrain.height_at(platform_xyz[0], platform_xyz[1]), float)), range_m.shape)
+    ground = np.asarray(terrain.height_at(platform_xyz[0], platform_xyz[1]), float)
+    ground = np.broadcast_to(ground if np.isfinite(ground).all() else np.nan_to_num(ground),
+                             range_m.shape)
     p, ce, se, reached = _intersect(platform_xyz, range_m, ca, sa, b, h, u, ground, radius_m)
     if not getattr(terrain, "flat", False):
         for _ in range(iterations):

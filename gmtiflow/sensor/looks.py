@@ -58,17 +58,16 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     dl, veh, geo, n_eval = select_pairs(run, poses, vehicle_ids)
     n = len(dl)
     veh = veh.astype(np.int64, copy=False)
-    rng_m, az, el, rr = (geo[k] for k in ("range_m", "az", "el", "rr"))
+    rng_m, rr = geo["range_m"], geo["rr"]
     beam_index = dl % n_d
     beam = np.take(sched.beam_scan_rad, beam_index)       # np.take: per-dwell lookups
     dwell_id = np.take(dwell_ids, dl)
     time_s = np.take(poses.time_s, dl)
     true_az_world, los_az = _azimuths(geo["los_e"], geo["los_n"])
-    in_fp = geo["in_fp"]
 
     # --- visibility: field of view, invisible road, terrain -------------------------------
     outcome = np.full(n, Outcome.OUTSIDE_FOV, np.uint8)
-    fov = in_fp & visibility.in_field_of_view(cfg, az, el, rng_m)
+    fov = geo["fov"]         # in the footprint and the field of view (az, el, slant range)
     invisible = geo["invisible"]
     outcome[np.flatnonzero(fov & invisible)] = Outcome.INVISIBLE_ROAD
     cand = fov & ~invisible
@@ -94,7 +93,7 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     snr_db_col = np.full(n, np.nan)
     pd_col = np.zeros(n)
     det_local = np.full(n, -1, np.int64)
-    scan_angle = az[vis] if instant else beam[vis]
+    scan_angle = geo.at("az", vis) if instant else beam[vis]
     if instant:
         f_mis, loss = 1.0, None
     else:   # per beam position, looked up: the same values as per pair
@@ -108,7 +107,7 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
         own_rr = geo.at("own_rr", vis)                                 # ṙ − ṙ_MLC at the target
     else:   # no STAP: the Doppler filter rejects the main-lobe clutter around the beam centre's
         dv = dl[vis]
-        l_bc = antenna.direction(scan_angle, el[vis], antenna.take(poses.b, dv),
+        l_bc = antenna.direction(scan_angle, geo.at("el", vis), antenna.take(poses.b, dv),
                                  antenna.take(poses.h, dv), antenna.take(poses.u, dv))
         own_rr = rr[vis] + antenna.dot(antenna.take(poses.vel, dv), l_bc)
     folded = gain.blind_offset(own_rr, cfg.blind_speed_mps)   # for the gain and the misses
@@ -145,7 +144,7 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     e_r, e_az, e_rr = measurement.draw_errors(seed, None, None, s_r, s_az, s_rr,
                                               counters=pairs.take(hit))
     r_meas = np.maximum(rng_m[d] + e_r, 0.0)
-    az_meas = az[d] + e_az
+    az_meas = geo.at("az", d) + e_az
     dd = dl[d]
     ppd = antenna.take(poses.pos, dd)
     ground, _, _ = geolocate.geolocate(ppd, r_meas, az_meas, antenna.take(poses.b, dd),

@@ -16,7 +16,7 @@ from typing import Dict
 
 import numpy as np
 
-from gmtiflow.sensor import antenna, fastnp, geometry
+from gmtiflow.sensor import antenna, fastnp, geometry, visibility
 from gmtiflow.sensor.context import SensorRun
 from gmtiflow.sensor.poses import Poses
 from gmtiflow.tables import Table
@@ -302,7 +302,7 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
         dl, veh, group, mid_active, mid_dwell, starts, beam = _candidate_pairs(run, poses,
                                                                                vehicle_ids)
         n_eval = len(dl)
-        geo = _pair_geometry(poses, dl, fleet.state_at(poses.time_s[dl], veh))
+        geo = _pair_geometry(poses, dl, fleet.state_at(np.take(poses.time_s, dl), veh))
         active = geo["active"]
         sel = np.zeros(0, np.int64)
         extra = False
@@ -355,6 +355,9 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
         else:
             geo["in_fp"] = np.zeros(0, bool)
             geo["beam_offset_sine"] = np.zeros(0)
+    # footprint and field of view per candidate: the looks then gather one flag, not az and el
+    geo["fov"] = geo["in_fp"] & visibility.in_field_of_view(cfg, geo["az"], geo["el"],
+                                                             geo["range_m"])
     # candidates come grouped by (revisit, vehicle), dwells ascending: a stable sort on the
     # dwell orders rows by (dwell, vehicle); int16 keys sort by radix
     if sched.instant or not extra:
