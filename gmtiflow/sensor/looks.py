@@ -23,19 +23,17 @@ from gmtiflow.sensor.poses import Poses
 
 def _azimuth(east, north):
     """World azimuth clockwise from north in [0, 2π) (as frames.heading_rad, without np.mod)."""
-    return _azimuths(east, north)[0]
+    return _world_azimuth(np.arctan2(east, north))
 
 
-def _azimuths(east, north):
-    """(:func:`_azimuth`, and arctan2(east, north) itself in [−π, π] as the RCS aspect uses it).
-
-    The negative ones get 2π through index arrays: a boolean-mask ``a[m] += x`` (or an
-    ``out=``/``where=`` ufunc) costs ~5 ns per element in numpy 2, the index path ~1 ns."""
-    raw = np.arctan2(east, north)
+def _world_azimuth(raw):
+    """arctan2(east, north) in [−π, π] as [0, 2π): the negative ones get 2π, through index
+    arrays (a boolean-mask ``a[m] += x``, or an ``out=``/``where=`` ufunc, costs ~5 ns per
+    element in numpy 2, the index path ~1 ns)."""
     a = raw.copy()
     neg = np.flatnonzero(raw < 0)
     a[neg] = raw[neg] + 2.0 * np.pi
-    return a, raw
+    return a
 
 
 def _pair_counters(dwell_ids, vehicle_ids, dl, veh) -> rng.Counters:
@@ -63,7 +61,8 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     beam = np.take(sched.beam_scan_rad, beam_index)       # np.take: per-dwell lookups
     dwell_id = np.take(dwell_ids, dl)
     time_s = np.take(poses.time_s, dl)
-    true_az_world, los_az = _azimuths(geo["los_e"], geo["los_n"])
+    los_az = geo["los_az"]                     # arctan2(ℓ_e, ℓ_n), as the RCS aspect uses it
+    true_az_world = _world_azimuth(los_az)
 
     # --- visibility: field of view, invisible road, terrain -------------------------------
     outcome = np.full(n, Outcome.OUTSIDE_FOV, np.uint8)

@@ -275,7 +275,7 @@ def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
     vel_p = antenna.take(geometry.true_velocity(poses.vel, poses.pos[2], poses.radius_m), dl)
     # ṙ = (ṙ − ṙ_MLC) + ṙ_MLC with ṙ_MLC = −v_p·ℓ: a + (−b) is a − b in IEEE arithmetic
     rr = own_rr - antenna.dot(vel_p, los)
-    return {"active": active, "range_m": rng_m, "los_e": los[0], "los_n": los[1],
+    return {"active": active, "range_m": rng_m, "los_az": np.arctan2(los[0], los[1]),
             "az": az, "el": el, "sin_az": sin_az, "lb": lb, "own_rr": own_rr,
             "rr": rr, "x_m": pos_t[0], "y_m": pos_t[1], "z_m": pos_t[2], "ground_d2": d2,
             "heading_rad": np.asarray(st["heading_rad"], float),

@@ -144,15 +144,22 @@ class RcsModels:
     def type_codes(self, vehicle_types: Sequence[str]) -> np.ndarray:
         """Index of each vehicle's model; unknown types use 'default' or raise ConfigError."""
         index: Dict[str, int] = {n: i for i, n in enumerate(self.names)}
-        kinds, inverse = np.unique(np.asarray(vehicle_types, dtype=str), return_inverse=True)
-        kind_codes = np.empty(len(kinds), np.int64)
-        for i, t in enumerate(kinds):
-            code = index.get(str(t), index.get("default"))
-            if code is None:
-                raise ConfigError(f"sensor.rcs: no RCS model for vehicle type {t!r} and no "
-                                  f"'default' entry; known types: {', '.join(self.names)}")
-            kind_codes[i] = code
-        return kind_codes[inverse.ravel()].astype(np.int64)
+        types = np.asarray(vehicle_types, dtype=str).ravel()
+        codes = np.full(types.size, -1, np.int64)
+        for name, code in index.items():     # a few names: one comparison pass each (no sort)
+            codes[np.flatnonzero(types == name)] = code
+        rest = np.flatnonzero(codes < 0)     # types without a model of their own
+        if rest.size:
+            kinds, inverse = np.unique(types[rest], return_inverse=True)
+            kind_codes = np.empty(len(kinds), np.int64)
+            for i, t in enumerate(kinds):
+                code = index.get("default")
+                if code is None:
+                    raise ConfigError(f"sensor.rcs: no RCS model for vehicle type {t!r} and no "
+                                      f"'default' entry; known types: {', '.join(self.names)}")
+                kind_codes[i] = code
+            codes[rest] = kind_codes[inverse.ravel()]
+        return codes
 
     def rcs_dbsm(self, type_code, vehicle_heading_rad, los_east, los_north, los_azimuth_rad=None):
         """RCS (dBsm) of each pair from its type code, heading and line of sight.
