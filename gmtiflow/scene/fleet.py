@@ -82,22 +82,26 @@ class Fleet:
         t = t.ravel()
         vid = vid.ravel()
         n = t.size
-        out = _empty_truth(n)
-        out["time_s"] = t.copy()
-        out["vehicle_id"] = vid.copy()
         if self.n_vehicles == 0:
+            out = _empty_truth(n)
+            out["time_s"] = t.copy()
+            out["vehicle_id"] = vid.copy()
             out["active"] = np.zeros(n, bool)
             return {k: c.reshape(shape) for k, c in out.items()}
         active, valid, vs, tau = self._active(t, vid)
         idx = np.flatnonzero(active)
+        # every row active (truth_table): no fill values, no gather, no scatter
+        whole = idx.size == n and n > 0
+        out = dict.fromkeys(TRUTH_COLUMNS) if whole else _empty_truth(n)
+        out["time_s"] = t.copy()
+        out["vehicle_id"] = vid.copy()
         out["active"] = active
         out["convoy_id"] = np.where(valid, self.vehicles["convoy_id"][vs], -1)
-        whole = idx.size == n       # every row active (truth_table): no gather, no scatter
 
         def put(names, values):
             for name, val in zip(names, values):
                 if whole:
-                    out[name] = np.asarray(val, dtype=out[name].dtype)
+                    out[name] = np.asarray(val, dtype=_TRUTH_DTYPES[name])
                 else:
                     out[name][idx] = val
 
@@ -235,6 +239,11 @@ def _road_frames(routes, xyz, s, off):
 TRUTH_COLUMNS = ("time_s", "vehicle_id", "convoy_id", "x_m", "y_m", "z_m", "vx_mps", "vy_mps",
                  "vz_mps", "ax_mps2", "ay_mps2", "az_mps2", "speed_mps", "heading_rad",
                  "route_s_m", "edge_id", "mode", "invisible")
+
+
+_TRUTH_DTYPES = {c: (np.int64 if c in ("vehicle_id", "convoy_id", "edge_id") else
+                     np.uint8 if c == "mode" else bool if c == "invisible" else np.float64)
+                 for c in TRUTH_COLUMNS}
 
 
 def _empty_truth(n: int) -> Table:
