@@ -78,6 +78,7 @@ BENCHMARKS = {
                    ["--seeds", "1"]),
     "report_time": ("report_time", "docs/reports.md", [], ["--big", "30", "--repeat", "1"]),
     "startup_time": ("startup_time", "README.md", [], ["--repeat", "2"]),
+    "config_scale": ("config_scale", "docs/scale.md", ["--omegaconf"], ["--repeat", "1"]),
     "reliability_table": ("reliability_table", "docs/reliability.md", [],
                           ["--fuzz-cases", "100", "--config-runs", "5"]),
     "benchmark_suite": ("benchmark_suite", "docs/benchmark.md", [], ["--quick"]),

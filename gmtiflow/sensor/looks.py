@@ -92,34 +92,35 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     snr_db_col = np.full(n, np.nan)
     pd_col = np.zeros(n)
     det_local = np.full(n, -1, np.int64)
-    scan_angle = geo.at("az", vis) if instant else beam[vis]
+    scan_angle = geo.at("az", vis) if instant else np.take(beam, vis)
     if instant:
         f_mis, loss = 1.0, None
     else:   # per beam position, looked up: the same values as per pair
-        b_vis = beam_index[vis]
+        b_vis = np.take(beam_index, vis)
         # |u_t − u_b| of the footprint test (a visible pair is in the footprint)
         f_mis = gain.mismatch_off(geo.at("beam_offset_sine", vis), cfg.beamwidth_sine)
         loss = gain.scan_loss(sched.beam_scan_rad)[b_vis]
     g_t = gain.transmit_gain(cfg.n_elements, scan_angle, f_mis, loss)
-    mdv = poses.mdv[dl[vis]]
+    dl_vis, veh_vis = np.take(dl, vis), np.take(veh, vis)
+    mdv = np.take(poses.mdv, dl_vis)
     if cfg.stap:
         own_rr = geo.at("own_rr", vis)                                 # ṙ − ṙ_MLC at the target
     else:   # no STAP: the Doppler filter rejects the main-lobe clutter around the beam centre's
-        dv = dl[vis]
+        dv = dl_vis
         l_bc = antenna.direction(scan_angle, geo.at("el", vis), antenna.take(poses.b, dv),
                                  antenna.take(poses.h, dv), antenna.take(poses.u, dv))
-        own_rr = rr[vis] + antenna.dot(antenna.take(poses.vel, dv), l_bc)
+        own_rr = np.take(rr, vis) + antenna.dot(antenna.take(poses.vel, dv), l_bc)
     folded = gain.blind_offset(own_rr, cfg.blind_speed_mps)   # for the gain and the misses
     if cfg.stap:
         g_r = g_t * gain.stap_notch(own_rr, mdv, cfg.blind_speed_mps, offset=folded)
     else:
         g_r = g_t * gain.clutter_band_gain(own_rr, mdv, cfg.blind_speed_mps, folded=folded)
-    rcs_v = rcs_models.rcs_dbsm(type_codes[veh[vis]], geo.at("heading_rad", vis), None, None,
-                                los_azimuth_rad=los_az[vis])
-    s_db = snr.snr_db(cfg, rng_m[vis], g_t, g_r, rcs_v)
+    rcs_v = rcs_models.rcs_dbsm(np.take(type_codes, veh_vis), geo.at("heading_rad", vis),
+                                None, None, los_azimuth_rad=np.take(los_az, vis))
+    s_db = snr.snr_db(cfg, np.take(rng_m, vis), g_t, g_r, rcs_v)
     s_lin = snr.db_to_linear(s_db)
     lpd = detect.log_pd(s_lin, cfg.pfa)
-    pairs = _pair_counters(dwell_ids, vehicle_ids, dl[vis], veh[vis])   # for all four draws
+    pairs = _pair_counters(dwell_ids, vehicle_ids, dl_vis, veh_vis)   # for all four draws
     uni = pairs.uniform(rng.counter_key(seed, "sensor", "pd"))
     log_u = np.log(uni)
     # hits and misses as index arrays (numpy's boolean-mask gathers are ~5x slower)
@@ -127,24 +128,25 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     hit, not_hit = np.flatnonzero(is_hit), np.flatnonzero(~is_hit)
     snr_db_col[vis] = s_db
     pd_col[vis] = np.exp(lpd)
-    miss = vis[not_hit]
-    blind = np.abs(folded[not_hit]) < mdv[not_hit]
+    miss = np.take(vis, not_hit)
+    blind = np.abs(np.take(folded, not_hit)) < np.take(mdv, not_hit)
     outcome[miss] = np.where(blind, Outcome.DOPPLER_BLIND, Outcome.PD_MISS)
 
     # --- detections: reported SNR, errors, geolocation ----------------------------------
-    d = vis[hit]
+    d = np.take(vis, hit)
     k = d.size
     outcome[d] = Outcome.DETECTED
     det_local[d] = np.arange(k)
-    snr_rep = detect.reported_snr(None, s_lin[hit], log_uniform=log_u[hit])
+    snr_rep = detect.reported_snr(None, np.take(s_lin, hit), log_uniform=np.take(log_u, hit))
     bw_rad = (scan.broadened_beamwidth_rad(cfg, scan_angle[hit]) if instant else
-              scan.broadened_beamwidth_rad(cfg, sched.beam_scan_rad)[b_vis[hit]])
+              scan.broadened_beamwidth_rad(cfg, sched.beam_scan_rad)[np.take(b_vis, hit)])
     s_r, s_az, s_rr = measurement.sigmas(cfg, snr_rep, bw_rad)
     e_r, e_az, e_rr = measurement.draw_errors(seed, None, None, s_r, s_az, s_rr,
                                               counters=pairs.take(hit))
-    r_meas = np.maximum(rng_m[d] + e_r, 0.0)
+    true_r, true_rr = np.take(rng_m, d), np.take(rr, d)
+    r_meas = np.maximum(true_r + e_r, 0.0)
     az_meas = geo.at("az", d) + e_az
-    dd = dl[d]
+    dd = np.take(dl, d)
     ppd = antenna.take(poses.pos, dd)
     ground, _, _ = geolocate.geolocate(ppd, r_meas, az_meas, antenna.take(poses.b, dd),
                                        antenna.take(poses.h, dd), antenna.take(poses.u, dd),
@@ -152,23 +154,23 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     lat, lon, hgt = frames.enu_to_geodetic(origin, *ground)
     detections = {
         "det_id": np.arange(k, dtype=np.int64),
-        "dwell_id": dwell_id[d],
-        "time_s": time_s[d],
+        "dwell_id": np.take(dwell_id, d),
+        "time_s": np.take(time_s, d),
         "range_m": r_meas,
         "azimuth_rad": _azimuth(ground[0] - ppd[0], ground[1] - ppd[1]),
-        "range_rate_mps": rr[d] + e_rr,
-        "true_range_m": rng_m[d],
-        "true_azimuth_rad": true_az_world[d],
-        "true_range_rate_mps": rr[d],
+        "range_rate_mps": true_rr + e_rr,
+        "true_range_m": true_r,
+        "true_azimuth_rad": np.take(true_az_world, d),
+        "true_range_rate_mps": true_rr,
         "snr_db": 10.0 * np.log10(snr_rep),
         "sigma_range_m": s_r, "sigma_azimuth_rad": s_az, "sigma_range_rate_mps": s_rr,
         "x_m": ground[0], "y_m": ground[1], "z_m": ground[2],
         "lat_deg": np.atleast_1d(lat), "lon_deg": np.atleast_1d(lon),
         "height_m": np.atleast_1d(hgt),
-        "truth_id": veh[d],
+        "truth_id": np.take(veh, d),
         "merged": np.zeros(k, bool), "range_folded": np.zeros(k, bool),
         "doppler_wrapped": np.zeros(k, bool), "implausible": np.zeros(k, bool),
-        "rcs_dbsm": rcs_v[hit],
+        "rcs_dbsm": np.take(rcs_v, hit),
         "wrap_velocity_mps": np.full(k, cfg.wrap_velocity_mps),
     }
     looks = {

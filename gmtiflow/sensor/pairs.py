@@ -179,9 +179,10 @@ def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
     # per-group values spread over their candidates with np.repeat (x[group], cheaper)
     group = np.repeat(np.arange(len(lo)), count)
     starts = np.cumsum(count) - count
-    within = np.arange(total) - np.repeat(starts, count)
-    beam = np.repeat(lo, count) + within
-    dwell_local = np.repeat(rev * n_d, count) + beam
+    # candidate i of group g is beam lo[g] + (i − starts[g]): one spread per column
+    row = np.arange(total)
+    beam = np.repeat(lo - starts, count) + row
+    dwell_local = np.repeat(rev * n_d + (lo - starts), count) + row
     return (dwell_local, np.repeat(v_rep, count), group, mid_active, rev * n_d + n_d // 2,
             starts, beam)
 
