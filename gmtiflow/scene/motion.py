@@ -425,11 +425,13 @@ MAX_WINDOW_STEPS = 1024
 MAX_SWEEPS = 2
 
 
-def window_length(n_profiles: int) -> int:
-    """Steps per window (and noise block) for ``n_profiles``: NOISE_BLOCK_STEPS doubled while
-    the (profiles, steps) temporaries stay within WINDOW_CELLS, at most MAX_WINDOW_STEPS."""
+def window_length(n_profiles: int, n_steps: Optional[int] = None) -> int:
+    """Steps per window (and noise block) for ``n_profiles`` of at most ``n_steps`` steps:
+    NOISE_BLOCK_STEPS doubled while the (profiles, steps) temporaries stay within
+    WINDOW_CELLS, at most MAX_WINDOW_STEPS and at most ``n_steps``."""
     w = NOISE_BLOCK_STEPS
-    while 2 * w <= MAX_WINDOW_STEPS and max(n_profiles, 1) * 2 * w <= WINDOW_CELLS:
+    while (2 * w <= MAX_WINDOW_STEPS and max(n_profiles, 1) * 2 * w <= WINDOW_CELLS
+           and (n_steps is None or 2 * w <= n_steps)):
         w *= 2
     return w
 
@@ -529,9 +531,9 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     tests)."""
     P = len(inp.length_m)
     dt = float(dt_s)
-    W = window_length(P) if window_steps is None else int(window_steps)
     horizon = np.asarray(inp.horizon_steps, dtype=np.int64)
     K = int(horizon.max()) if P else 0
+    W = window_length(P, K) if window_steps is None else int(window_steps)
 
     # Segment lookup over all profiles at once: key = s + p * span keeps the flat array sorted.
     span = float(2.0 ** np.ceil(np.log2(max(float(np.max(inp.length_m, initial=0.0)), 1.0)

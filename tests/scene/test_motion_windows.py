@@ -86,6 +86,11 @@ def test_window_length_follows_the_fleet_size():
     assert motion.window_length(10) == 1024
     assert motion.window_length(100) == 128
     assert motion.window_length(10_000) == motion.NOISE_BLOCK_STEPS
+    # no longer than the longest trip's steps (a window past them is wasted work)
+    assert motion.window_length(10, 9001) == 1024
+    assert motion.window_length(10, 601) == 512
+    assert motion.window_length(10, 300) == 256
+    assert motion.window_length(10, 50) == motion.NOISE_BLOCK_STEPS
     for n in (1, 3, 10, 50, 129, 10_000):
         w = motion.window_length(n)
         assert w >= motion.NOISE_BLOCK_STEPS and w & (w - 1) == 0
