@@ -37,13 +37,14 @@ from typing import Any, Dict, List
 
 import numpy as np
 
-from gmtiflow import frames, rng
+from gmtiflow import frames
 from gmtiflow.errors import ConfigError, RoadMapError
 from gmtiflow.scene import motion
 from gmtiflow.scene import wander as wander_mod
 from gmtiflow.scene.fleet import TRUTH_COLUMNS, Fleet
 from gmtiflow.scene.roadmap import RoadMap
 from gmtiflow.scene.routes import Route, off_road_route, shortest_route
+from gmtiflow.scene.streams import streams
 from gmtiflow.scene.vehicles_config import (ConvoySpec, RandomFleetSpec, SpeedChangeSpec,
                                             VehicleSpec, VehiclesConfig)
 
@@ -189,9 +190,8 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
     cdf = np.cumsum(weights) / weights.sum()
     xy = roadmap.node_xyz(nodes)[:, :2]
     out = []
-    for i in range(int(spec.count)):
-        name = f"{spec.name_prefix}-{i:04d}"
-        g = rng.stream(seed, "truth", "vehicle", name, "spec")
+    names = [f"{spec.name_prefix}-{i:04d}" for i in range(int(spec.count))]
+    for name, g in zip(names, streams(seed, ("truth", "vehicle"), names, ("spec",))):
         for _attempt in range(100):
             a, b = g.integers(0, len(nodes), size=2)
             if a != b and np.hypot(*(xy[a] - xy[b])) >= spec.min_route_m:
@@ -278,9 +278,10 @@ def _trip_noise(seed: int, names: List[str]) -> motion.NoiseSource:
 
     def draw(profiles, k0, n):
         buf = np.empty((len(profiles), n, 6))      # each profile's rows in place, as drawn
-        for c, p in enumerate(profiles.tolist()):
-            if k0 == 0:
-                gens[p] = rng.stream(seed, "truth", "vehicle", names[p])
+        pids = profiles.tolist()
+        if k0 == 0:
+            gens.update(zip(pids, streams(seed, ("truth", "vehicle"), [names[p] for p in pids])))
+        for c, p in enumerate(pids):
             gens[p].random(out=buf[c])
         u = buf[:, :, :3] + _HALF_ULP
         return ndtri(u[:, :, 0]).T, u[:, :, 1].T, u[:, :, 2].T
@@ -306,16 +307,19 @@ def _draw_wander(vehicles, seed, t0, on, off, horizon_s, dt):
     knots, knot_off = [], [0]
     w_t0 = np.zeros(N)
     w_h = np.ones(N)
+    wanders = [vi for vi, veh in enumerate(vehicles)
+               if np.any(veh.sigma_pos > 0) and math.isfinite(on[vi])]
+    gens = dict(zip(wanders, streams(seed, ("truth", "vehicle"),
+                                     [vehicles[vi].name for vi in wanders], ("wander",))))
     for vi, veh in enumerate(vehicles):
         n_k = 0
-        if np.any(veh.sigma_pos > 0) and math.isfinite(on[vi]):
+        if vi in gens:
             p = veh.profile
             w_t0[vi] = t0[p]
             w_h[vi] = wander_mod.knot_spacing_s(veh.pos_corr_s, dt)
             end = t0[p] + min(off[vi], horizon_s[p])
             n_k = wander_mod.n_knots(w_t0[vi], end, w_h[vi])
-            gen = rng.stream(seed, "truth", "vehicle", veh.name, "wander")
-            knots.append(wander_mod.draw_knots(gen, veh.sigma_pos, n_k))
+            knots.append(wander_mod.draw_knots(gens[vi], veh.sigma_pos, n_k))
         knot_off.append(knot_off[-1] + n_k)
     return (np.concatenate(knots) if knots else np.zeros((0, 3)),
             np.asarray(knot_off, np.int64), w_t0, w_h)
