@@ -157,11 +157,11 @@ def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
     mid_active = active
     if not np.all(active):
         # a vehicle inactive at the middle may still be active at one end of the scan
-        keep = active | _active_at_ends(run, poses, v_rep, rev)
-        s, w, rev, v_rep = s[keep], w[keep], rev[keep], v_rep[keep]
-        s = np.where(active[keep], s, 0.0)
-        w = np.where(active[keep], w, 2.0)     # unknown position: try every beam
-        mid_active = active[keep]
+        keep = np.flatnonzero(active | _active_at_ends(run, poses, v_rep, rev))
+        s, w, rev, v_rep = (np.take(a, keep) for a in (s, w, rev, v_rep))
+        mid_active = np.take(active, keep)
+        s = np.where(mid_active, s, 0.0)
+        w = np.where(mid_active, w, 2.0)     # unknown position: try every beam
     # beams are uniform in sine space, u_i = u_0 + i Δ: index arithmetic instead of a search
     # (a candidate window one beam too wide costs nothing: the exact test follows)
     if n_d > 1:
@@ -331,7 +331,7 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
                 active = geo["active"]
                 g_active[lost] = active[-lost.size:]
             dist = np.where((geo["lb"] > 0) & active,
-                            np.abs(geo["sin_az"] - u_beam_all[beam]), 1e300)
+                            np.abs(geo["sin_az"] - np.take(u_beam_all, beam)), 1e300)
             in_fp = dist <= cfg.footprint_beamwidths * cfg.beamwidth_sine * (1 + 1e-12)
             if extra:     # the extra rows sit after every group: unbuffered group reductions
                 any_fp = np.zeros(len(starts), bool)
