@@ -148,14 +148,16 @@ def _bridge(x0, x1, kappa, f):
     return delta, d_delta, integral_n - integral_l
 
 #: Steps of noise drawn per block for the active profiles (bounded temporaries), and of a
-#: window; fewer than 128 profiles get longer blocks and windows (:func:`window_length`).
+#: window; up to 64 profiles (with trips of 256 steps or more) get longer blocks and windows
+#: (:func:`window_length`).
 NOISE_BLOCK_STEPS = 128
 
 #: ``noise(profiles, k0, n) -> (normal, u_stop, u_wait)``, each (n, len(profiles)) (fewer rows
 #: allowed past the last step there is): the noise of local steps k0 .. k0 + n - 1 of the given
 #: profiles (ids ascending), n = the kernel's block length W (:func:`window_length`); each
-#: profile's blocks are asked for in order (k0 = 0, n, 2n, …), one block ahead of the step the profile is at (so a profile may get
-#: one block it does not use), different profiles at different k0 in separate calls.
+#: profile's blocks are asked for in order (k0 = 0, n, 2n, …), one block ahead of the step the
+#: profile is at (so a profile may get one block it does not use), different profiles at
+#: different k0 in separate calls.
 NoiseSource = Callable[[np.ndarray, int, int], Tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
