@@ -151,7 +151,44 @@ class NoiseFalseAlarms:
         if len(rows["dwell_id"]) == 0:
             return detections, looks
         rows["det_id"] = rows["det_id"] + _next_det_id(detections)
+        return append_in_dwell_order(detections, rows, looks)
+
+
+def _non_decreasing(a) -> bool:
+    return len(a) < 2 or bool(np.all(a[1:] >= a[:-1]))
+
+
+def append_in_dwell_order(detections: Table, rows: Table, looks: Table) -> tuple:
+    """``reindex(noise.append_rows(detections, rows), looks)``, the same tables, by merging
+    instead of sorting when both are already in dwell order and numbered 0..n-1, n..n+m-1
+    (the usual case: a row's place is its own index plus the other table's rows before it,
+    those of an equal dwell counting for the new rows only; no argsort and no gather of every
+    column); otherwise through :func:`reindex`."""
+    d_dw = np.asarray(detections["dwell_id"])
+    r_dw = np.asarray(rows["dwell_id"])
+    n, m = len(d_dw), len(r_dw)
+    if not (d_dw.dtype == r_dw.dtype and _non_decreasing(d_dw) and _non_decreasing(r_dw)
+            and np.array_equal(detections["det_id"], np.arange(n))
+            and np.array_equal(rows["det_id"], np.arange(n, n + m))):
         return reindex(noise.append_rows(detections, rows), looks)
+    pos_d = np.arange(n) + np.searchsorted(r_dw, d_dw, side="left")
+    pos_r = np.arange(m) + np.searchsorted(d_dw, r_dw, side="right")
+    det = {}
+    for name, col in detections.items():
+        col = np.asarray(col)
+        out = np.empty(n + m, col.dtype)
+        out[pos_d] = col
+        out[pos_r] = np.asarray(rows[name])
+        det[name] = out
+    det["det_id"] = np.arange(n + m, dtype=np.int64)
+    looks = dict(looks)
+    ld = np.asarray(looks["det_id"], np.int64)
+    has = ld >= 0
+    if np.any(has):
+        new_ld = ld.copy()
+        new_ld[has] = pos_d[ld[has]]
+        looks["det_id"] = new_ld
+    return det, looks
 
 
 def _next_det_id(detections: Table) -> int:

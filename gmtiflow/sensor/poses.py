@@ -42,15 +42,46 @@ def chunk_poses(run: SensorRun, rev_ids: np.ndarray) -> Poses:
     cfg, n_d = run.cfg, run.sched.n_dwells
     dwell_ids = (rev_ids[:, None] * n_d + np.arange(n_d)[None, :]).ravel()
     time_s = run.sched.dwell_time_s(dwell_ids)
-    st = run.platform.state_at(time_s)
-    n = len(time_s)
-    pitch = st.get("pitch_rad", np.zeros(n))
-    b, h, u = antenna.antenna_axes(st["heading_rad"], pitch, st["bank_rad"],
-                                   math.radians(cfg.mount_deg))
+    shared = _shared_revisit_times(time_s, n_d)
+    if shared is not None:
+        # every dwell of a revisit at one instant (instant_scan): the platform and the axes
+        # once per revisit, repeated over its dwells (the same values: both are elementwise)
+        st, b, h, u = _poses_at(run, shared, cfg.mount_deg)
+        st = {k: _repeat(v, n_d, len(shared)) for k, v in st.items()}
+        b, h, u = (tuple(np.repeat(c, n_d) for c in v) for v in (b, h, u))
+    else:
+        st, b, h, u = _poses_at(run, time_s, cfg.mount_deg)
     pos = tuple(np.asarray(st[k], float) for k in ("x_m", "y_m", "z_m"))
     vel = tuple(np.asarray(st[k], float) for k in ("vx_mps", "vy_mps", "vz_mps"))
     return Poses(dwell_ids, len(rev_ids), np.asarray(time_s, float), pos, vel, b, h, u, st,
                  radius_m=frames.sphere_radius_m(run.origin))
+
+
+def _poses_at(run: SensorRun, time_s: np.ndarray, mount_deg: float):
+    """The platform's state table and the antenna axes ``b, h, u`` at ``time_s``."""
+    st = run.platform.state_at(time_s)
+    pitch = st.get("pitch_rad", np.zeros(len(time_s)))
+    b, h, u = antenna.antenna_axes(st["heading_rad"], pitch, st["bank_rad"],
+                                   math.radians(mount_deg))
+    return st, b, h, u
+
+
+def _shared_revisit_times(time_s: np.ndarray, n_d: int) -> Optional[np.ndarray]:
+    """The revisits' times when every dwell of each revisit (consecutive runs of ``n_d``
+    dwells) has its revisit's one time, else None."""
+    if n_d < 2 or len(time_s) == 0 or len(time_s) % n_d:
+        return None
+    per_rev = time_s.reshape(-1, n_d)
+    first = per_rev[:, 0]
+    return np.ascontiguousarray(first) if (per_rev == first[:, None]).all() else None
+
+
+def _repeat(value, n_d: int, n_rev: int):
+    """A per-revisit state column repeated over each revisit's ``n_d`` dwells (anything that
+    is not one value per revisit is kept as it is)."""
+    if isinstance(value, np.ndarray) and value.ndim == 1 and len(value) == n_rev:
+        return np.repeat(value, n_d)
+    return value
 
 
 def dwell_table(run: SensorRun, poses: Poses) -> Table:

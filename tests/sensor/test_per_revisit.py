@@ -1,0 +1,111 @@
+"""Shortcuts of the sensor stage for many dwells: bit-identical to the general formulation.
+
+* :func:`gmtiflow.sensor.poses.chunk_poses` evaluates the platform and the antenna axes once per
+  revisit when all its dwells share one instant (``instant_scan``).
+* :func:`gmtiflow.sensor.effects.append_in_dwell_order` merges the noise false alarms into the
+  detections instead of sorting the concatenation (:func:`gmtiflow.sensor.effects.reindex`).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from gmtiflow.scene.platform import Platform, PlatformConfig
+from gmtiflow.sensor import effects, noise, poses
+from gmtiflow.sensor.config import SensorConfig
+from sensor_fakes import ORIGIN, LevelPlatform, grid_fleet, run
+
+
+def _bits_equal(a, b):
+    for t in a:
+        assert a[t].keys() == b[t].keys(), t
+        for c in a[t]:
+            x, y = np.asarray(a[t][c]), np.asarray(b[t][c])
+            assert x.dtype == y.dtype and x.shape == y.shape, (t, c)
+            assert x.tobytes() == y.tobytes(), (t, c)
+
+
+class _Counting:
+    """A platform that records the length of every ``state_at`` call."""
+
+    def __init__(self, platform):
+        self.platform = platform
+        self.sizes = []
+
+    def state_at(self, time_s):
+        self.sizes.append(len(np.atleast_1d(time_s)))
+        return self.platform.state_at(time_s)
+
+
+def test_shared_revisit_times_only_when_every_dwell_of_a_revisit_shares_its_time():
+    t = np.repeat([0.5, 5.5, 10.5], 4)
+    assert np.array_equal(poses._shared_revisit_times(t, 4), [0.5, 5.5, 10.5])
+    t[5] += 1e-12                                   # one dwell off its revisit's instant
+    assert poses._shared_revisit_times(t, 4) is None
+    assert poses._shared_revisit_times(np.arange(8.0), 4) is None    # dwell-resolved times
+    assert poses._shared_revisit_times(np.zeros(6), 4) is None       # not whole revisits
+    assert poses._shared_revisit_times(np.zeros(4), 1) is None
+
+
+def _turning_platform():
+    # the real fixed-wing orbit: west looking north at the fleet, then turns, banks and climbs
+    cfg = PlatformConfig(waypoints_m=[[20000, -30000, 6000], [-20000, -30000, 7000],
+                                      [-20000, -50000, 6000], [20000, -50000, 6000]],
+                         speed_mps=150.0, turn_lead_s=20.0)
+    return Platform(cfg, ORIGIN)
+
+
+@pytest.mark.parametrize("make_platform", [lambda: LevelPlatform(bank_deg=3.0),
+                                           _turning_platform])
+def test_instant_scan_poses_per_revisit_are_bit_identical_to_per_dwell(monkeypatch,
+                                                                        make_platform):
+    cfg = replace(SensorConfig(), revisit_s=7.0)
+    fleet = grid_fleet(60)
+    platform = _Counting(make_platform())
+    kw = dict(duration_s=400.0, dwell_mode="instant_scan", chunk_pairs=300)
+    fast = run(cfg, fleet, platform, **kw)
+    n_d = cfg.normalised().n_dwells
+    n_rev = len(fast["dwells"]["dwell_id"]) // n_d
+    assert n_rev > 20 and sum(platform.sizes) == n_rev     # once per revisit, several chunks
+    platform.sizes.clear()
+    monkeypatch.setattr(poses, "_shared_revisit_times", lambda time_s, n_d: None)
+    slow = run(cfg, fleet, platform, **kw)
+    assert sum(platform.sizes) == n_rev * n_d               # once per dwell
+    assert len(fast["detections"]["det_id"]) > 0
+    _bits_equal(fast, slow)
+
+
+def _tables(g, n, m, n_dwells, unsorted=False):
+    d_dw = np.sort(g.integers(0, n_dwells, n)) + 100
+    r_dw = np.sort(g.integers(0, n_dwells, m)) + 100
+    if unsorted and n > 1:
+        d_dw = d_dw[::-1].copy()
+    det = {"det_id": np.arange(n, dtype=np.int64), "dwell_id": d_dw,
+           "x_m": g.normal(size=n), "merged": g.random(n) < 0.5,
+           "truth_id": g.integers(0, 9, n)}
+    rows = {"det_id": np.arange(n, n + m, dtype=np.int64), "dwell_id": r_dw,
+            "x_m": g.normal(size=m), "merged": np.zeros(m, bool),
+            "truth_id": np.full(m, -1, np.int64)}
+    k = 3 * n + 5
+    ld = np.full(k, -1, np.int64)
+    ld[g.choice(k, n, replace=False)] = g.permutation(n)
+    looks = {"det_id": ld, "outcome": g.integers(0, 6, k).astype(np.uint8)}
+    return det, rows, looks
+
+
+@pytest.mark.parametrize("n, m, n_dwells, unsorted", [
+    (50, 40, 10, False), (50, 40, 400, False), (0, 30, 5, False), (30, 0, 5, False),
+    (1, 1, 1, False), (60, 25, 8, True)])
+def test_append_in_dwell_order_equals_reindex_of_the_concatenation(n, m, n_dwells, unsorted):
+    g = np.random.default_rng(n * 1000 + m + n_dwells)
+    det, rows, looks = _tables(g, n, m, n_dwells, unsorted)
+    got_d, got_l = effects.append_in_dwell_order(det, rows, looks)
+    want_d, want_l = effects.reindex(noise.append_rows(det, rows), looks)
+    _bits_equal({"d": got_d, "l": got_l}, {"d": want_d, "l": want_l})
+    assert np.all(np.diff(got_d["dwell_id"]) >= 0)
+    # a target detection keeps its values, and its look points at it
+    hit = np.flatnonzero(got_l["det_id"] >= 0)
+    old = looks["det_id"][hit]
+    assert np.array_equal(got_d["x_m"][got_l["det_id"][hit]], det["x_m"][old])
