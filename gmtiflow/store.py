@@ -175,7 +175,7 @@ def _noise_planes(planes: np.ndarray) -> np.ndarray:
     than :data:`_NOISE_BITS` bits of entropy a byte and hardly a byte equal to the one before
     (the low bytes of measured floats).  Depends on the bytes only (deterministic files)."""
     k, n = planes.shape
-    if n < 4 * _SAMPLE_BLOCKS * _SAMPLE_BYTES:
+    if k == 0 or n < 4 * _SAMPLE_BLOCKS * _SAMPLE_BYTES:
         return np.zeros(k, bool)
     starts = np.linspace(0, n - _SAMPLE_BYTES, _SAMPLE_BLOCKS).astype(np.intp)
     sample = np.concatenate([planes[:, a:a + _SAMPLE_BYTES] for a in starts], axis=1)
@@ -200,30 +200,93 @@ def _stored_blocks(plane: np.ndarray) -> list:
     return out
 
 
+def _constant_planes(values: np.ndarray) -> np.ndarray:
+    """Which byte positions hold the same byte in every value of ``values`` (its constant byte
+    planes: the high bytes of ids, every byte of a constant column); none for an element size
+    with no unsigned integer of that size."""
+    k = values.dtype.itemsize
+    if k not in (1, 2, 4, 8) or not len(values):
+        return np.zeros(k, bool)
+    u = values.view(f"u{k}")
+    differ = np.bitwise_or.reduce(u ^ u[0])
+    return np.frombuffer(np.asarray(differ, u.dtype).tobytes(), np.uint8) == 0
+
+
+_SECTIONS: Dict[tuple, bytes] = {}
+"""Deflate sections of constant byte planes, by (byte, length): made once by a fresh
+compressor, so the same plane always gives the same bytes (deterministic files)."""
+
+
+def _constant_section(byte: int, n: int) -> bytes:
+    """``n`` bytes equal to ``byte``, deflated (``Z_RLE``) and ended by a full flush: a section
+    that refers to nothing before it, so any section may precede or follow it."""
+    key = (byte, n)
+    section = _SECTIONS.get(key)
+    if section is None:
+        z = zlib.compressobj(_DEFLATE_LEVEL, zlib.DEFLATED, -15, 8, zlib.Z_RLE)
+        section = z.compress(bytes((byte,)) * n) + z.flush(zlib.Z_FULL_FLUSH)
+        if len(_SECTIONS) >= 4096:
+            _SECTIONS.clear()
+        _SECTIONS[key] = section
+    return section
+
+
+def _adler32_run(adler: int, byte: int, n: int) -> int:
+    """``zlib.adler32(bytes((byte,)) * n, adler)`` without the bytes."""
+    a, b = adler & 0xFFFF, adler >> 16
+    b = (b + n * a + byte * n * (n + 1) // 2) % 65521
+    a = (a + n * byte) % 65521
+    return (b << 16) | a
+
+
 def _deflated_chunk(values: np.ndarray) -> bytes:
     """One HDF5 chunk through the filters of a gmtiflow column, shuffle then deflate: the bytes
     of element position j of every value together (HDF5's shuffle filter), then one zlib
     stream (HDF5's deflate filter inflates any).
 
-    Each byte plane is a section of that stream: one that looks like noise
-    (:func:`_noise_planes`) as stored blocks, any other deflated with zlib's run-length
-    strategy (``Z_RLE``: matches at distance 1 only; after the shuffle a column's redundancy is
-    in runs of equal bytes: exponents, constant columns) and ended by a full flush, after which
-    the compressor refers to nothing before (so stored blocks, or the next chunk, can follow).
-    One compressor per thread serves every chunk (a new one costs ~50 µs of page faults).  On
-    the columns of real runs this takes a half to a third of the CPU of HDF5's own level-1
-    deflate for 2-16 % more bytes (docs/tables.md).  zlib releases the GIL while compressing."""
+    Each byte plane is a section of that stream: one that holds a single byte value
+    (:func:`_constant_planes`: the high bytes of ids, every plane of a constant column) as a
+    cached section (:func:`_constant_section`; neither shuffled, checked for noise nor
+    checksummed byte by byte), one that looks like noise (:func:`_noise_planes`) as stored
+    blocks, any other deflated with zlib's run-length strategy (``Z_RLE``: matches at distance
+    1 only; after the shuffle a column's redundancy is in runs of equal bytes: exponents) and
+    ended by a full flush, after which the compressor refers to nothing before (so stored
+    blocks, other sections, or the next chunk, can follow).  One compressor per thread serves
+    every chunk (a new one costs ~50 µs of page faults).  On the columns of real runs this
+    takes a half to a third of the CPU of HDF5's own level-1 deflate for 2-16 % more bytes
+    (docs/tables.md).  zlib releases the GIL while compressing."""
     k = values.dtype.itemsize
     raw = values.view(np.uint8)
-    planes = raw.reshape(1, -1) if k == 1 else np.ascontiguousarray(raw.reshape(-1, k).T)
+    n = len(raw) // k
+    const = _constant_planes(values)
+    varying = np.flatnonzero(~const)
+    if len(varying) == k:
+        planes = raw.reshape(1, -1) if k == 1 else np.ascontiguousarray(raw.reshape(-1, k).T)
+    elif k == 1:
+        planes = raw.reshape(1, -1)[:0]
+    else:
+        planes = raw.reshape(-1, k).T[varying]       # the varying planes only (a copy)
+    noise = iter(_noise_planes(planes).tolist())
+    rows = iter(planes)
+    first = raw[:k].tolist()
     z = getattr(_local, "z", None)
     if z is None:
         z = _local.z = zlib.compressobj(_DEFLATE_LEVEL, zlib.DEFLATED, -15, 8, zlib.Z_RLE)
     parts = [_ZLIB_HEADER]
+    adler = 1
     open_section = False
     try:
-        for plane, noise in zip(planes, _noise_planes(planes)):
-            if noise:
+        for j in range(k):
+            if const[j]:
+                if open_section:
+                    parts.append(z.flush(zlib.Z_FULL_FLUSH))
+                    open_section = False
+                parts.append(_constant_section(first[j], n))
+                adler = _adler32_run(adler, first[j], n)
+                continue
+            plane = next(rows)
+            adler = zlib.adler32(plane, adler)
+            if next(noise):
                 if open_section:
                     parts.append(z.flush(zlib.Z_FULL_FLUSH))
                     open_section = False
@@ -236,7 +299,7 @@ def _deflated_chunk(values: np.ndarray) -> bytes:
     except BaseException:
         _local.z = None         # a compressor stopped mid-plane is not reused
         raise
-    parts += [_LAST_BLOCK, zlib.adler32(planes).to_bytes(4, "big")]
+    parts += [_LAST_BLOCK, adler.to_bytes(4, "big")]
     return b"".join(parts)
 
 

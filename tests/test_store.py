@@ -1,4 +1,6 @@
 """The run file is written atomically and read back exactly (DESIGN §6)."""
+import zlib
+
 import h5py
 import numpy as np
 import pytest
@@ -131,7 +133,10 @@ def test_deflated_chunk_is_what_the_hdf5_filters_decode(tmp_path):
     values = {"f": rng.normal(size=2 * n), "b": np.arange(2 * n) % 3 == 0,
               "u": rng.integers(0, 2**63, 2 * n, dtype=np.uint64),
               "mixed": _mixed_planes(2 * n), "zeros": np.zeros(2 * n, np.int64),
-              "runs": np.repeat(rng.normal(size=n // 8), 16)}
+              "runs": np.repeat(rng.normal(size=n // 8), 16),
+              "ids": np.arange(2 * n, dtype=np.int64), "minus_one": np.full(2 * n, -1.0),
+              "signed_zero": np.where(np.arange(2 * n) % 2 == 0, 0.0, -0.0),
+              "small": np.arange(2 * n, dtype=np.int16) % 7}
     with h5py.File(path, "w") as f:
         for name, v in values.items():
             ds = f.create_dataset(name, shape=v.shape, dtype=v.dtype,
@@ -142,6 +147,27 @@ def test_deflated_chunk_is_what_the_hdf5_filters_decode(tmp_path):
     with h5py.File(path) as f:
         for name, v in values.items():
             assert np.array_equal(f[name][()], v), name
+
+
+def test_constant_planes_are_found_and_checksummed_without_their_bytes():
+    """Byte planes that hold one byte value (ids' high bytes, constant columns) are sections
+    made once; the stream's checksum over them is zlib's (the inflater checks it)."""
+    n = 1000
+    assert store._constant_planes(np.arange(n, dtype=np.int64)).tolist() == \
+        [False, False] + [True] * 6
+    assert store._constant_planes(np.full(n, -1.0)).all()
+    assert store._constant_planes(np.array([0.0, -0.0])).tolist() == [True] * 7 + [False]
+    assert store._constant_planes(np.ones(n, bool)).tolist() == [True]
+    rng = np.random.default_rng(4)
+    for byte, count in ((0, 1), (255, 5552), (7, 5553), (128, 300_000)):
+        adler = zlib.adler32(rng.bytes(77))
+        assert store._adler32_run(adler, byte, count) == \
+            zlib.adler32(bytes((byte,)) * count, adler)
+    for values in (np.full(n, 3.5), np.arange(n, dtype=np.int64), np.zeros(n, bool)):
+        raw = zlib.decompress(store._deflated_chunk(values))
+        k = values.dtype.itemsize
+        back = np.frombuffer(raw, np.uint8).reshape(k, n).T.copy().view(values.dtype).ravel()
+        assert back.tobytes() == values.tobytes()
 
 
 def test_noise_planes_are_stored_and_the_rest_deflated():
