@@ -126,11 +126,17 @@ class ChunkContext:
 
     def range_rate_of_ground(self, dwell_id, x_m, y_m, z_m):
         """ṙ_MLC = −v_p·ℓ of ground points (the clutter's range rate, m/s)."""
+        return self.range_and_ground_rate(dwell_id, x_m, y_m, z_m)[1]
+
+    def range_and_ground_rate(self, dwell_id, x_m, y_m, z_m):
+        """(slant range m, ṙ_MLC m/s) of ground points from one line of sight: the values of
+        :meth:`antenna_angles`' range and :meth:`range_rate_of_ground`, without their angles
+        and without computing the line of sight twice."""
         k = self._local(dwell_id)
-        _, los = self._line_of_sight(k, x_m, y_m, z_m)
+        rng_m, los = self._line_of_sight(k, x_m, y_m, z_m)
         vel = geometry.true_velocity(tuple(self.dwells[f"platform_v{c}_mps"][k] for c in "xyz"),
                                      self._platform(k)[2], self.radius_m)
-        return geometry.clutter_range_rate(vel, los)
+        return rng_m, geometry.clutter_range_rate(vel, los)
 
     def geolocate(self, dwell_id, range_m, azimuth_rad):
         """Ground points ``(x, y, z)`` and ``reached`` of measured slant ranges and *world*

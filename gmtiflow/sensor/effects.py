@@ -303,7 +303,8 @@ class Ambiguities:
         cfg = self.cfg
         d = ctx.dwells
         k = _local_rows(ctx, detections["dwell_id"])
-        out = {name: np.array(col, copy=True) for name, col in detections.items()}
+        # a new table: the columns set here are new arrays, those written in place are copied
+        out = dict(detections)
         ground_rr = ctx.range_rate_of_ground(detections["dwell_id"], out["x_m"], out["y_m"],
                                              out["z_m"])
         own_rr = out["range_rate_mps"] - ground_rr
@@ -318,6 +319,8 @@ class Ambiguities:
         out["range_folded"] = folded
         out["implausible"] = amb["implausible"]
         if np.any(folded):
+            for name in ("range_m", "x_m", "y_m", "z_m", "lat_deg", "lon_deg", "height_m"):
+                out[name] = np.array(out[name], copy=True)
             rows = np.flatnonzero(folded)
             out["range_m"][rows] = amb["range_m"][rows]
             reached = _set_ground(ctx, out, rows, out["dwell_id"][rows], out["range_m"][rows],

@@ -137,9 +137,9 @@ def false_alarm_rows(ctx, cfg: SensorConfig, dwell_id, x, y, z, own_rr, snr_lin,
     d = ctx.dwells
     m = len(dwell_id)
     k = np.asarray(dwell_id, np.int64) - int(d["dwell_id"][0])
-    rng_m, _, _ = ctx.antenna_angles(dwell_id, x, y, z)
+    rng_m, ground_rr = ctx.range_and_ground_rate(dwell_id, x, y, z)
     az = _world_azimuth(x - d["platform_x_m"][k], y - d["platform_y_m"][k])
-    rr = ctx.range_rate_of_ground(dwell_id, x, y, z) + own_rr
+    rr = ground_rr + own_rr
     bw = scan.broadened_beamwidth_rad(cfg, d["beam_scan_rad"][k])
     s_r, s_az, s_rr = measurement.sigmas(cfg, snr_lin, bw)
     lat, lon, h = frames.enu_to_geodetic(ctx.origin, x, y, z)

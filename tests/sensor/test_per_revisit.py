@@ -109,3 +109,56 @@ def test_append_in_dwell_order_equals_reindex_of_the_concatenation(n, m, n_dwell
     hit = np.flatnonzero(got_l["det_id"] >= 0)
     old = looks["det_id"][hit]
     assert np.array_equal(got_d["x_m"][got_l["det_id"][hit]], det["x_m"][old])
+
+
+def test_range_and_ground_rate_is_the_antenna_range_and_the_ground_rate_bit_for_bit():
+    from gmtiflow.sensor import geometry
+    seen = []
+
+    def check(ctx, det, looks):
+        if len(det["dwell_id"]) < 2:
+            return det, looks
+        dw, x, y, z = det["dwell_id"], det["x_m"], det["y_m"], det["z_m"] + 3.0
+        rng_m, rate = ctx.range_and_ground_rate(dw, x, y, z)
+        want_r, _, _ = ctx.antenna_angles(dw, x, y, z)
+        # the former range_rate_of_ground, written out: −v_p·ℓ with its own line of sight
+        k = np.asarray(dw, np.int64) - int(ctx.dwells["dwell_id"][0])
+        plat = tuple(ctx.dwells[f"platform_{c}_m"][k] for c in "xyz")
+        _, los = geometry.line_of_sight(plat, (x, y, z), ctx.radius_m)
+        vel = geometry.true_velocity(tuple(ctx.dwells[f"platform_v{c}_mps"][k] for c in "xyz"),
+                                     plat[2], ctx.radius_m)
+        want_rate = -(vel[0] * los[0] + vel[1] * los[1] + vel[2] * los[2])
+        assert rng_m.tobytes() == want_r.tobytes()
+        assert rate.tobytes() == want_rate.tobytes()
+        assert ctx.range_rate_of_ground(dw, x, y, z).tobytes() == want_rate.tobytes()
+        assert np.ptp(rate) > 1.0                    # the platform moves: rates differ
+        seen.append(len(dw))
+        return det, looks
+
+    run(SensorConfig(stap=False, mdv_mps=0.0), grid_fleet(200, speed=0.0), duration_s=11.0,
+        effects=[check])
+    assert sum(seen) > 0
+
+
+def test_ambiguities_leave_their_input_table_untouched_and_set_folded_rows():
+    # the effect shares the columns it does not change with its input: the ones it writes in
+    # place (folded reports: range and ground position) must be copies
+    cfg = SensorConfig(pri_s=1.8e-4, stap=False, mdv_mps=0.0)   # c·PRI/2 = 27 km: folds
+    amb = effects.Ambiguities(cfg)
+    seen = []
+
+    def check(ctx, det, looks):
+        before = {k: np.array(v, copy=True) for k, v in det.items()}
+        out, _ = amb(ctx, det, looks)
+        for k in det:
+            assert np.asarray(det[k]).tobytes() == before[k].tobytes(), k
+        folded = np.asarray(out["range_folded"])
+        if folded.any():
+            assert np.all(out["range_m"][folded] < before["range_m"][folded])
+            assert not np.array_equal(out["x_m"][folded], before["x_m"][folded],
+                                      equal_nan=True)
+        seen.append(int(folded.sum()))
+        return out, looks
+
+    run(cfg, grid_fleet(200, speed=0.0), duration_s=11.0, effects=[check])
+    assert sum(seen) > 0
