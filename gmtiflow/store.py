@@ -153,9 +153,8 @@ def _auto_chunk_rows(itemsize: int) -> int:
 
 
 def _set_text_attr(oid, name: bytes, value: str) -> None:
-    """Attribute ``name`` = ``value``, a scalar UTF-8 string (as ``attrs[name] = value``)."""
-    if h5a.exists(oid, name):
-        h5a.delete(oid, name)
+    """Attribute ``name`` = ``value``, a scalar UTF-8 string (as ``attrs[name] = value``), of an
+    object that has none of that name (a column just created)."""
     attr = h5a.create(oid, name, _STR_TYPE, _SCALAR_SPACE)
     try:
         attr.write(np.array(value, dtype=_STR), mtype=_STR_MEMORY_TYPE)
@@ -163,6 +162,8 @@ def _set_text_attr(oid, name: bytes, value: str) -> None:
         attr.close()
 
 
+_SMALL_BYTES = 4096
+"""Chunks smaller than this are deflated in one zlib call (:func:`_deflated_chunk`)."""
 _NOISE_BITS = 7.7
 """A byte plane whose sample has more entropy than this (bits a byte, of 8; a sample of
 uniformly random bytes has ~7.91) is stored, not deflated: deflate would spend ~7 ms a MB on it
@@ -260,9 +261,13 @@ def _deflated_chunk(values: np.ndarray) -> bytes:
     blocks, other sections, or the next chunk, can follow).  One compressor per thread serves
     every chunk (a new one costs ~50 µs of page faults).  On the columns of real runs this
     takes a half to a third of the CPU of HDF5's own level-1 deflate for 2-16 % more bytes
-    (docs/tables.md).  zlib releases the GIL while compressing."""
+    (docs/tables.md).  zlib releases the GIL while compressing.  A chunk of fewer than
+    :data:`_SMALL_BYTES` is shuffled and deflated whole, as HDF5's filters would."""
     k = values.dtype.itemsize
     raw = values.view(np.uint8)
+    if raw.nbytes < _SMALL_BYTES:      # one zlib call: the planes' analysis costs more
+        return zlib.compress(raw if k == 1 else np.ascontiguousarray(raw.reshape(-1, k).T),
+                             _DEFLATE_LEVEL)
     n = len(raw) // k
     const = _constant_planes(values)
     varying = np.flatnonzero(~const)
