@@ -98,6 +98,12 @@ _STR = h5py.string_dtype("utf-8")
 _DEFLATE_LEVEL = 1
 _INLINE_BYTES = 16 * 1024
 """Chunks smaller than this are deflated on the calling thread (:class:`_ChunkDeflater`)."""
+_INLINE_RUN_BYTES = 64 * 2**20
+"""A run's first this many bytes of columns are deflated on the calling thread, the rest in
+worker threads (:class:`_ChunkDeflater`): the threads cost CPU of their own (starting them, and
+handing the GIL to and fro around every zlib call: ~0.02 s on the 19 MB of the 10-target Stone
+Soup peer run, on 2 cores; docs/scale.md), which only a run big enough to keep them busy
+repays in wall time."""
 
 # The run file's objects are made with h5py's low-level API: ``Group.create_dataset`` and
 # ``attrs[...] =`` rebuild the same property lists, types and dataspaces for every column
@@ -312,12 +318,15 @@ class _ChunkDeflater:
     order they were submitted and at points that do not depend on the threads' timing, so the
     file's layout does not either; at most :attr:`max_pending` chunks wait in memory.  A chunk
     of fewer than :data:`_INLINE_BYTES` is compressed and written at once on the calling thread
-    (a thread hand-off costs more than its deflate); which chunks those are depends on their
-    sizes only, so the order of the HDF5 calls still does not depend on the threads.
+    (a thread hand-off costs more than its deflate), and so is every chunk until
+    ``inline_bytes`` have been (a small run: :data:`_INLINE_RUN_BYTES`); which chunks those are
+    depends on their sizes only, so the order of the HDF5 calls still does not depend on the
+    threads.
     """
 
-    def __init__(self, workers: int, max_pending: int = 64):
+    def __init__(self, workers: int, max_pending: int = 64, inline_bytes: int = 0):
         self.workers = workers
+        self.inline_bytes = inline_bytes       # left to deflate on the calling thread
         self.pool: Optional[ThreadPoolExecutor] = None     # started with the first big chunk
         self.max_pending = max_pending
         self.pending: deque = deque()
@@ -339,7 +348,8 @@ class _ChunkDeflater:
 
     def _submit(self, dsid, offset: int, chunk: np.ndarray) -> None:
         chunk = np.ascontiguousarray(chunk)
-        if self.workers <= 0 or chunk.nbytes < _INLINE_BYTES:
+        if self.workers <= 0 or chunk.nbytes < _INLINE_BYTES or self.inline_bytes > 0:
+            self.inline_bytes -= chunk.nbytes
             dsid.write_direct_chunk((offset,), _deflated_chunk(chunk))
             return
         if self.pool is None:
@@ -403,6 +413,10 @@ class RunWriter:
     destructors and can crash the process.  So before each block the writer checks that the
     disk keeps :data:`MIN_FREE_BYTES` beyond twice the block, and otherwise raises StoreError
     (the temporary is deleted; one clear message instead of a segfault).
+
+    ``deflate_workers``: threads compressing the columns (0: none, all on the calling thread);
+    by default up to 4, started only after the run's first :data:`_INLINE_RUN_BYTES` of columns.
+    The file is the same whatever the threads.
     """
 
     def __init__(self, path: os.PathLike, *, seed: int, attrs: Optional[Mapping] = None,
@@ -412,9 +426,10 @@ class RunWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._check_space(0)
         self._committed = False
-        if deflate_workers is None:
-            deflate_workers = min(4, os.cpu_count() or 1)
-        self._deflater = _ChunkDeflater(deflate_workers)
+        inline = 0
+        if deflate_workers is None:     # threads only once the run is big enough to repay them
+            deflate_workers, inline = min(4, os.cpu_count() or 1), _INLINE_RUN_BYTES
+        self._deflater = _ChunkDeflater(deflate_workers, inline_bytes=inline)
         try:
             self._file = h5py.File(self.tmp_path, "w", track_order=True)
             root = self._file.attrs

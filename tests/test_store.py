@@ -1,4 +1,5 @@
 """The run file is written atomically and read back exactly (DESIGN §6)."""
+import threading
 import zlib
 
 import h5py
@@ -85,6 +86,31 @@ def test_same_content_gives_identical_bytes(tmp_path):
             w.commit()
         paths.append(path)
     assert paths[0].read_bytes() == paths[1].read_bytes()
+
+
+def test_a_small_run_compresses_without_threads(tmp_path, monkeypatch):
+    """By default the deflate threads start only once a run has handed over
+    _INLINE_RUN_BYTES of columns (below that they cost more CPU than they save); the values
+    are those written with threads from the start."""
+    def deflate_threads():
+        return [t for t in threading.enumerate() if t.name.startswith("deflate")]
+
+    monkeypatch.setattr(store, "_INLINE_RUN_BYTES", 2 * store._CHUNK_ROWS * (3 * 8 + 1))
+    paths = []
+    for workers in (None, 2):
+        path = tmp_path / f"run_{workers}.h5"
+        with store.RunWriter(path, seed=1, deflate_workers=workers) as w:
+            w.append_table("looks", table(2 * store._CHUNK_ROWS))
+            assert bool(deflate_threads()) == (workers == 2)
+            w.append_table("looks", table(2 * store._CHUNK_ROWS))    # past the budget
+            assert deflate_threads()
+            w.commit()
+        paths.append(path)
+    assert not deflate_threads()
+    a, b = (store.read_table(p, "looks") for p in paths)
+    for column, values in table(2 * store._CHUNK_ROWS).items():
+        assert np.array_equal(a[column], np.concatenate([values, values])), column
+        assert np.array_equal(b[column], a[column]), column
 
 
 @pytest.mark.parametrize("workers", [0, 2])
