@@ -70,7 +70,7 @@ def poisson_ppf(q, mean) -> np.ndarray:
     ``pdtr(k, μ)`` by bisection instead, ~10× cheaper than pdtrik per value: the same k, as
     pdtrik's root is within ~1e-10 (relative) of the true one, so its ceiling can only differ
     when q lies within that of the CDF at k − 1; those q (within 1e-6), q at the table's end
-    and every other mean go through pdtrik.  tests/sensor/test_noise_ppf.py compares both.
+    and every other mean go through pdtrik.  tests/sensor/test_noise.py compares both.
     """
     q, mean = np.broadcast_arrays(np.asarray(q, float), np.asarray(mean, float))
     out = np.empty(q.shape)
