@@ -80,10 +80,22 @@ def _ecef_to_lat_lon_deg(x, y, z):
         lat, lon, _ = pymap3d.ecef2geodetic(x, y, z)
         return lat, lon
     a, b = _WGS84.semimajor_axis, _WGS84.semiminor_axis
-    r = np.sqrt(x**2 + y**2 + z**2)
+    # pymap3d's expressions with their temporaries reused (in place: the same operations on
+    # the same operands in the same order, so the same values; x**2 is x*x in numpy)
+    r2 = x * x
+    t = y * y
+    r2 += t
+    np.multiply(z, z, out=t)
+    r2 += t
+    r = np.sqrt(r2, out=r2)                 # r = √(x² + y² + z²)
     E = np.sqrt(a**2 - b**2)
-    r2_e2 = r**2 - E**2
-    u = np.sqrt(0.5 * r2_e2 + 0.5 * np.hypot(r2_e2, 2 * E * z))
+    r2_e2 = np.square(r, out=r)
+    r2_e2 -= E**2                           # r² − E²
+    t = np.hypot(r2_e2, 2 * E * z)
+    t *= 0.5
+    u = r2_e2 * 0.5
+    u += t
+    u = np.sqrt(u, out=u)                   # √(0.5 (r² − E²) + 0.5 hypot(r² − E², 2Ez))
     hxy = np.hypot(x, y)
     huE = np.hypot(u, E)
     lim_pi2 = math.pi / 2 - np.finfo(float).eps
@@ -91,15 +103,30 @@ def _ecef_to_lat_lon_deg(x, y, z):
     if np.any(np.abs(u) <= 1e-8) or np.any(np.abs(hxy) <= 1e-8):
         lat, lon, _ = pymap3d.ecef2geodetic(x, y, z)
         return lat, lon
-    beta = np.arctan(huE / u * z / hxy)
+    beta = huE / u
+    beta *= z
+    beta /= hxy
+    beta = np.arctan(beta, out=beta)        # arctan(huE / u · z / hxy)
     # pymap3d writes a·huE·1/cos β − E² cos β: ·1 is exact, so cos β is taken once
     cos_beta = np.cos(beta)
-    beta += ((b * u - a * huE + E**2) * np.sin(beta)) / (a * huE / cos_beta - E**2 * cos_beta)
+    num = b * u
+    num -= a * huE
+    num += E**2
+    num *= np.sin(beta)                     # (b u − a huE + E²) sin β
+    den = a * huE
+    den /= cos_beta
+    cos_beta *= E**2
+    den -= cos_beta                         # a huE / cos β − E² cos β
+    num /= den
+    beta += num
     if np.any(np.abs(beta) >= lim_pi2):
         lat, lon, _ = pymap3d.ecef2geodetic(x, y, z)
         return lat, lon
-    lat = np.arctan(a / b * np.tan(beta))
-    return np.degrees(lat), np.degrees(np.arctan2(y, x))
+    lat = np.tan(beta, out=beta)
+    lat *= a / b
+    lat = np.arctan(lat, out=lat)
+    lon = np.arctan2(y, x)
+    return np.degrees(lat, out=lat), np.degrees(lon, out=lon)
 
 
 def enu_to_geodetic(origin: Origin, x_m, y_m, z_m):

@@ -38,3 +38,29 @@ def test_enu_to_geodetic_is_pymap3d_bit_for_bit(origin):
     assert np.array_equal(h, origin.height_m + z)
     lat1, lon1, _ = frames.enu_to_geodetic(origin, x[5], y[5], z[5])      # scalars too
     assert float(lat1) == want_lat[5] and float(lon1) == want_lon[5]
+
+
+def test_ecef_to_lat_lon_is_pymap3ds_bit_for_bit():
+    """frames._ecef_to_lat_lon_deg rewrites pymap3d.ecef2geodetic's arithmetic (in place, no
+    altitude): the same latitudes and longitudes, bit for bit, everywhere on the earth and at
+    aircraft heights, and through pymap3d itself at the poles."""
+    import pymap3d
+
+    from gmtiflow import frames
+    g = np.random.default_rng(4)
+    n = 5000
+    lat, lon = g.uniform(-89.9, 89.9, n), g.uniform(-180.0, 180.0, n)
+    h = g.uniform(-500.0, 20_000.0, n)
+    x, y, z = pymap3d.geodetic2ecef(lat, lon, h)
+    want_lat, want_lon, _ = pymap3d.ecef2geodetic(x, y, z)
+    got_lat, got_lon = frames._ecef_to_lat_lon_deg(x, y, z)
+    assert got_lat.tobytes() == np.asarray(want_lat, float).tobytes()
+    assert got_lon.tobytes() == np.asarray(want_lon, float).tobytes()
+    assert np.allclose(got_lat, lat, atol=1e-9) and np.allclose(got_lon, lon, atol=1e-9)
+    # the inputs are not written to (the temporaries are the function's own)
+    assert np.array_equal((x, y, z), pymap3d.geodetic2ecef(lat, lon, h))
+    px, py, pz = (np.append(c, 0.0) for c in (x[:3], y[:3], z[:3]))     # one on the axis
+    pz[-1] = 6_356_752.0
+    p_lat, p_lon = frames._ecef_to_lat_lon_deg(px, py, pz)
+    w_lat, w_lon, _ = pymap3d.ecef2geodetic(px, py, pz)
+    assert np.array_equal(p_lat, w_lat) and np.array_equal(p_lon, w_lon)

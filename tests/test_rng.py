@@ -81,3 +81,19 @@ def test_pair_hash_is_the_splitmix_chain_and_mixed_counters_gather():
     i, j = g.integers(0, dwells.size, 500), g.integers(0, vehicles.size, 500)
     gathered = rng.Counters(mixed=[rng.mix_counter(dwells)[i], rng.mix_counter(vehicles)[j]])
     assert np.array_equal(gathered.normal(key), rng.pair_normal(key, dwells[i], vehicles[j]))
+
+
+def test_counters_with_a_mixed_scalar_channel_are_pair_uniform_bit_for_bit():
+    """noise.draw mixes (dwell, index) once and adds each channel's mixed scalar: the same
+    values as rng.pair_uniform(key, dwell, index, channel)."""
+    g = np.random.default_rng(3)
+    d = np.sort(g.integers(0, 10**9, 2000))
+    i = g.integers(0, 40, 2000)
+    key = rng.counter_key(11, "sensor", "noise_false_alarms")
+    mixed = [rng.mix_counter(d), rng.mix_counter(i)]
+    draws = []
+    for ch in range(5):
+        got = rng.Counters(mixed=mixed + [rng.mix_counter(ch)]).uniform(key)
+        assert got.tobytes() == rng.pair_uniform(key, d, i, ch).tobytes()
+        draws.append(got)
+    assert not np.array_equal(draws[0], draws[1])        # the channel does change the draw

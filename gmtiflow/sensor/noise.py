@@ -70,7 +70,7 @@ def poisson_ppf(q, mean) -> np.ndarray:
     ``pdtr(k, μ)`` by bisection instead, ~10× cheaper than pdtrik per value: the same k, as
     pdtrik's root is within ~1e-10 (relative) of the true one, so its ceiling can only differ
     when q lies within that of the CDF at k − 1; those q (within 1e-6), q at the table's end
-    and every other mean go through pdtrik.  tests/sensor/test_noise_ppf.py compares both.
+    and every other mean go through pdtrik.  tests/sensor/test_noise.py compares both.
     """
     q, mean = np.broadcast_arrays(np.asarray(q, float), np.asarray(mean, float))
     out = np.empty(q.shape)
@@ -175,16 +175,23 @@ def draw(ctx, cfg: SensorConfig, seed: int) -> Table:
     counts = poisson_counts(key, dwell_id, cfg.expected_false_alarms_per_dwell)
     batch, index = expand(counts)
     did = dwell_id[batch]
+    # (dwell_id, index) mixed once for the four channels: rng.pair_uniform(key, did, index,
+    # channel), bit for bit (rng.Counters)
+    mixed = [rng.mix_counter(did), rng.mix_counter(index)]
+
+    def uniform(channel):
+        return rng.Counters(mixed=mixed + [rng.mix_counter(channel)]).uniform(key)
+
     r0 = cfg.range_min_m
     r1 = cfg.range_max_m if cfg.pri_s is None else min(cfg.range_max_m, C_MPS * cfg.pri_s / 2.0)
-    range_m = r0 + (r1 - r0) * rng.pair_uniform(key, did, index, _CH_RANGE)
+    range_m = r0 + (r1 - r0) * uniform(_CH_RANGE)
     lo, hi = ctx.dwell_cell_rad(dwell_id)
     u_lo, u_hi = np.sin(lo), np.sin(hi)
-    u = u_lo[batch] + (u_hi - u_lo)[batch] * rng.pair_uniform(key, did, index, _CH_ANGLE)
+    u = u_lo[batch] + (u_hi - u_lo)[batch] * uniform(_CH_ANGLE)
     az = np.arcsin(u)
     half = cfg.range_rate_band_mps
-    own_rr = half * (2.0 * rng.pair_uniform(key, did, index, _CH_RR) - 1.0)
-    snr_lin = detect.false_alarm_snr(rng.pair_uniform(key, did, index, _CH_SNR), cfg.pfa)
+    own_rr = half * (2.0 * uniform(_CH_RR) - 1.0)
+    snr_lin = detect.false_alarm_snr(uniform(_CH_SNR), cfg.pfa)
     plat = tuple(np.asarray(d[f"platform_{c}_m"], float)[batch] for c in "xyz")
     ground, el, reached = geolocate.geolocate(plat, range_m, az,
                                               antenna.take(ctx.boresight, batch),
