@@ -22,10 +22,10 @@ same config and seed give byte-identical datasets.
 Writing speed: every numeric column is compressed by :class:`_ChunkDeflater`, which applies
 the datasets' own filters (shuffle, then deflate, :func:`_deflated_chunk`; byte planes that are
 noise go into the deflate stream as stored blocks) on the calling thread for a run's first
-:data:`_INLINE_RUN_BYTES`, then in worker threads while the simulation goes on, and writes the finished chunks in order with HDF5's direct chunk write.  The datasets and
-their attributes are made with h5py's low-level API from property lists built once.  The file
-is the same standard gzip + shuffle HDF5 file, with the same values, readable by any HDF5
-reader.
+:data:`_INLINE_RUN_BYTES`, then in worker threads while the simulation goes on, and writes the
+finished chunks in order with HDF5's direct chunk write.  The datasets and their attributes are
+made with h5py's low-level API from property lists built once.  The file is the same standard
+gzip + shuffle HDF5 file, with the same values, readable by any HDF5 reader.
 """
 from __future__ import annotations
 
