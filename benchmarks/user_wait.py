@@ -71,15 +71,16 @@ def run_once(overrides: list[str], run_dir: Path) -> dict:
     if run_dir.exists():
         shutil.rmtree(run_dir)
     cmd = gmtiflow_command() + overrides + [f"hydra.run.dir={run_dir}"]
-    start = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - start
-    stderr = proc.stderr.read().decode(errors="replace")
-    proc.stderr.close()
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode:
-        raise SystemExit(f"{' '.join(cmd)} exited {proc.returncode}:\n{stderr[-3000:]}")
+    with tempfile.TemporaryFile() as err:       # a file, not a pipe: it never fills up
+        start = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - start
+        proc.returncode = os.waitstatus_to_exitcode(status)     # reaped here, not by Popen
+        if proc.returncode:
+            err.seek(0)
+            stderr = err.read().decode(errors="replace")
+            raise SystemExit(f"{' '.join(cmd)} exited {proc.returncode}:\n{stderr[-3000:]}")
     stages = {}
     log = run_dir / "gmtiflow.log"
     for m in STAGE_LINE.finditer(log.read_text() if log.exists() else ""):
