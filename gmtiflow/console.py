@@ -6,7 +6,8 @@
 * :func:`run_summary` — the end-of-run block: detections (targets / false alarms / merged),
   P_D achieved, tracks, OSPA/GOSPA and the files written, read back from the finished run file.
 * :func:`progress` — a tqdm bar for the slow steps after the simulation (export, report): only
-  on a terminal, and only once the step has taken 2 s, so short runs and logs stay quiet.
+  on a terminal, and only once the step has taken 2 s, so short runs and logs stay quiet (the
+  simulation stages' bars are in :mod:`gmtiflow.bars`).
 * :func:`discard_failed_run_dir` — a run that failed before finishing any stage (a config
   range error, a missing map file) leaves no empty run directory behind; a log that records
   finished stages is worth keeping and stays.
@@ -21,6 +22,8 @@ import re
 import shutil
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
+
+from gmtiflow.bars import on_terminal
 
 VERBOSE_FLAGS = ("-v", "--verbose")
 
@@ -82,6 +85,8 @@ PROGRESS_DELAY_S = 2.0
 def progress(items, desc: str, unit: str, *, file=None, delay_s: float = PROGRESS_DELAY_S):
     """``items`` wrapped in a tqdm bar that shows on a terminal (``file``, default stderr) and
     only after ``delay_s``; elsewhere (a log, a pipe, a test) it writes nothing."""
+    if not on_terminal(file):
+        return items
     from tqdm import tqdm
     return tqdm(items, desc=desc, unit=unit, leave=False, delay=delay_s, disable=None, file=file)
 

@@ -12,9 +12,8 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
-from tqdm import tqdm
 
-from gmtiflow import rundir
+from gmtiflow import bars, rundir
 from gmtiflow.coverage import sensors_table
 from gmtiflow.config import AppConfig, SensorSlot
 from gmtiflow.errors import GmtiflowError
@@ -234,8 +233,8 @@ def truth_table(state: RunState):
     cfg, fleet = state.cfg, state.values["truth"]
     times = _sample_times(cfg)
     sink = state.sink("truth")
-    for tt in tqdm(time_chunks(times, cfg.chunk_s), desc="truth table", unit="chunk",
-                   leave=False, disable=None if cfg.progress else True):
+    for tt in bars.stage_progress(time_chunks(times, cfg.chunk_s), cfg.progress,
+                                  desc="truth table", unit="chunk", leave=False):
         sink.append(fleet.truth_table(tt))
     if not len(times):
         sink.append(fleet.truth_table(times))
@@ -295,8 +294,9 @@ def write_sensor(state: RunState, chunks, slot: SensorSlot):
             {"sensor": {"revisit_s": slot.sensor.revisit_s},
              "clutter": {"fov_density_per_km2": state.cfg.clutter.fov_density_per_km2}})
     counts = dict.fromkeys(("dwells", "detections", "fa", "merged", "looks", "detected"), 0)
-    for dw, det, look in tqdm(chunks, desc=f"sensor {slot.name}", unit="chunk", leave=False,
-                              disable=None if state.cfg.progress else True):
+    for dw, det, look in bars.stage_progress(chunks, state.cfg.progress,
+                                             desc=f"sensor {slot.name}", unit="chunk",
+                                             leave=False):
         anc = detection_ancestors(det, look)
         dw, det, look = _as_run_wide(slot.sensor_id, dwell0, det0, dw, det, look)
         if state.live is not None:          # export.stream: out on the network as simulated

@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from gmtiflow import console
+from gmtiflow import bars, console
 
 
 def _cli(cwd: Path, *args):
@@ -107,3 +107,37 @@ def test_progress_bar_only_on_a_terminal_and_only_for_slow_steps():
     assert "export:" in slow.getvalue() and "/3 [" in slow.getvalue()   # the bar
     list(console.progress(range(3), "report", "page", file=fast))   # done within 2 s
     assert fast.getvalue() == ""
+
+
+def test_stage_bars_only_when_asked_for_and_on_a_terminal(monkeypatch):
+    items = [1, 2, 3]
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    assert bars.stage_progress(items, True) is items            # a pipe: no bar at all
+    bar = bars.stage_counter(3, True)
+    bar.update(3), bar.close()
+    assert sys.stderr.getvalue() == ""
+    term = _Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    assert bars.stage_progress(items, False) is items           # progress=false
+    assert list(bars.stage_progress(items, True, desc="truth table")) == items
+    assert "truth table:" in term.getvalue() and "3/3" in term.getvalue()
+    bar = bars.stage_counter(5, True, desc="truth", file=term)
+    bar.update(5), bar.close()
+    assert "truth:" in term.getvalue() and "5/5" in term.getvalue()
+
+
+def test_a_run_without_a_terminal_never_imports_tqdm(tmp_path):
+    """A bar that is not shown costs nothing: tqdm (and the multiprocessing lock it makes)
+    is never imported by a run whose stderr is a pipe, progress on or off."""
+    code = ("import sys\n"
+            "from gmtiflow.compose import compose\n"
+            "from gmtiflow import pipeline\n"
+            "for p in ('true', 'false'):\n"
+            "    pipeline.run(compose(['scene.duration_s=30', 'report=none', 'export=none',\n"
+            "                          'cache.enabled=false', f'progress={p}']), sys.argv[1] + p)\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in\n"
+            "             ('tqdm', 'multiprocessing')))\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(tmp_path / "run")],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip().splitlines()[-1] == "[]"

@@ -108,6 +108,8 @@ from typing import Callable, Optional, Tuple
 
 import numpy as np
 
+from gmtiflow import bars
+
 TRACK, BRAKE_RANDOM, STOPPED, BRAKE_POINT = 0, 1, 2, 4
 MODE_CRUISE, MODE_DECEL, MODE_STOPPED, MODE_ACCEL = 0, 1, 2, 3
 _BRIDGE_GUARD = np.sqrt(2.0) - 1.0     # max of q^{-1/2} - 1 (kappa <= 2)
@@ -992,9 +994,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         # -- profiles that are done or at their horizon leave the active set
         done[ids] = ~((s_end < length_all[ids]) & (horizon[ids] > kk + 1))
 
-    from tqdm import tqdm     # imported here: start-up time of the CLI
-    bar = tqdm(total=K, desc="truth", unit="step", leave=False,
-               disable=None if progress else True, mininterval=0.5)
+    bar = bars.stage_counter(K, progress, desc="truth", unit="step", leave=False,
+                             mininterval=0.5)
     act = np.arange(P)
     fill(act, np.zeros(P, np.int64), 1)
     more = act[horizon > W]

@@ -32,9 +32,9 @@ from typing import Dict, Iterable, Iterator, Optional, Tuple
 
 import numpy as np
 
-from tqdm import tqdm
 
 from gmtiflow import frames
+from gmtiflow import bars
 from gmtiflow.sensor import scan
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.context import ChunkContext, Effect, SensorRun
@@ -276,8 +276,8 @@ def simulate(cfg: SensorConfig, fleet, platform, terrain, seed: int, duration_s:
                              effects=effects, dwell_mode=dwell_mode, los_step_m=los_step_m,
                              chunk_pairs=chunk_pairs, workers=workers, stats=stats,
                              rcs_models=rcs_models)
-    for dw, det, look in tqdm(chunks, desc="sensor", unit="chunk", leave=False,
-                              disable=None if progress else True):
+    for dw, det, look in bars.stage_progress(chunks, progress, desc="sensor", unit="chunk",
+                                             leave=False):
         out_d.append(dw)
         out_det.append(det)
         out_look.append(look)
