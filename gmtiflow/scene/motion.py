@@ -289,7 +289,17 @@ class Profiles:
         v = np.where(early, np.maximum(v0 + a * u, 0.0), v1)
         acc = np.where(early, a, 0.0)
         br = self.bridge_flat[i] & early      # at u = Δt the grid value s_{k+1} holds
-        if np.any(br):
+        nb = np.count_nonzero(br)
+        if 2 * nb > br.size:
+            # most rows bridged (free cruise with speed noise): the bridge of every row
+            # (finite for any grid values) and a select, instead of gathers and scatters
+            d, dd, integral = _bridge(self.noise_flat[g], self.noise_flat[g + 1],
+                                      self.kappa[p], u / dt)
+            s, v, acc = np.broadcast_arrays(s, v, acc)
+            s = np.where(br, s + integral * dt, s)
+            v = np.where(br, v + d, v)
+            acc = np.where(br, acc + dd / dt, acc)
+        elif nb:
             j = np.flatnonzero(br)
             gb = g[br]
             d, dd, integral = _bridge(self.noise_flat[gb], self.noise_flat[gb + 1],
@@ -626,19 +636,21 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     # does not depend on s, so it is precomputed (the nearest one on ties; d = 0.9 max_decel).
     # The bound is evaluated at the step's look-ahead point and clamped at T_B once past s_B.
     d_cap_all = 0.9 * inp.max_decel_mps2
+    # (The profiles with the same number of segments at once, one row each.)
     cap_t = np.full(len(inp.seg_start_m), np.inf)
     cap_s = np.full(len(inp.seg_start_m), np.inf)
-    for p in range(P):
-        a0, a1 = int(inp.seg_offset[p]), int(inp.seg_offset[p + 1])
-        if a1 - a0 > 1:
-            tb = inp.seg_target_mps[a0 + 1:a1]
-            sb = inp.seg_start_m[a0 + 1:a1]
-            r = (tb ** 2 + 2.0 * d_cap_all[p] * sb)[::-1]
-            acc = np.minimum.accumulate(r)
-            pos = np.maximum.accumulate(np.where(r == acc, np.arange(len(r)), -1))
-            best = (len(r) - 1 - pos)[::-1]           # index into tb/sb for segments a0..a1-2
-            cap_t[a0:a1 - 1] = tb[best]
-            cap_s[a0:a1 - 1] = sb[best]
+    n_seg = np.diff(inp.seg_offset)
+    seg_t, seg_s = np.asarray(inp.seg_target_mps, float), np.asarray(inp.seg_start_m, float)
+    for n_b in np.unique(n_seg[n_seg > 1]).tolist():
+        ps = np.flatnonzero(n_seg == n_b)
+        cells = inp.seg_offset[ps][:, None] + np.arange(n_b - 1)   # segments a0 .. a1 - 2
+        tb, sb = seg_t[cells + 1], seg_s[cells + 1]
+        r = (tb ** 2 + 2.0 * d_cap_all[ps][:, None] * sb)[:, ::-1]
+        acc = np.minimum.accumulate(r, axis=1)
+        pos = np.maximum.accumulate(np.where(r == acc, np.arange(n_b - 1), -1), axis=1)
+        best = (n_b - 2 - pos)[:, ::-1]            # index into a row of tb/sb
+        cap_t[cells] = np.take_along_axis(tb, best, axis=1)
+        cap_s[cells] = np.take_along_axis(sb, best, axis=1)
 
     # Per-profile constants (indexed by profile id).
     rho = np.asarray(inp.noise_rho, float)
