@@ -609,6 +609,29 @@ def _track_speeds(v0, v_des, amax, dmax, dt, known=None):
     return V
 
 
+def _speed_caps(seg_offset, seg_start_m, seg_target_mps, d_cap):
+    """Per flat segment j of profile p: the target T_B and start s_B of the binding segment
+    ahead, B(j) = argmin_{b > j} (T_b^2 + 2 d_p s_b) within p's segments (the nearest on
+    ties); inf for a profile's last segment.  The profiles with the same number of segments
+    are done at once, one row each."""
+    seg_t, seg_s = np.asarray(seg_target_mps, float), np.asarray(seg_start_m, float)
+    seg_offset = np.asarray(seg_offset, np.int64)
+    cap_t = np.full(len(seg_s), np.inf)
+    cap_s = np.full(len(seg_s), np.inf)
+    n_seg = np.diff(seg_offset)
+    for n_b in np.unique(n_seg[n_seg > 1]).tolist():
+        ps = np.flatnonzero(n_seg == n_b)
+        cells = seg_offset[ps][:, None] + np.arange(n_b - 1)     # segments a0 .. a1 - 2
+        tb, sb = seg_t[cells + 1], seg_s[cells + 1]
+        r = (tb ** 2 + 2.0 * d_cap[ps][:, None] * sb)[:, ::-1]
+        acc = np.minimum.accumulate(r, axis=1)
+        pos = np.maximum.accumulate(np.where(r == acc, np.arange(n_b - 1), -1), axis=1)
+        best = (n_b - 2 - pos)[:, ::-1]                          # index into a row of tb/sb
+        cap_t[cells] = np.take_along_axis(tb, best, axis=1)
+        cap_s[cells] = np.take_along_axis(sb, best, axis=1)
+    return cap_t, cap_s
+
+
 def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                       windows: bool = True, window_steps: Optional[int] = None) -> Profiles:
     """Run the fleet's speed profiles, each for its own horizon or until done (module docstring).
@@ -636,21 +659,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     # does not depend on s, so it is precomputed (the nearest one on ties; d = 0.9 max_decel).
     # The bound is evaluated at the step's look-ahead point and clamped at T_B once past s_B.
     d_cap_all = 0.9 * inp.max_decel_mps2
-    # (The profiles with the same number of segments at once, one row each.)
-    cap_t = np.full(len(inp.seg_start_m), np.inf)
-    cap_s = np.full(len(inp.seg_start_m), np.inf)
-    n_seg = np.diff(inp.seg_offset)
-    seg_t, seg_s = np.asarray(inp.seg_target_mps, float), np.asarray(inp.seg_start_m, float)
-    for n_b in np.unique(n_seg[n_seg > 1]).tolist():
-        ps = np.flatnonzero(n_seg == n_b)
-        cells = inp.seg_offset[ps][:, None] + np.arange(n_b - 1)   # segments a0 .. a1 - 2
-        tb, sb = seg_t[cells + 1], seg_s[cells + 1]
-        r = (tb ** 2 + 2.0 * d_cap_all[ps][:, None] * sb)[:, ::-1]
-        acc = np.minimum.accumulate(r, axis=1)
-        pos = np.maximum.accumulate(np.where(r == acc, np.arange(n_b - 1), -1), axis=1)
-        best = (n_b - 2 - pos)[:, ::-1]            # index into a row of tb/sb
-        cap_t[cells] = np.take_along_axis(tb, best, axis=1)
-        cap_s[cells] = np.take_along_axis(sb, best, axis=1)
+    cap_t, cap_s = _speed_caps(inp.seg_offset, inp.seg_start_m, inp.seg_target_mps, d_cap_all)
 
     # Per-profile constants (indexed by profile id).
     rho = np.asarray(inp.noise_rho, float)
