@@ -15,6 +15,13 @@ from gmtiflow.scene import wander as wander_mod
 from gmtiflow.tables import Table
 
 
+#: Rows per block of :meth:`Fleet.state_at`: the ~100 temporaries of a block (16,384 float64:
+#: 128 kB each, (3, n) ones 384 kB) stay in the L2 cache and in the allocator's reused memory
+#: instead of fresh pages (a quarter less CPU time for the /truth of the fidelity_tradeoff
+#: scenes than whole 500,000-row requests, 2026-11-25).
+_BLOCK_ROWS = 16_384
+
+
 # --------------------------------------------------------------------------------------------
 class Fleet:
     """All vehicles of a scene; truth at any instant (``state_at``) and ``/truth`` tables."""
@@ -82,12 +89,23 @@ class Fleet:
         t = t.ravel()
         vid = vid.ravel()
         n = t.size
+        if n <= _BLOCK_ROWS:
+            out = self._state_flat(t, vid)
+        else:       # cache-sized blocks: every row's values are its own (elementwise)
+            parts = [self._state_flat(t[a:a + _BLOCK_ROWS], vid[a:a + _BLOCK_ROWS])
+                     for a in range(0, n, _BLOCK_ROWS)]
+            out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        return {k: c.reshape(shape) for k, c in out.items()}
+
+    def _state_flat(self, t, vid) -> Table:
+        """:meth:`state_at` of flat (time, vehicle) arrays."""
+        n = t.size
         if self.n_vehicles == 0:
             out = _empty_truth(n)
             out["time_s"] = t.copy()
             out["vehicle_id"] = vid.copy()
             out["active"] = np.zeros(n, bool)
-            return {k: c.reshape(shape) for k, c in out.items()}
+            return out
         active, valid, vs, tau = self._active(t, vid)
         idx = np.flatnonzero(active)
         # every row active (truth_table): no fill values, no gather, no scatter
@@ -154,7 +172,7 @@ class Fleet:
             put(("speed_mps", "heading_rad", "route_s_m", "edge_id", "mode", "invisible"),
                 (speed, frames.heading_rad(unit[0], unit[1]), s, self._seg_edge[j], mode,
                  self._seg_inv[j]))
-        return {k: c.reshape(shape) for k, c in out.items()}
+        return out
 
     def _active(self, t, vid):
         """(active, valid, clipped vehicle ids, local time) of flat (time, vehicle) pairs."""
