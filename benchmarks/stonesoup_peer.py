@@ -105,8 +105,10 @@ def gmtiflow_child(n: int, scans: int, out: str) -> dict:
     per_scan = sensor.expected_false_alarms_per_dwell * sensor.n_dwells
     cfg = compose(base + [f"sensor.pfa={sensor.pfa * FA_PER_SCAN / per_scan:.6g}"])
     cfg.vehicles = peer_vehicles(n, duration)
-    import gmtiflow.evaluate
-    gmtiflow.evaluate.track       # the lazy imports a run makes: in the process time, not sim
+    import gmtiflow.config_yaml   # the lazy imports a run makes (its /config text, the
+    import gmtiflow.evaluate      # manifest's atomic writes, the track stage): in the
+    import gmtiflow.formats       # process time, not sim, as Stone Soup's imports are
+    gmtiflow.evaluate.track
     start, cpu0 = time.perf_counter(), time.process_time()
     path = pipeline.run(cfg, out)
     sim, sim_cpu = time.perf_counter() - start, time.process_time() - cpu0

@@ -289,7 +289,17 @@ class Profiles:
         v = np.where(early, np.maximum(v0 + a * u, 0.0), v1)
         acc = np.where(early, a, 0.0)
         br = self.bridge_flat[i] & early      # at u = Δt the grid value s_{k+1} holds
-        if np.any(br):
+        nb = np.count_nonzero(br)
+        if 2 * nb > br.size:
+            # most rows bridged (free cruise with speed noise): the bridge of every row
+            # (finite for any grid values) and a select, instead of gathers and scatters
+            d, dd, integral = _bridge(self.noise_flat[g], self.noise_flat[g + 1],
+                                      self.kappa[p], u / dt)
+            s, v, acc = np.broadcast_arrays(s, v, acc)
+            s = np.where(br, s + integral * dt, s)
+            v = np.where(br, v + d, v)
+            acc = np.where(br, acc + dd / dt, acc)
+        elif nb:
             j = np.flatnonzero(br)
             gb = g[br]
             d, dd, integral = _bridge(self.noise_flat[gb], self.noise_flat[gb + 1],
@@ -302,63 +312,136 @@ class Profiles:
         mode = np.where((v == 0.0) & (mode == MODE_DECEL) & ~early, MODE_STOPPED, mode)
         return s, v, acc, mode.astype(np.uint8)
 
-    def _bridged_time(self, k: int, p: int, s_target: float) -> float:
-        """Time into bridged step ``k`` at which profile ``p`` reaches ``s_target``: Newton on
-        s(u) from u = Δt/2 (s is increasing and smooth there, v > 0), bisection as a fallback."""
-        dt = self.dt_s
-        i = int(self.step_offset[p]) + k
-        g = i + p
-        s0, v0, a = float(self.s_flat[g]), float(self.v_flat[g]), float(self.a_flat[i])
-        x0, x1 = float(self.noise_flat[g]), float(self.noise_flat[g + 1])
-        kap = float(self.kappa[p])
-
-        def s_v(u):
-            d, integral = _bridge_scalar(x0, x1, kap, u / dt)
-            return s0 + v0 * u + 0.5 * a * u * u + integral * dt, v0 + a * u + d
-
-        lo, hi, u = 0.0, dt, 0.5 * dt
-        for _ in range(60):
-            su, vu = s_v(u)
-            err = su - s_target
-            if abs(err) <= 1e-12 * max(1.0, abs(s_target)):
-                return u
-            if err < 0:
-                lo = u
-            else:
-                hi = u
-            nxt = u - err / vu if vu > 0 else 0.5 * (lo + hi)
-            u = nxt if lo < nxt < hi else 0.5 * (lo + hi)
-            if hi - lo < 1e-12 * dt:
-                break
-        return u
-
     def time_at(self, p: int, s_target: float) -> float:
         """First local time at which profile ``p`` reaches arc length ``s_target`` (inf: never
-        within its stored steps)."""
-        i0 = int(self.step_offset[p])
-        n = int(self.n_steps_p[p])
-        col = self.s_flat[i0 + p:i0 + p + n + 1]
-        i = int(np.searchsorted(col, s_target, side="left"))
-        if i == 0:
-            return 0.0
-        if i >= len(col):
-            return float("inf")
-        k = i - 1
+        within its stored steps); :meth:`times_at` of one pair."""
+        return float(self.times_at(np.asarray([p], np.int64), np.asarray([s_target], float))[0])
+
+    def times_at(self, p, s_target) -> np.ndarray:
+        """First local times at which profiles ``p`` (n,) reach arc lengths ``s_target`` (n,)
+        (inf: never within their stored steps), all pairs at once.
+
+        The step is found by a binary search in each profile's own run of grid values; within
+        it, s(τ) is inverted in closed form (constant acceleration, then rest), in a bridged
+        step (:func:`_bridge`) by Newton's method from u = Δt/2 with bisection as a fallback
+        (:meth:`_bridged_times`)."""
+        p = np.asarray(p, np.int64).ravel()
+        x = np.asarray(s_target, float).ravel()
         dt = self.dt_s
-        s0, v0 = col[k], self.v_flat[i0 + p + k]
-        a, tk = self.a_flat[i0 + k], self.tau_flat[i0 + k]
-        if self.bridge_flat[i0 + k]:
-            return k * dt + self._bridged_time(k, p, s_target)
-        s_tau = s0 + v0 * tk + 0.5 * a * tk * tk
-        x = s_target - s0
-        if s_target <= s_tau:
-            root = np.sqrt(max(v0 * v0 + 2.0 * a * x, 0.0))
-            den = v0 + root
-            u = 0.0 if den <= 0 else 2.0 * x / den
-        else:
-            v1 = self.v_flat[i0 + p + k + 1]
-            u = tk + (s_target - s_tau) / v1 if v1 > 0 else dt
-        return k * dt + min(max(u, 0.0), dt)
+        i0 = self.step_offset[p]
+        g0 = i0 + p                              # each profile's first grid value
+        n_col = self.n_steps_p[p] + 1
+        # leftmost i with s[i] >= x (numpy's searchsorted 'left' on the profile's column)
+        lo = np.zeros(p.size, np.int64)
+        hi = n_col.copy()
+        while True:
+            open_ = lo < hi
+            if not open_.any():
+                break
+            mid = lo + ((hi - lo) >> 1)
+            below = open_ & (self.s_flat[g0 + np.minimum(mid, n_col - 1)] < x)
+            above = open_ & ~below
+            lo = np.where(below, mid + 1, lo)
+            hi = np.where(above, mid, hi)
+        i = lo
+        out = np.zeros(p.size)
+        out[i >= n_col] = np.inf
+        r = np.flatnonzero((i > 0) & (i < n_col))
+        if not r.size:
+            return out
+        k = i[r] - 1
+        ks = i0[r] + k
+        gs = g0[r] + k
+        xr = x[r]
+        s0, v0 = self.s_flat[gs], self.v_flat[gs]
+        a, tk = self.a_flat[ks], self.tau_flat[ks]
+        br = self.bridge_flat[ks]
+        u = np.empty(r.size)
+        plain = np.flatnonzero(~br)
+        if plain.size:
+            s0p, v0p, ap, tkp, xp = s0[plain], v0[plain], a[plain], tk[plain], xr[plain]
+            s_tau = s0p + v0p * tkp + 0.5 * ap * tkp * tkp
+            d = xp - s0p
+            early = xp <= s_tau
+            with np.errstate(divide="ignore", invalid="ignore"):
+                root = np.sqrt(np.maximum(v0p * v0p + 2.0 * ap * d, 0.0))
+                den = v0p + root
+                u_early = np.where(den <= 0, 0.0, 2.0 * d / den)
+                v1 = self.v_flat[gs[plain] + 1]
+                u_late = np.where(v1 > 0, tkp + (xp - s_tau) / v1, dt)
+            u[plain] = np.minimum(np.maximum(np.where(early, u_early, u_late), 0.0), dt)
+        bridged = np.flatnonzero(br)
+        if bridged.size:
+            u[bridged] = self._bridged_times(gs[bridged], ks[bridged], p[r[bridged]],
+                                             xr[bridged])
+        out[r] = k * dt + u
+        return out
+
+    def _bridged_times(self, g, i, p, s_target) -> np.ndarray:
+        """Times into bridged steps (grid index ``g``, step index ``i``, profile ``p``) at
+        which s reaches ``s_target``: Newton on s(u) from u = Δt/2 (s is increasing and smooth
+        there, v > 0), bisection as a fallback; per element the scalar iteration, its
+        operations in its order (so the result does not depend on the other elements)."""
+        dt = self.dt_s
+        s0, v0, a = self.s_flat[g], self.v_flat[g], self.a_flat[i]
+        x0, x1 = self.noise_flat[g], self.noise_flat[g + 1]
+        kap = self.kappa[p]
+        n = len(g)
+        lo = np.zeros(n)
+        hi = np.full(n, dt)
+        u = np.full(n, 0.5 * dt)
+        tol = 1e-12 * np.where(np.abs(s_target) > 1.0, np.abs(s_target), 1.0)
+        act = np.arange(n)
+        for _ in range(60):
+            if not act.size:
+                break
+            ua = u[act]
+            d, integral = _bridge_exact(x0[act], x1[act], kap[act], ua / dt)
+            a_ = a[act]
+            su = s0[act] + v0[act] * ua + 0.5 * a_ * ua * ua + integral * dt
+            vu = v0[act] + a_ * ua + d
+            err = su - s_target[act]
+            conv = np.abs(err) <= tol[act]
+            low = err < 0
+            lo_a = np.where(low, ua, lo[act])
+            hi_a = np.where(low, hi[act], ua)
+            mid = 0.5 * (lo_a + hi_a)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                nxt = np.where(vu > 0, ua - err / vu, mid)
+            u_new = np.where((lo_a < nxt) & (nxt < hi_a), nxt, mid)
+            go = ~conv
+            lo[act] = np.where(go, lo_a, lo[act])
+            hi[act] = np.where(go, hi_a, hi[act])
+            u[act] = np.where(go, u_new, ua)
+            act = act[go & ~(hi_a - lo_a < 1e-12 * dt)]
+        return u
+
+
+def _bridge_exact(x0, x1, kappa, f):
+    """:func:`_bridge_scalar` on arrays, bit for bit: the same operations in the same order,
+    asinh from the math module (as the scalar form takes it)."""
+    g = f - 0.5
+    m = 1.0 - 0.25 * kappa
+    q = kappa * g * g + m
+    rq = 1.0 / np.sqrt(q)
+    a, b = 0.5 * (x0 + x1), x1 - x0
+    lin = a + b * g
+    rk = np.sqrt(kappa / m)
+    sm = np.sqrt(m)
+
+    def prim(gg):
+        z = gg * rk
+        ratio = 1.0 - z * z / 6.0
+        big = np.flatnonzero(~(np.abs(z) < 1e-4))
+        if big.size:
+            zb = z[big].tolist()
+            ratio[big] = np.asarray([math.asinh(v) for v in zb]) / z[big]
+        return a * gg / sm * ratio
+
+    half = np.full_like(g, -0.5)
+    integral = (prim(g) - prim(half) + b * (g * g - 0.25) / (np.sqrt(q) + 1.0)
+                - (x0 * f + 0.5 * b * f * f))
+    return lin * (rq - 1.0), integral
 
 
 def _bridge_scalar(x0, x1, kappa, f):
@@ -526,6 +609,29 @@ def _track_speeds(v0, v_des, amax, dmax, dt, known=None):
     return V
 
 
+def _speed_caps(seg_offset, seg_start_m, seg_target_mps, d_cap):
+    """Per flat segment j of profile p: the target T_B and start s_B of the binding segment
+    ahead, B(j) = argmin_{b > j} (T_b^2 + 2 d_p s_b) within p's segments (the nearest on
+    ties); inf for a profile's last segment.  The profiles with the same number of segments
+    are done at once, one row each."""
+    seg_t, seg_s = np.asarray(seg_target_mps, float), np.asarray(seg_start_m, float)
+    seg_offset = np.asarray(seg_offset, np.int64)
+    cap_t = np.full(len(seg_s), np.inf)
+    cap_s = np.full(len(seg_s), np.inf)
+    n_seg = np.diff(seg_offset)
+    for n_b in np.unique(n_seg[n_seg > 1]).tolist():
+        ps = np.flatnonzero(n_seg == n_b)
+        cells = seg_offset[ps][:, None] + np.arange(n_b - 1)     # segments a0 .. a1 - 2
+        tb, sb = seg_t[cells + 1], seg_s[cells + 1]
+        r = (tb ** 2 + 2.0 * d_cap[ps][:, None] * sb)[:, ::-1]
+        acc = np.minimum.accumulate(r, axis=1)
+        pos = np.maximum.accumulate(np.where(r == acc, np.arange(n_b - 1), -1), axis=1)
+        best = (n_b - 2 - pos)[:, ::-1]                          # index into a row of tb/sb
+        cap_t[cells] = np.take_along_axis(tb, best, axis=1)
+        cap_s[cells] = np.take_along_axis(sb, best, axis=1)
+    return cap_t, cap_s
+
+
 def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                       windows: bool = True, window_steps: Optional[int] = None) -> Profiles:
     """Run the fleet's speed profiles, each for its own horizon or until done (module docstring).
@@ -553,19 +659,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     # does not depend on s, so it is precomputed (the nearest one on ties; d = 0.9 max_decel).
     # The bound is evaluated at the step's look-ahead point and clamped at T_B once past s_B.
     d_cap_all = 0.9 * inp.max_decel_mps2
-    cap_t = np.full(len(inp.seg_start_m), np.inf)
-    cap_s = np.full(len(inp.seg_start_m), np.inf)
-    for p in range(P):
-        a0, a1 = int(inp.seg_offset[p]), int(inp.seg_offset[p + 1])
-        if a1 - a0 > 1:
-            tb = inp.seg_target_mps[a0 + 1:a1]
-            sb = inp.seg_start_m[a0 + 1:a1]
-            r = (tb ** 2 + 2.0 * d_cap_all[p] * sb)[::-1]
-            acc = np.minimum.accumulate(r)
-            pos = np.maximum.accumulate(np.where(r == acc, np.arange(len(r)), -1))
-            best = (len(r) - 1 - pos)[::-1]           # index into tb/sb for segments a0..a1-2
-            cap_t[a0:a1 - 1] = tb[best]
-            cap_s[a0:a1 - 1] = sb[best]
+    cap_t, cap_s = _speed_caps(inp.seg_offset, inp.seg_start_m, inp.seg_target_mps, d_cap_all)
 
     # Per-profile constants (indexed by profile id).
     rho = np.asarray(inp.noise_rho, float)

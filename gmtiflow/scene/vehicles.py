@@ -291,12 +291,13 @@ def _trip_noise(seed: int, names: List[str]) -> motion.NoiseSource:
 def _on_off(vehicles: List["_Vehicle"], routes: List[Route], prof: "motion.Profiles"):
     """Local times at which each vehicle enters and leaves its route (inf: not in its horizon)."""
     n = len(vehicles)
-    on = np.zeros(n)
-    off = np.zeros(n)
-    for i, v in enumerate(vehicles):
-        on[i] = prof.time_at(v.profile, v.offset_m)
-        off[i] = prof.time_at(v.profile, routes[v.route].length_m + v.offset_m)
-    return on, off
+    if not n:
+        return np.zeros(0), np.zeros(0)
+    p = np.asarray([v.profile for v in vehicles], np.int64)
+    offset = np.asarray([v.offset_m for v in vehicles], float)
+    length = np.asarray([routes[v.route].length_m for v in vehicles], float)
+    t = prof.times_at(np.concatenate([p, p]), np.concatenate([offset, length + offset]))
+    return t[:n], t[n:]
 
 
 def _draw_wander(vehicles, seed, t0, on, off, horizon_s, dt):

@@ -53,11 +53,12 @@ modulo 2π and merged azimuths are returned in [0, 2π); with ``False`` (antenna
 values are used as they are. Within a dwell, azimuths are unwrapped around the dwell's first
 report, which is exact as long as a dwell spans less than π (a beam does).
 
-Neighbour search: one :class:`scipy.spatial.cKDTree` over the scaled coordinates
-``(r/Δr, φ/Δφ[, ṙ/Δṙ])`` plus a dwell coordinate (dense dwell rank × a separation larger than
-any within-dwell distance), queried with :meth:`~scipy.spatial.cKDTree.query_pairs` at the
-cut-off radius — so only nearby pairs of the same dwell are ever formed, and the cost is
-O(n log n) at fixed density. Cut-off: threshold mode ``s_max = sqrt(log2(1/threshold))`` (exact:
+Neighbour search: a sweep along range over the scaled coordinates ``(r/Δr, φ/Δφ[, ṙ/Δṙ])``,
+the reports sorted by (dwell, range) and each compared with its successors while they are within
+the cut-off radius in range, so only nearby pairs of the same dwell are ever formed (the pairs
+of one :class:`scipy.spatial.cKDTree` over those coordinates plus a separating dwell coordinate,
+queried with :meth:`~scipy.spatial.cKDTree.query_pairs`, which takes over when many reports share
+a range). Cut-off: threshold mode ``s_max = sqrt(log2(1/threshold))`` (exact:
 every pair that could pass is found); draw mode ``s_max = sqrt(log2(1/p_min))`` with
 ``p_min = 1e-9`` by default (≈ 5.5 cells): pairs further apart, whose merge probability is below
 1e-9, are never merged.
@@ -160,10 +161,21 @@ def _group_reduce_xor(values: np.ndarray, label: np.ndarray, m: int) -> np.ndarr
 
 def _canonical(label: np.ndarray) -> np.ndarray:
     """Relabel groups 0..m-1 in order of their first member."""
-    _, first, inverse = np.unique(label, return_index=True, return_inverse=True)
+    label = np.asarray(label)
+    n = len(label)
+    if n == 0 or label.min() < 0 or label.max() >= 4 * n + 64:
+        _, first, inverse = np.unique(label, return_index=True, return_inverse=True)
+        rank = np.empty(len(first), dtype=np.int64)
+        rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+        return rank[inverse.ravel()]
+    # without a sort: each label's first member, then the groups numbered in the order of
+    # their first members (the positions where a member is its group's first, ascending)
+    first = np.full(int(label.max()) + 1, n, np.int64)
+    np.minimum.at(first, label, np.arange(n, dtype=np.int64))
+    leads = np.flatnonzero(first[label] == np.arange(n))
     rank = np.empty(len(first), dtype=np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
-    return rank[inverse.ravel()]
+    rank[label[leads]] = np.arange(len(leads), dtype=np.int64)
+    return rank[label]
 
 
 def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, azimuth_cell_rad,
@@ -254,11 +266,12 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
     label = np.arange(n, dtype=np.int64)
     passes = 0
     if n > 1:
-        g_dwell = dwell_id.copy()
         # pass 1: every pair of original reports within the cut-off, decided once
         i, j, p = _near_pairs(scaled0, dw_rank, radius)
-        accept = _decide(p, mode, threshold, seed, dwell_id[i], ident0, i, j)
+        accept = _decide(p, mode, threshold, seed, dwell_id, ident0, i, j)
         edges = (i[accept], j[accept], p[accept])
+        cols = [np.ascontiguousarray(scaled0[:, k]) for k in range(scaled0.shape[1])]
+        wcols = [weight * c for c in cols]          # weight * scaled0[:, k], once
         while True:
             m = int(label.max()) + 1
             if iterate and passes > 0:
@@ -270,16 +283,18 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
                 g_dwell = np.zeros(m, dtype=np.int64)
                 g_dwell[label] = dwell_id
                 ident = _group_reduce_xor(ident0, label, m) if mode == "draw" else None
-                ok = _decide(gp, mode, threshold, seed, g_dwell[gi], ident, gi, gj)
+                ok = _decide(gp, mode, threshold, seed, g_dwell, ident, gi, gj)
                 gi, gj, gp = gi[ok], gj[ok], gp[ok]
+                by_pair = False
             else:
                 # sparse (and the first dense pass): the accepted pairs of original reports
                 # link their current groups, with the pair's probability as priority
                 gi, gj, gp = _group_edges(label[edges[0]], label[edges[1]], edges[2])
+                by_pair = True          # ordered by (lo, hi), lo < hi
             if len(gi) == 0:
                 break
             passes += 1
-            pairs = _merge_round(label, m, weight, scaled0, gi, gj, gp)
+            pairs = _merge_round(label, m, weight, cols, wcols, gi, gj, gp, by_pair)
             if pairs is None:
                 break
             label = _relabel(label, m, *pairs)
@@ -289,8 +304,70 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
 
 
 def _near_pairs(pts: np.ndarray, rank: np.ndarray, radius: float):
-    """Pairs (i < j) of points of the same dwell within ``radius`` cells, and their P_u: one
-    kd-tree over the scaled coordinates plus a dwell coordinate that separates dwells."""
+    """Pairs (i < j) of points of the same dwell within ``radius`` cells, and their P_u.
+
+    A sweep along the first coordinate (range): the points sorted by (dwell, range), each
+    compared with its k-th successor for k = 1, 2, ... while some successor is within the
+    cut-off in range (each pass only at the positions still within it at the previous one);
+    a pair within the cut-off in every coordinate is kept.  The same pairs as the kd-tree's
+    ``query_pairs`` over the scaled coordinates plus a separating dwell coordinate
+    (:func:`_near_pairs_tree`; tested), at a third of its cost on the dense peer scene; when
+    the range windows are very full (many points at one range) the tree takes over."""
+    n = len(pts)
+    if n < 2:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, np.zeros(0)
+    cut = radius * (1.0 + 1e-9) + 1e-12          # the tree's query radius
+    cols = [np.ascontiguousarray(pts[:, k]) for k in range(pts.shape[1])]
+    lows = [float(c.min()) for c in cols]
+    span = max(float(c.max()) - low for c, low in zip(cols, lows))     # np.ptp(pts, 0).max()
+    sep = span + 2.0 * cut + 1.0                  # dwells apart by more than any window
+    # key = rank·sep + (x − x_min) is non-decreasing in x within a dwell (rounding is
+    # monotone) and within a few ulps of it: the window is widened by that much.  Points of
+    # different dwells are more than sep − span > window apart in it, so never compared.
+    key = rank * sep + (cols[0] - lows[0])
+    window = cut + 8.0 * (np.spacing(abs(float(key.max()))) + np.spacing(span + 1.0))
+    order = np.argsort(key)
+    ks = key[order]
+    sorted_cols = [np.take(c, order) for c in cols]
+    cut2 = cut * cut
+    pos = np.arange(n - 1)
+    found_at, found_k, found_s2 = [], [], []
+    k = 1
+    while pos.size:
+        if k > _SWEEP_MAX_PASSES:
+            return _near_pairs_tree(pts, rank, radius)
+        if pos[-1] + k >= n:
+            pos = pos[pos + k < n]
+        nxt = pos + k
+        close = ks[nxt] - ks[pos] <= window
+        pos, nxt = pos[close], nxt[close]
+        if pos.size:
+            d = sorted_cols[0][nxt] - sorted_cols[0][pos]
+            s2 = d * d
+            for c in sorted_cols[1:]:
+                d = c[nxt] - c[pos]
+                s2 += d * d        # (x_i − x_j)² = (x_j − x_i)² exactly: either order
+            near = np.flatnonzero(s2 <= cut2)
+            found_at.append(pos[near])
+            found_k.append(np.full(near.size, k, np.int64))
+            found_s2.append(s2[near])
+        k += 1
+    at = np.concatenate(found_at) if found_at else np.zeros(0, np.int64)
+    a = np.take(order, at)
+    b = np.take(order, at + np.concatenate(found_k)) if found_k else a
+    s2 = np.concatenate(found_s2) if found_s2 else np.zeros(0)
+    i, j = np.minimum(a, b).astype(np.int64), np.maximum(a, b).astype(np.int64)
+    return i, j, np.exp2(-s2)
+
+
+#: Sweep passes after which :func:`_near_pairs` leaves a crowded chunk to the kd-tree.
+_SWEEP_MAX_PASSES = 64
+
+
+def _near_pairs_tree(pts: np.ndarray, rank: np.ndarray, radius: float):
+    """:func:`_near_pairs` by a kd-tree over the scaled coordinates plus a dwell coordinate
+    that separates dwells (``query_pairs``)."""
     if len(pts) < 2:
         z = np.zeros(0, dtype=np.int64)
         return z, z, np.zeros(0)
@@ -308,10 +385,24 @@ def _near_pairs(pts: np.ndarray, rank: np.ndarray, radius: float):
 
 
 def _decide(p, mode, threshold, seed, dwell, ident, i, j) -> np.ndarray:
-    """Eq. 18's decision per pair: threshold, or a counter-based draw below P_u."""
+    """Eq. 18's decision per pair (i, j) of points with dwells ``dwell`` and identities
+    ``ident``: threshold, or a counter-based draw below P_u.
+
+    The draw is :func:`draw_uniform` of the pair (dwell, lower identity, higher identity), bit
+    for bit, with each point's counters mixed once and gathered per pair
+    (:class:`gmtiflow.rng.Counters`) instead of mixed again for every pair it is in."""
     if mode == "threshold":
         return p >= threshold
-    return draw_uniform(seed, dwell, ident[i], ident[j]) < p
+    ids = np.asarray(ident, dtype=np.uint64).view(np.int64)
+    a, b = np.take(ids, i), np.take(ids, j)
+    mixed_id = rng.mix_counter(ids)
+    i_low = a <= b
+    low = np.where(i_low, i, j)            # the point holding the lower identity
+    high = np.where(i_low, j, i)
+    mixed = [np.take(rng.mix_counter(dwell), i), np.take(mixed_id, low),
+             np.take(mixed_id, high)]
+    u = rng.Counters(mixed=mixed).uniform(rng.counter_key(seed, "sensor", "merge"))
+    return u < p
 
 
 def _centroids(label, m, weight, scaled0):
@@ -321,41 +412,59 @@ def _centroids(label, m, weight, scaled0):
 
 
 def _group_edges(a, b, p):
-    """Distinct group pairs (lo < hi) linked by accepted report pairs, with the highest P_u."""
+    """Distinct group pairs (lo < hi) linked by accepted report pairs, with the highest P_u,
+    ordered by (lo, hi)."""
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     keep = lo != hi
     lo, hi, p = lo[keep], hi[keep], p[keep]
     if len(lo) == 0:
         return lo, hi, p
-    order = np.lexsort((-p, hi, lo))
-    lo, hi, p = lo[order], hi[order], p[order]
-    first = np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])]
-    return lo[first], hi[first], p[first]
+    span = int(hi.max()) + 1
+    key = lo * span + hi                    # (lo, hi) as one integer, in the same order
+    order = np.argsort(key)
+    key, p = key[order], p[order]
+    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    best = np.maximum.reduceat(p, first)
+    key = key[first]
+    return key // span, key % span, best
 
 
-def _merge_round(label, m, weight, scaled0, gi, gj, gp):
+def _merge_round(label, m, weight, cols, wcols, gi, gj, gp, by_pair=False):
     """One round of merges without chaining: drop candidate group pairs whose merged report
     would have an ancestor more than one resolution cell from its centroid, then merge every
     pair that is each group's most probable candidate (a matching).  The globally most probable
     valid pair is always chosen, so each round merges something while valid pairs remain.
-    Returns the (a, b) groups to merge, or None."""
-    n = len(label)
+    Returns the (a, b) groups to merge, or None.
+
+    ``cols`` are the scaled coordinates (one array per axis), ``wcols`` them times the
+    weights; ``by_pair``: the candidates come ordered by (lo, hi).  Only the members of the
+    candidates' groups are read (their sums in input order, as over every report)."""
     lo, hi = np.minimum(gi, gj), np.maximum(gi, gj)
     # --- the no-chaining test, exact over every ancestor of both groups -------------------
-    order = np.argsort(label, kind="stable")
-    count = np.bincount(label, minlength=m)
+    involved = np.zeros(m, bool)
+    involved[lo] = True
+    involved[hi] = True
+    rows = np.flatnonzero(involved[label])         # their members, in input order
+    lab = label[rows]
+    order = rows[np.argsort(lab, kind="stable")]   # grouped, input order within a group
+    count = np.bincount(lab, minlength=m)
     start = np.cumsum(count) - count
-    wsum = np.bincount(label, weights=weight, minlength=m)
-    wx = np.column_stack([np.bincount(label, weights=weight * scaled0[:, k], minlength=m)
-                          for k in range(scaled0.shape[1])])
-    centre = (wx[lo] + wx[hi]) / (wsum[lo] + wsum[hi])[:, None]
+    wsum = np.bincount(lab, weights=weight[rows], minlength=m)
+    den = wsum[lo] + wsum[hi]
+    centre = [(wx[lo] + wx[hi]) / den for wx in
+              (np.bincount(lab, weights=w[rows], minlength=m) for w in wcols)]
     k_q = count[lo] + count[hi]
     q = np.repeat(np.arange(len(lo)), k_q)
     within = np.arange(int(k_q.sum())) - np.repeat(np.cumsum(k_q) - k_q, k_q)
     in_lo = within < count[lo][q]
-    member = np.where(in_lo, order[np.minimum(start[lo][q] + within, n - 1)],
-                      order[np.minimum(start[hi][q] + within - count[lo][q], n - 1)])
-    d2 = np.sum((scaled0[member] - centre[q]) ** 2, axis=1)
+    last = max(len(order) - 1, 0)
+    member = np.where(in_lo, order[np.minimum(start[lo][q] + within, last)],
+                      order[np.minimum(start[hi][q] + within - count[lo][q], last)])
+    d = cols[0][member] - centre[0][q]
+    d2 = d * d
+    for c, ce in zip(cols[1:], centre[1:]):
+        d = c[member] - ce[q]
+        d2 += d * d
     worst = np.zeros(len(lo))
     np.maximum.at(worst, q, d2)
     ok = worst <= 1.0 + 1e-9
@@ -363,8 +472,10 @@ def _merge_round(label, m, weight, scaled0, gi, gj, gp):
     if len(lo) == 0:
         return None
     # --- matching: each group's best candidate under one global order of the pairs --------
+    # (P_u descending, then lo, then hi; from (lo, hi) order a stable sort on −P_u gives it)
     rank = np.empty(len(lo), dtype=np.int64)
-    rank[np.lexsort((hi, lo, -gp))] = np.arange(len(lo))
+    by = np.argsort(-gp, kind="stable") if by_pair else np.lexsort((hi, lo, -gp))
+    rank[by] = np.arange(len(lo))
     best = np.full(m, np.iinfo(np.int64).max)
     np.minimum.at(best, lo, rank)
     np.minimum.at(best, hi, rank)
@@ -373,11 +484,15 @@ def _merge_round(label, m, weight, scaled0, gi, gj, gp):
 
 
 def _relabel(label, m, a, b):
-    """Groups ``b`` join groups ``a`` (disjoint pairs); labels renumbered 0..m'-1."""
+    """Groups ``b`` join groups ``a`` (disjoint pairs); labels renumbered 0..m'-1 in the order
+    of the groups kept (``np.unique``'s ranks of the targets, without its sort: every target
+    is a kept group, as no ``a`` is also a ``b``)."""
     target = np.arange(m)
     target[b] = a
-    _, new = np.unique(target, return_inverse=True)
-    return new.ravel()[label].astype(np.int64)
+    kept = np.ones(m, bool)
+    kept[b] = False
+    new = np.cumsum(kept) - 1
+    return new[target][label].astype(np.int64)
 
 
 def _build(label, dwell_id, range_m, az, az_in, range_rate_mps, snr, truth_id, weight, circular, passes):
@@ -385,28 +500,36 @@ def _build(label, dwell_id, range_m, az, az_in, range_rate_mps, snr, truth_id, w
     label = _canonical(label) if n else label
     m = int(label.max()) + 1 if n else 0
     count = np.bincount(label, minlength=m).astype(np.int64)
-    wsum = np.bincount(label, weights=weight, minlength=m)
+    # Strongest ancestor: the first in the order by group, then descending SNR, then input
+    # order; a single report is its own (only the merged groups' members are sorted)
+    single = count == 1
+    strongest = np.zeros(m, np.int64)
+    alone = np.flatnonzero(single[label])
+    strongest[label[alone]] = alone
+    anc = np.flatnonzero(~single[label])            # the members of merged groups
+    lab = label[anc]
+    if anc.size:
+        order = anc[np.lexsort((anc, -snr[anc], lab))]
+        lead = np.flatnonzero(np.r_[True, label[order][1:] != label[order][:-1]])
+        strongest[label[order[lead]]] = order[lead]
+    # Means of the merged groups (bincount over their members alone: the same sums, in the
+    # same order); singletons keep their values bit for bit (no (w·x)/w round trip).
+    wsum = np.bincount(lab, weights=weight[anc], minlength=m)
 
     def mean(v):
-        return np.bincount(label, weights=weight * v, minlength=m) / wsum
+        return np.bincount(lab, weights=weight[anc] * v[anc], minlength=m) / wsum
 
-    # Strongest ancestor: sort by group, then descending SNR, then input order.
-    order = np.lexsort((np.arange(n), -snr, label))
-    starts = np.flatnonzero(np.r_[True, label[order][1:] != label[order][:-1]]) if n else np.zeros(0, int)
-    strongest = order[starts].astype(np.int64)
-    single = count == 1
-    r_out = mean(range_m)
-    a_out = mean(az)
-    rr_out = mean(range_rate_mps) if range_rate_mps is not None else None
-    # Singletons keep their values bit for bit (no (w·x)/w round trip).
-    if circular:
-        a_out = np.mod(a_out, TWO_PI)
+    with np.errstate(invalid="ignore", divide="ignore"):   # 0/0 at the singletons: replaced
+        r_out = mean(range_m)
+        a_out = mean(az)
+        rr_out = mean(range_rate_mps) if range_rate_mps is not None else None
+        if circular:
+            a_out = np.mod(a_out, TWO_PI)
     r_out[single] = range_m[strongest[single]]
     a_out[single] = az_in[strongest[single]]
     if rr_out is not None:
         rr_out[single] = range_rate_mps[strongest[single]]
-    anc = np.flatnonzero(count[label] > 1)
-    anc = anc[np.lexsort((anc, label[anc]))]
+    anc = anc[np.argsort(lab, kind="stable")]      # by group, then input order
     return MergeResult(
         group=label, dwell_id=dwell_id[strongest], range_m=r_out, azimuth_rad=a_out,
         range_rate_mps=rr_out, snr=np.bincount(label, weights=snr, minlength=m),

@@ -175,3 +175,93 @@ def test_road_frames_of_all_routes_at_once_are_each_routes_own():
             assert blend[a:b].tobytes() == bl.tobytes()
             assert turn[a:b].tobytes() == tu.tobytes()
     assert np.any(turn != 0) and np.any(blend != 0)
+
+
+def _time_at_scalar(prof, p, s_target):
+    """The one-pair inversion as it was written before ``times_at`` (Python floats, math
+    module): the oracle ``times_at`` must match bit for bit."""
+    import math
+
+    from gmtiflow.scene.motion import _bridge_scalar
+    i0, n, dt = int(prof.step_offset[p]), int(prof.n_steps_p[p]), prof.dt_s
+    col = prof.s_flat[i0 + p:i0 + p + n + 1]
+    i = int(np.searchsorted(col, s_target, side="left"))
+    if i == 0:
+        return 0.0
+    if i >= len(col):
+        return math.inf
+    k = i - 1
+    g = i0 + p + k
+    s0, v0 = float(col[k]), float(prof.v_flat[g])
+    a, tk = float(prof.a_flat[i0 + k]), float(prof.tau_flat[i0 + k])
+    if prof.bridge_flat[i0 + k]:
+        x0, x1, kap = float(prof.noise_flat[g]), float(prof.noise_flat[g + 1]), \
+            float(prof.kappa[p])
+        lo, hi, u = 0.0, dt, 0.5 * dt
+        for _ in range(60):
+            d, integral = _bridge_scalar(x0, x1, kap, u / dt)
+            err = s0 + v0 * u + 0.5 * a * u * u + integral * dt - s_target
+            vu = v0 + a * u + d
+            if abs(err) <= 1e-12 * max(1.0, abs(s_target)):
+                break
+            lo, hi = (u, hi) if err < 0 else (lo, u)
+            nxt = u - err / vu if vu > 0 else 0.5 * (lo + hi)
+            u = nxt if lo < nxt < hi else 0.5 * (lo + hi)
+            if hi - lo < 1e-12 * dt:
+                break
+        return k * dt + u
+    s_tau = s0 + v0 * tk + 0.5 * a * tk * tk
+    x = s_target - s0
+    if s_target <= s_tau:
+        den = v0 + math.sqrt(max(v0 * v0 + 2.0 * a * x, 0.0))
+        u = 0.0 if den <= 0 else 2.0 * x / den
+    else:
+        v1 = float(prof.v_flat[g + 1])
+        u = tk + (s_target - s_tau) / v1 if v1 > 0 else dt
+    return k * dt + min(max(u, 0.0), dt)
+
+
+@pytest.mark.parametrize("dt_s", [1.0, 0.1])
+def test_times_at_is_the_one_pair_inversion_for_every_pair(straight_map, dt_s):
+    """Profiles.times_at (all vehicles' entry and arrival at once) gives each pair's scalar
+    inversion bit for bit: in bridged free-cruise steps (Newton), in braking and waiting steps
+    (closed form), before the start (0) and past the stored steps (inf)."""
+    specs = [VehicleSpec(name=f"v{i}", start="a", end="b", cruise_speed_mps=8.0 + i,
+                         speed_noise_mps=0.6, speed_noise_corr_s=float(i % 3),
+                         random_stop_rate_per_s=0.02, mean_wait_s=5.0, stop_points=["m"],
+                         start_time_s=3.0 * i) for i in range(6)]
+    fl = _fleet(straight_map, *specs, duration_s=900.0, dt_s=dt_s, seed=7)
+    prof = fl.profiles
+    assert 0.2 < prof.bridge_flat.mean() < 0.99 and (prof.mode_flat == 2).any()
+    g = np.random.default_rng(8)
+    p = g.integers(0, len(specs), 3000)
+    end = prof.s_flat[prof.step_offset[1:] + np.arange(len(specs))]
+    s = g.uniform(-0.05, 1.05, p.size) * end[p]
+    s[:40] = prof.s_flat[prof.step_offset[p[:40]] + p[:40] + g.integers(0, 50, 40)]  # grid
+    s[40:60] = 5000.0                                                                # stop
+    got = prof.times_at(p, s)
+    want = np.array([_time_at_scalar(prof, int(a), float(b)) for a, b in zip(p, s)])
+    assert got.tobytes() == want.tobytes()
+    assert np.isinf(got).any() and (got == 0).any()
+    assert prof.time_at(int(p[7]), float(s[7])) == want[7]
+
+
+def test_state_at_in_blocks_is_state_at_at_once(monkeypatch):
+    """Fleet.state_at evaluates long requests in cache-sized blocks; every column is the
+    one-block result bit for bit (rows of active and inactive vehicles, any order)."""
+    from gmtiflow.scene import fleet as fleet_mod
+    from gmtiflow.scene.roadmap import RoadmapConfig, load_roadmap
+    fl = build_fleet(VehiclesConfig(random=RandomFleetSpec(count=40, start_time_max_s=60.0)),
+                     load_roadmap(RoadmapConfig()), 2, 300.0, 1.0)
+    g = np.random.default_rng(9)
+    t = g.uniform(-10.0, 320.0, 5000)
+    v = g.integers(-1, 42, 5000)
+    whole, table = fl.state_at(t, v), fl.truth_table(np.arange(0.0, 300.0, 0.5))
+    monkeypatch.setattr(fleet_mod, "_BLOCK_ROWS", 333)
+    blocks, table_b = fl.state_at(t, v), fl.truth_table(np.arange(0.0, 300.0, 0.5))
+    assert whole.keys() == blocks.keys() and 0.2 < whole["active"].mean() < 0.9
+    for k in whole:
+        assert whole[k].dtype == blocks[k].dtype and whole[k].tobytes() == blocks[k].tobytes()
+    assert table["x_m"].size > 3 * 333
+    for k in table:
+        assert table[k].dtype == table_b[k].dtype and table[k].tobytes() == table_b[k].tobytes()

@@ -294,3 +294,76 @@ def test_kdtree_equals_brute_force(n, n_dwells, spread, mode, threshold, iterate
                 cr, ca = r[m].mean(), az[m].mean()
                 ok = np.all(((r[m] - cr) / DR) ** 2 + ((az[m] - ca) / DAZ) ** 2 <= 1.0 + 1e-9)
                 assert not (p >= threshold * (1 + 1e-9) and ok), (a, b, p)
+
+
+# ---------------------------------------------------------------- the fast paths, against the plain ones
+
+def _pairs_as_set(i, j, p):
+    order = np.lexsort((j, i))
+    return i[order], j[order], p[order]
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(0, 300), n_dwells=st.integers(1, 6), spread=st.floats(0.5, 60.0),
+       dims=st.integers(2, 3), crowd=st.booleans(), seed=st.integers(0, 2 ** 31))
+def test_sweep_finds_the_kdtree_pairs_bit_for_bit(n, n_dwells, spread, dims, crowd, seed):
+    """The range sweep gives the kd-tree's pairs and P_u's, whatever the crowding (a crowded
+    chunk, with many reports at one range, goes to the tree itself after its passes)."""
+    g = np.random.default_rng(seed)
+    pts = g.uniform(0.0, spread, (n, dims)) + 4000.0
+    if crowd and n:
+        pts[: n // 2, 0] = 4000.0 + np.round(pts[: n // 2, 0] - 4000.0) * 0.0   # one range
+    pts[g.random(n) < 0.1] = pts[0] if n else 0.0        # exact duplicates
+    rank = np.sort(g.integers(0, n_dwells, n))
+    radius = mg.cutoff_cells("draw")
+    fast = _pairs_as_set(*mg._near_pairs(pts, rank, radius))
+    tree = _pairs_as_set(*mg._near_pairs_tree(pts, rank, radius))
+    for a, b in zip(fast, tree):
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+    assert np.all(rank[fast[0]] == rank[fast[1]]) and np.all(fast[0] < fast[1])
+
+
+def test_sweep_keeps_a_pair_exactly_at_the_cut_off():
+    # threshold 0.5: the cut-off is one cell, and a pair one cell apart merges
+    pts = np.array([[10.0, 0.0], [11.0, 0.0], [10.0, 1.0], [12.0 + 1e-6, 0.0]])
+    i, j, p = mg._near_pairs(pts, np.zeros(4, np.int64), mg.cutoff_cells("threshold", 0.5))
+    assert sorted(zip(i.tolist(), j.tolist())) == [(0, 1), (0, 2)]
+    assert p.tolist() == [0.5, 0.5]
+
+
+def test_canonical_numbers_groups_by_their_first_member():
+    label = np.array([5, 5, 2, 9, 2, 0, 9])
+    assert mg._canonical(label).tolist() == [0, 0, 1, 2, 1, 3, 2]
+    big = np.array([10 ** 9, 3, 10 ** 9])          # far beyond the row count: np.unique's path
+    assert mg._canonical(big).tolist() == [0, 1, 0]
+    g = np.random.default_rng(3)
+    for _ in range(20):
+        lab = g.integers(0, 50, 200)
+        _, first, inv = np.unique(lab, return_index=True, return_inverse=True)
+        rank = np.empty(len(first), np.int64)
+        rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+        assert np.array_equal(mg._canonical(lab), rank[inv])
+
+
+def test_group_edges_keep_the_most_probable_link_per_pair_of_groups():
+    a = np.array([3, 1, 2, 1, 4, 2, 0])
+    b = np.array([1, 3, 2, 0, 2, 4, 1])
+    p = np.array([0.2, 0.7, 0.9, 0.4, 0.1, 0.3, 0.4])
+    lo, hi, best = mg._group_edges(a, b, p)
+    assert list(zip(lo.tolist(), hi.tolist(), best.tolist())) == [
+        (0, 1, 0.4), (1, 3, 0.7), (2, 4, 0.3)]        # (2, 2) is no link
+
+
+def test_decide_draws_as_draw_uniform_per_pair():
+    g = np.random.default_rng(5)
+    n = 500
+    dwell = g.integers(0, 40, n)
+    ident = mg.report_identity(g.permutation(10 * n)[:n])
+    ident[7] = ident[8]                               # equal identities: either order
+    i = g.integers(0, n, 3000)
+    j = g.integers(0, n, 3000)
+    i[:2], j[:2] = (7, 8), (8, 7)
+    p = g.random(3000)
+    got = mg._decide(p, "draw", 0.5, 11, dwell, ident, i, j)
+    want = mg.draw_uniform(11, dwell[i], ident[i], ident[j]) < p
+    assert np.array_equal(got, want) and 0 < got.sum() < len(got)
