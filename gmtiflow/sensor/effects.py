@@ -295,12 +295,19 @@ class FalseAlarms:
         m = len(fa["dwell_id"])
         if m == 0:
             return detections, looks
+        # the false alarms in dwell order (stable: within a dwell as drawn), so that they
+        # merge into the dwell-ordered detections without a sort of every row (the rows are
+        # computed point by point: the same values in any order)
+        dw = np.asarray(fa["dwell_id"])
+        if not _non_decreasing(dw):
+            order = np.argsort(dw, kind="stable")
+            fa = {k: np.asarray(v)[order] for k, v in fa.items()}
         x, y = fa["x_m"], fa["y_m"]
         z = np.nan_to_num(np.asarray(ctx.terrain.height_at(x, y), float))
         rows = noise.false_alarm_rows(ctx, cfg, fa["dwell_id"], x, y, z,
                                       fa["clutter_range_rate_mps"], fa["snr"],
                                       _next_det_id(detections))
-        return reindex(noise.append_rows(detections, rows), looks)
+        return append_in_dwell_order(detections, rows, looks)
 
 
 class Ambiguities:
