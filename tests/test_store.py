@@ -147,6 +147,17 @@ def _mixed_planes(n, seed=2):
         (rng.integers(0, 256, n, dtype=np.uint32) << 24)
 
 
+def _strategy_planes(n, seed=5):
+    """uint64 values whose byte planes need each way of storing a plane: noise (stored),
+    strings that repeat (period 10: deflated with matches), bytes of skewed frequencies but no
+    repeated strings (run-length strategy), one byte value (a constant section)."""
+    rng = np.random.default_rng(seed)
+    planes = [rng.integers(0, 256, n), np.resize(rng.integers(0, 256, 10), n),
+              rng.binomial(255, 0.5, n), np.full(n, 7), np.resize(rng.integers(0, 256, 10), n),
+              rng.binomial(255, 0.3, n), rng.integers(0, 256, n), np.full(n, 200)]
+    return np.stack(planes, axis=1).astype(np.uint8).view(np.uint64).ravel()
+
+
 def test_deflated_chunk_is_what_the_hdf5_filters_decode(tmp_path):
     """Chunks made by _deflated_chunk, written raw, read back through HDF5's own shuffle and
     deflate filters as the values they were made of: element sizes 8, 4 and 1; byte planes
@@ -162,7 +173,9 @@ def test_deflated_chunk_is_what_the_hdf5_filters_decode(tmp_path):
               "runs": np.repeat(rng.normal(size=n // 8), 16),
               "ids": np.arange(2 * n, dtype=np.int64), "minus_one": np.full(2 * n, -1.0),
               "signed_zero": np.where(np.arange(2 * n) % 2 == 0, 0.0, -0.0),
-              "small": np.arange(2 * n, dtype=np.int16) % 7}
+              "small": np.arange(2 * n, dtype=np.int16) % 7,
+              "periodic": np.resize(rng.normal(size=10), 2 * n),
+              "strategies": _strategy_planes(2 * n)}
     with h5py.File(path, "w") as f:
         for name, v in values.items():
             ds = f.create_dataset(name, shape=v.shape, dtype=v.dtype,
@@ -222,6 +235,43 @@ def test_noise_planes_are_stored_and_the_rest_deflated():
     x = rng.normal(size=n)       # low mantissa bytes stored, sign and exponent deflated
     assert store._noise_planes(planes(x)).tolist() == [True] * 6 + [False] * 2
     assert len(store._deflated_chunk(x)) < 0.9 * x.nbytes
+
+
+def test_each_plane_is_deflated_the_way_that_stores_it_in_fewer_bytes(monkeypatch):
+    """A plane whose strings repeat (a periodic column: vehicles on laps, a beam scan) is
+    deflated with zlib-ng's matches, one whose bytes only have skewed frequencies with zlib's
+    run-length strategy (zlib-ng's quick deflate codes every byte it cannot match in 8-9
+    bits); a chunk of both comes out no bigger than with either way alone."""
+    if store._MATCH_STRATEGY is None:
+        pytest.skip("zlib-ng is not installed: every plane is deflated with Z_RLE")
+    n = store._CHUNK_ROWS
+    rng = np.random.default_rng(6)
+    periodic = np.resize(rng.normal(size=10), n)
+    assert len(store._deflated_chunk(periodic)) < 0.02 * periodic.nbytes
+    mixed = _strategy_planes(n)
+    chosen = len(store._deflated_chunk(mixed))
+    sizes = {}
+    for name, literal_bits in (("run-length", np.inf), ("matches", -np.inf)):
+        monkeypatch.setattr(store, "_LITERAL_BITS", literal_bits)
+        sizes[name] = len(store._deflated_chunk(mixed))
+    assert chosen < 0.95 * min(sizes.values()), (chosen, sizes)
+
+
+def test_without_zlib_ng_the_chunks_are_deflated_by_cpythons_zlib(monkeypatch):
+    """zlib-ng is a dependency, but the run file needs only the deflate streams: with
+    CPython's zlib every deflated plane is run-length coded, and the values come back."""
+    monkeypatch.setattr(store, "zlib", zlib)
+    monkeypatch.setattr(store, "_MATCH_STRATEGY", None)
+    monkeypatch.setattr(store, "_local", threading.local())     # compressors of zlib's own
+    monkeypatch.setattr(store, "_SECTIONS", {})
+    n = store._CHUNK_ROWS
+    for values in (_strategy_planes(n), np.random.default_rng(7).normal(size=n),
+                   np.arange(n, dtype=np.int64), np.arange(10, dtype=np.int64)):
+        raw = zlib.decompress(store._deflated_chunk(values))
+        k = values.dtype.itemsize
+        back = np.frombuffer(raw, np.uint8).reshape(k, -1).T.copy().view(values.dtype).ravel()
+        assert back.tobytes() == values.tobytes()
+    assert type(store._local.z3) is type(zlib.compressobj())
 
 
 def test_a_sink_closed_before_its_first_block_writes_exact_chunks(tmp_path):

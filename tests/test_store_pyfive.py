@@ -1,7 +1,8 @@
 """The run file's chunks are compressed outside HDF5 (``store._deflated_chunk``: per-byte-plane
-deflate sections, cached sections for constant planes, stored blocks for noise planes, small
-chunks whole).  pyfive, a pure-Python HDF5 reader written apart from the HDF5 library and h5py
-(its own chunk index, shuffle and deflate handling), must read every column back exactly."""
+deflate sections, by zlib's run-length strategy or zlib-ng's matches, cached sections for
+constant planes, stored blocks for noise planes, small chunks whole).  pyfive, a pure-Python
+HDF5 reader written apart from the HDF5 library and h5py (its own chunk index, shuffle and
+deflate handling), must read every column back exactly."""
 import numpy as np
 import pytest
 
@@ -20,6 +21,8 @@ def columns(n):
         "steps_f4": np.repeat(rng.normal(size=n // 100 + 1), 100)[:n].astype(np.float32),
         "flags_b1": rng.random(n) < 0.1,                               # one-byte planes
         "small_i2": np.arange(n, dtype=np.int16),
+        "periodic_f8": np.resize(rng.normal(size=10), n),    # deflated with matches (zlib-ng)
+        "skewed_u2": rng.binomial(600, 0.5, n).astype(np.uint16),   # run-length strategy
     }
 
 

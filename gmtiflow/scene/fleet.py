@@ -32,6 +32,7 @@ class Fleet:
         self.routes = [routes[v.route] for v in vehicles]
         self.profiles = prof
         self._w_knots, self._w_off, self._w_t0, self._w_h = wander
+        self._w_knots_t = np.ascontiguousarray(np.asarray(self._w_knots, float).T)
         self.roadmap = roadmap
         n = len(vehicles)
         self._profile = np.asarray([v.profile for v in vehicles], dtype=np.int64)
@@ -140,8 +141,8 @@ class Fleet:
             j = np.where((s >= self._vx_s[j + 1]) & (j < hi), j + 1, j)
             # (3, n) arrays: each axis a long contiguous row (an (n, 3) layout with n rows of
             # 3 makes every numpy loop 3 elements long)
-            p0 = self._vx_xyz_t[:, j]
-            d = self._vx_xyz_t[:, j + 1] - p0
+            p0 = np.take(self._vx_xyz_t, j, axis=1)     # (np.take: 4x faster than [:, j])
+            d = np.take(self._vx_xyz_t, j + 1, axis=1) - p0
             seg_len = self._vx_s[j + 1] - self._vx_s[j]
             safe = np.where(seg_len > 0, seg_len, 1.0)
             f = np.where(seg_len > 0, (s - self._vx_s[j]) / safe, 0.0)
@@ -153,19 +154,27 @@ class Fleet:
             # through corners; its rates are added, so velocity = d/dt position exactly.
             moving = np.flatnonzero(self._w_off[v_ids + 1] > self._w_off[v_ids])
             if moving.size:
-                m_ids = v_ids[moving]
-                n, nd, ndd = wander_mod.evaluate(t_a[moving], m_ids, self._w_knots,
-                                                 self._w_off, self._w_t0, self._w_h)
-                jm = j[moving]
+                # every row wanders (the usual case): whole arrays, no gathers or scatters
+                every = moving.size == v_ids.size
+                sub = (lambda a: a) if every else (lambda a: a[moving])  # noqa: E731
+                m_ids = sub(v_ids)
+                n, nd, ndd = wander_mod.evaluate(sub(t_a), m_ids, None, self._w_off,
+                                                 self._w_t0, self._w_h, knots_t=self._w_knots_t)
+                jm = sub(j)
                 psi, dpsi, d2psi = wander_mod.corner_heading(
-                    s[moving], self._vx_s[jm], self._vx_s[jm + 1], self._seg_psi[jm],
+                    sub(s), self._vx_s[jm], self._vx_s[jm + 1], self._seg_psi[jm],
                     self._vx_blend[jm], self._vx_turn[jm], self._vx_blend[jm + 1],
                     self._vx_turn[jm + 1])
                 off, v_off, a_off = wander_mod.world_offset(n, nd, ndd, psi, dpsi, d2psi,
-                                                            speed[moving], acc[moving])
-                pos[:, moving] += off.T
-                vel[:, moving] += v_off.T
-                accel[:, moving] += a_off.T
+                                                            sub(speed), sub(acc))
+                if every:
+                    pos += off.T
+                    vel += v_off.T
+                    accel += a_off.T
+                else:
+                    pos[:, moving] += off.T
+                    vel[:, moving] += v_off.T
+                    accel[:, moving] += a_off.T
             put(("x_m", "y_m", "z_m"), pos)
             put(("vx_mps", "vy_mps", "vz_mps"), vel)
             put(("ax_mps2", "ay_mps2", "az_mps2"), accel)

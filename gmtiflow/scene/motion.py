@@ -289,7 +289,17 @@ class Profiles:
         v = np.where(early, np.maximum(v0 + a * u, 0.0), v1)
         acc = np.where(early, a, 0.0)
         br = self.bridge_flat[i] & early      # at u = Δt the grid value s_{k+1} holds
-        if np.any(br):
+        nb = np.count_nonzero(br)
+        if 2 * nb > br.size:
+            # most rows bridged (free cruise with speed noise): the bridge of every row
+            # (finite for any grid values) and a select, instead of gathers and scatters
+            d, dd, integral = _bridge(self.noise_flat[g], self.noise_flat[g + 1],
+                                      self.kappa[p], u / dt)
+            s, v, acc = np.broadcast_arrays(s, v, acc)
+            s = np.where(br, s + integral * dt, s)
+            v = np.where(br, v + d, v)
+            acc = np.where(br, acc + dd / dt, acc)
+        elif nb:
             j = np.flatnonzero(br)
             gb = g[br]
             d, dd, integral = _bridge(self.noise_flat[gb], self.noise_flat[gb + 1],
@@ -599,6 +609,29 @@ def _track_speeds(v0, v_des, amax, dmax, dt, known=None):
     return V
 
 
+def _speed_caps(seg_offset, seg_start_m, seg_target_mps, d_cap):
+    """Per flat segment j of profile p: the target T_B and start s_B of the binding segment
+    ahead, B(j) = argmin_{b > j} (T_b^2 + 2 d_p s_b) within p's segments (the nearest on
+    ties); inf for a profile's last segment.  The profiles with the same number of segments
+    are done at once, one row each."""
+    seg_t, seg_s = np.asarray(seg_target_mps, float), np.asarray(seg_start_m, float)
+    seg_offset = np.asarray(seg_offset, np.int64)
+    cap_t = np.full(len(seg_s), np.inf)
+    cap_s = np.full(len(seg_s), np.inf)
+    n_seg = np.diff(seg_offset)
+    for n_b in np.unique(n_seg[n_seg > 1]).tolist():
+        ps = np.flatnonzero(n_seg == n_b)
+        cells = seg_offset[ps][:, None] + np.arange(n_b - 1)     # segments a0 .. a1 - 2
+        tb, sb = seg_t[cells + 1], seg_s[cells + 1]
+        r = (tb ** 2 + 2.0 * d_cap[ps][:, None] * sb)[:, ::-1]
+        acc = np.minimum.accumulate(r, axis=1)
+        pos = np.maximum.accumulate(np.where(r == acc, np.arange(n_b - 1), -1), axis=1)
+        best = (n_b - 2 - pos)[:, ::-1]                          # index into a row of tb/sb
+        cap_t[cells] = np.take_along_axis(tb, best, axis=1)
+        cap_s[cells] = np.take_along_axis(sb, best, axis=1)
+    return cap_t, cap_s
+
+
 def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                       windows: bool = True, window_steps: Optional[int] = None) -> Profiles:
     """Run the fleet's speed profiles, each for its own horizon or until done (module docstring).
@@ -626,19 +659,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     # does not depend on s, so it is precomputed (the nearest one on ties; d = 0.9 max_decel).
     # The bound is evaluated at the step's look-ahead point and clamped at T_B once past s_B.
     d_cap_all = 0.9 * inp.max_decel_mps2
-    cap_t = np.full(len(inp.seg_start_m), np.inf)
-    cap_s = np.full(len(inp.seg_start_m), np.inf)
-    for p in range(P):
-        a0, a1 = int(inp.seg_offset[p]), int(inp.seg_offset[p + 1])
-        if a1 - a0 > 1:
-            tb = inp.seg_target_mps[a0 + 1:a1]
-            sb = inp.seg_start_m[a0 + 1:a1]
-            r = (tb ** 2 + 2.0 * d_cap_all[p] * sb)[::-1]
-            acc = np.minimum.accumulate(r)
-            pos = np.maximum.accumulate(np.where(r == acc, np.arange(len(r)), -1))
-            best = (len(r) - 1 - pos)[::-1]           # index into tb/sb for segments a0..a1-2
-            cap_t[a0:a1 - 1] = tb[best]
-            cap_s[a0:a1 - 1] = sb[best]
+    cap_t, cap_s = _speed_caps(inp.seg_offset, inp.seg_start_m, inp.seg_target_mps, d_cap_all)
 
     # Per-profile constants (indexed by profile id).
     rho = np.asarray(inp.noise_rho, float)

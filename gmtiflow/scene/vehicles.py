@@ -31,6 +31,7 @@ Choices (documented in docs/scene.md):
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 from typing import Any, Dict, List
@@ -187,24 +188,33 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
                            f"fewer than two nodes; no random routes are possible")
     types = sorted(spec.types)
     weights = np.asarray([float(spec.types[t]) for t in types])
-    cdf = np.cumsum(weights) / weights.sum()
+    cdf = (np.cumsum(weights) / weights.sum()).tolist()
     xy = roadmap.node_xyz(nodes)[:, :2]
+    n_nodes, top = len(nodes), len(types) - 1
+    min_route_m = spec.min_route_m
+    # every two distinct nodes qualify: no distance to compute
+    any_pair = min_route_m <= 0 and bool(np.isfinite(xy).all())
+    node_name = roadmap.nodes["name"]
+    st_lo, st_hi = float(spec.start_time_min_s), float(spec.start_time_max_s)
+    cs_lo, cs_hi = float(spec.cruise_speed_min_mps), float(spec.cruise_speed_max_mps)
     out = []
     names = [f"{spec.name_prefix}-{i:04d}" for i in range(int(spec.count))]
     for name, g in zip(names, streams(seed, ("truth", "vehicle"), names, ("spec",))):
         for _attempt in range(100):
-            a, b = g.integers(0, len(nodes), size=2)
-            if a != b and np.hypot(*(xy[a] - xy[b])) >= spec.min_route_m:
+            a, b = g.integers(0, n_nodes, size=2).tolist()
+            if a != b and (any_pair or np.hypot(*(xy[a] - xy[b])) >= min_route_m):
                 break
         else:
             raise RoadMapError(f"{roadmap.source}: random vehicle {name!r}: no two nodes at least "
                                f"min_route_m = {spec.min_route_m} m apart were found")
-        vtype = types[int(np.searchsorted(cdf, g.random(), side="right").clip(0, len(types) - 1))]
+        # type, start time and cruise speed: three uniforms, as random() and two
+        # uniform(lo, hi) = lo + (hi - lo) * random() draw them (one call instead of three)
+        u_type, u_start, u_cruise = g.random(3).tolist()
+        vtype = types[min(max(bisect.bisect_right(cdf, u_type), 0), top)]
         out.append(VehicleSpec(
-            name=name, type=vtype, start=str(roadmap.nodes["name"][nodes[a]]),
-            end=str(roadmap.nodes["name"][nodes[b]]),
-            start_time_s=float(g.uniform(spec.start_time_min_s, spec.start_time_max_s)),
-            cruise_speed_mps=float(g.uniform(spec.cruise_speed_min_mps, spec.cruise_speed_max_mps)),
+            name=name, type=vtype, start=str(node_name[nodes[a]]), end=str(node_name[nodes[b]]),
+            start_time_s=st_lo + (st_hi - st_lo) * u_start,
+            cruise_speed_mps=cs_lo + (cs_hi - cs_lo) * u_cruise,
             speed_noise_mps=spec.speed_noise_mps, speed_noise_corr_s=spec.speed_noise_corr_s,
             position_noise_m=list(spec.position_noise_m),
             position_noise_corr_s=spec.position_noise_corr_s,
@@ -305,22 +315,27 @@ def _draw_wander(vehicles, seed, t0, on, off, horizon_s, dt):
     (its start to its arrival, or to the scene's end), knot-major: a prefix of the same draws
     for a longer trip (:mod:`wander`)."""
     N = len(vehicles)
-    knots, knot_off = [], [0]
     w_t0 = np.zeros(N)
     w_h = np.ones(N)
-    wanders = [vi for vi, veh in enumerate(vehicles)
-               if np.any(veh.sigma_pos > 0) and math.isfinite(on[vi])]
-    gens = dict(zip(wanders, streams(seed, ("truth", "vehicle"),
-                                     [vehicles[vi].name for vi in wanders], ("wander",))))
-    for vi, veh in enumerate(vehicles):
-        n_k = 0
-        if vi in gens:
-            p = veh.profile
-            w_t0[vi] = t0[p]
-            w_h[vi] = wander_mod.knot_spacing_s(veh.pos_corr_s, dt)
-            end = t0[p] + min(off[vi], horizon_s[p])
-            n_k = wander_mod.n_knots(w_t0[vi], end, w_h[vi])
-            knots.append(wander_mod.draw_knots(gens[vi], veh.sigma_pos, n_k))
-        knot_off.append(knot_off[-1] + n_k)
-    return (np.concatenate(knots) if knots else np.zeros((0, 3)),
-            np.asarray(knot_off, np.int64), w_t0, w_h)
+    n_k = np.zeros(N, np.int64)
+    wanders = np.asarray([vi for vi, veh in enumerate(vehicles)
+                          if np.any(veh.sigma_pos > 0) and math.isfinite(on[vi])], np.int64)
+    if wanders.size:
+        # the knots' span per vehicle (wander.knot_spacing_s and n_knots, all at once)
+        prof = np.asarray([vehicles[vi].profile for vi in wanders], np.int64)
+        corr = np.asarray([float(vehicles[vi].pos_corr_s) for vi in wanders])
+        w_t0[wanders] = t0[prof]
+        w_h[wanders] = np.where(corr > 0, corr, float(dt))
+        end = t0[prof] + np.minimum(off[wanders], horizon_s[prof])
+        span = np.maximum(end - w_t0[wanders], 0.0) / w_h[wanders]
+        n_k[wanders] = np.ceil(span - 1e-9).astype(np.int64) + 4
+    knot_off = np.concatenate([[0], np.cumsum(n_k)]).astype(np.int64)
+    knots = np.empty((int(knot_off[-1]), 3))
+    gens = streams(seed, ("truth", "vehicle"), [vehicles[vi].name for vi in wanders.tolist()],
+                   ("wander",))
+    for vi, g in zip(wanders.tolist(), gens):      # wander.draw_knots, in place
+        g.standard_normal(out=knots[knot_off[vi]:knot_off[vi + 1]])
+    if wanders.size:
+        sigma = np.asarray([np.asarray(v.sigma_pos, float) for v in vehicles]).reshape(N, 3)
+        knots *= np.repeat(sigma, n_k, axis=0)
+    return knots, knot_off, w_t0, w_h

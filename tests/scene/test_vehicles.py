@@ -561,3 +561,40 @@ def test_kernel_invariants(make_map, dt, cruise, sigma, amax, dmax, limit, seed,
     right = fl.state_at(k * dt, 0)["route_s_m"]
     ok = np.isfinite(left) & np.isfinite(right)
     assert np.all(np.abs(left[ok] - right[ok]) <= 1e-9 * 50 + 1e-9)
+
+
+@pytest.mark.parametrize("min_route_m, types", [(0.0, {"car": 0.8, "truck": 0.2}),
+                                                (1500.0, {"bus": 1.0, "car": 2.0, "van": 0.5})])
+def test_random_specs_are_the_documented_draws_of_each_vehicles_own_stream(min_route_m, types):
+    """Each random vehicle: from rng.stream(seed, "truth", "vehicle", name, "spec"), node
+    pairs by integers(0, n, 2) until distinct (and min_route_m apart), then the type by
+    inversion of random() on the weights' CDF, the start time and the cruise speed by
+    uniform(lo, hi): the vehicles' specs follow from those draws exactly."""
+    from gmtiflow import rng
+    from gmtiflow.scene.roadmap import RoadmapConfig, load_roadmap
+    from gmtiflow.scene.vehicles import _random_specs
+    rm = load_roadmap(RoadmapConfig())
+    spec = RandomFleetSpec(count=300, types=types, start_time_min_s=3.0, start_time_max_s=90,
+                           cruise_speed_min_mps=7.5, cruise_speed_max_mps=21.0,
+                           min_route_m=min_route_m)
+    got = _random_specs(spec, rm, 11)
+    nodes = rm.largest_component()
+    xy = rm.node_xyz(nodes)[:, :2]
+    names = sorted(types)
+    cdf = np.cumsum([types[t] for t in names]) / sum(types.values())
+    too_close = 0
+    for i, vs in enumerate(got):
+        g = rng.stream(11, "truth", "vehicle", f"random-{i:04d}", "spec")
+        while True:
+            a, b = g.integers(0, len(nodes), size=2)
+            if a != b and np.hypot(*(xy[a] - xy[b])) >= min_route_m:
+                break
+            too_close += a != b
+        vtype = names[min(int(np.searchsorted(cdf, g.random(), side="right")), len(names) - 1)]
+        assert (vs.start, vs.end) == (str(rm.nodes["name"][nodes[a]]),
+                                      str(rm.nodes["name"][nodes[b]]))
+        assert vs.type == vtype
+        assert vs.start_time_s == float(g.uniform(3.0, 90))
+        assert vs.cruise_speed_mps == float(g.uniform(7.5, 21.0))
+    assert len({v.type for v in got}) == len(types)
+    assert (too_close > 0) == (min_route_m > 0)     # the distance did reject pairs
