@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from enum import Enum
+from itertools import chain
 from typing import Dict, List
 
 import numpy as np
@@ -286,7 +287,7 @@ def problems_of(obj, prefix: str = "", reported: bool = False) -> List[Problem]:
             if type(value) not in SCALARS and not is_empty(value):
                 out += problems_of(value, f"{prefix}{name}.", name in included)
     elif isinstance(obj, (list, tuple)):
-        if holds_only_scalars(obj):
+        if holds_only_scalars(obj) or _reported_records(obj, reported):
             return out
         for i, item in enumerate(obj):
             out += problems_of(item, f"{prefix[:-1]}[{i}].", reported)
@@ -294,6 +295,33 @@ def problems_of(obj, prefix: str = "", reported: bool = False) -> List[Problem]:
         for key, item in obj.items():
             out += problems_of(item, f"{prefix}{key}.")
     return out
+
+
+def _reported_records(items, reported: bool) -> bool:
+    """Walking ``items`` would find no problem: two or more dataclasses of one class whose
+    ``problems()`` is not to be called (``reported``, or it has none), whose fields hold, across
+    the whole list, plain scalars, lists of them (waypoints ...) or dataclasses of one class for
+    which the same holds (``problems_include``).  Checked field by field across the list (a
+    long vehicle list), not item by item; anything else (False) is walked item by item."""
+    if len(items) < 2:
+        return False
+    cls = type(items[0])
+    if not dataclasses.is_dataclass(cls) or set(map(type, items)) != {cls}:
+        return False
+    if not reported and callable(getattr(cls, "problems", None)):
+        return False
+    included = getattr(cls, "problems_include", ())
+    for name, column in zip(field_names(cls), zip(*map(field_values, items))):
+        kinds = set(map(type, column))
+        if kinds <= SCALARS:
+            continue
+        if kinds <= {list, tuple}:
+            joined = list(chain.from_iterable(column))
+            if not (holds_only_scalars(joined) or _reported_records(joined, name in included)):
+                return False
+        elif len(kinds) != 1 or not _reported_records(column, name in included):
+            return False
+    return True
 
 
 MAX_MAGNITUDE = 1e12
@@ -348,14 +376,27 @@ def _resolves_as_str(text: str) -> bool:
     """A bare ``text`` reads back as the string itself: OmegaConf's dumper does not quote it
     (it quotes what reads as a bool or number) and no implicit resolver of the dumper claims it
     (null, timestamps ...), as ``Resolver.resolve`` decides."""
-    from omegaconf._utils import is_float, is_int, yaml_is_bool
-    if yaml_is_bool(text) or is_int(text) or is_float(text):
+    from omegaconf._utils import yaml_is_bool
+    if yaml_is_bool(text) or _reads_as_number(text):
         return False
     resolvers = _yaml_dumper().yaml_implicit_resolvers
     for tag, regexp in resolvers.get(text[0] if text else "", []) + resolvers.get(None, []):
         if regexp.match(text):
             return tag == "tag:yaml.org,2002:str"
     return True
+
+
+_WORD_NUMBERS = frozenset({"inf", "infinity", "nan"})
+
+
+def _reads_as_number(text: str) -> bool:
+    """OmegaConf's ``is_int(text) or is_float(text)`` (``int()`` or ``float()`` accepts it),
+    without raising for the usual word: an ASCII string that starts with a letter is never an
+    int, and a float only as inf, infinity or nan (any case, trailing ASCII whitespace)."""
+    if text[:1].isalpha() and text.isascii():
+        return text.rstrip(" \t\n\v\f\r").lower() in _WORD_NUMBERS
+    from omegaconf._utils import is_float, is_int
+    return is_int(text) or is_float(text)
 
 
 @functools.lru_cache(maxsize=None)

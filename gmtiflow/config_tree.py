@@ -33,7 +33,7 @@ def numeric_leaves(obj, prefix: str = "", bound: Optional[float] = None
             elif kind not in _NOT_NUMERIC and not is_empty(value):
                 yield from numeric_leaves(value, f"{prefix}{name}.", bound)
     elif isinstance(obj, (list, tuple)):
-        if bound is not None and numbers_within(obj, bound):
+        if bound is not None and (numbers_within(obj, bound) or records_within(obj, bound)):
             return
         for i, item in enumerate(obj):
             yield from numeric_leaves(item, f"{prefix[:-1]}[{i}].", bound)
@@ -105,6 +105,32 @@ def numbers_within(items, bound: float) -> bool:
     if not kinds <= {int, float, bool}:
         return False
     return not flat or (-bound <= min(flat) and max(flat) <= bound)
+
+
+def records_within(items, bound: float) -> bool:
+    """Every numeric leaf of two or more dataclasses of one class lies within ±``bound`` (NaNs
+    aside, as in :func:`numbers_within`), checked field by field across the list (a long
+    vehicle list), not item by item: fields that hold plain scalars, lists of them (or of
+    number lists) or dataclasses of one class for which the same holds.  False otherwise."""
+    if len(items) < 2:
+        return False
+    cls = type(items[0])
+    if not dataclasses.is_dataclass(cls) or set(map(type, items)) != {cls}:
+        return False
+    for column in zip(*map(field_values, items)):
+        kinds = set(map(type, column))
+        if kinds <= _NOT_NUMERIC:
+            continue
+        if kinds <= SCALARS:
+            numbers = [v for v in column if type(v) is int or type(v) is float]
+            if not (-bound <= min(numbers) and max(numbers) <= bound):
+                return False
+        elif kinds <= {list, tuple}:
+            if not numbers_within(list(chain.from_iterable(column)), bound):
+                return False
+        elif len(kinds) != 1 or not records_within(column, bound):
+            return False
+    return True
 
 
 def child(obj, part: str):

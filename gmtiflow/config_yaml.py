@@ -92,6 +92,26 @@ def float_text(value: float) -> str:
     return text
 
 
+def number_texts(numbers: list, kinds: set) -> List[str]:
+    """PyYAML's text of each int and float of ``numbers`` (``kinds``: their types).
+
+    Lists of waypoints repeat their values (a lapped route, a convoy's shared corners): each
+    distinct float is written once when there are few of them.  Floats only, and no zero
+    (``0.0 == -0.0`` would share one text): ints equal to floats would share one too."""
+    if kinds == {float} and len(numbers) > 64:
+        distinct = dict.fromkeys(numbers)
+        if len(distinct) * 2 <= len(numbers) and 0.0 not in distinct:
+            texts = list(map(repr, distinct))
+            if "e" in "".join(texts) or "n" in "".join(texts):
+                texts = list(map(float_text, distinct))
+            return list(map(dict(zip(distinct, texts)).__getitem__, numbers))
+    texts = list(map(repr, numbers))                   # repr is str for an int
+    joined = "".join(texts)
+    if "e" in joined or "n" in joined:
+        texts = [float_text(v) if type(v) is float else repr(v) for v in numbers]
+    return texts
+
+
 _SCALARS: Dict[type, Callable[[object], str]] = {
     float: float_text,
     int: str,
@@ -137,27 +157,28 @@ class _Writer:
 
     def mapping(self, keys: tuple, values: tuple, indent: int, lead: str) -> None:
         """``key: value`` lines at ``indent``; the first line starts with ``lead``."""
-        lines = self.lines
         for i, (head, value) in enumerate(zip(self.key_heads(keys, indent), values)):
-            if not i:
-                head = lead + head[indent:]
-            cls = type(value)
-            if cls is float:                           # the common cases, inline
-                text = repr(value)
-                lines.append(head + " " + (float_text(value) if "e" in text or "n" in text
-                                           else text))
-            elif cls is str:
-                lines.append(head + " " + self.string(value, len(head) + 1))
-            elif cls in _SCALARS:
-                lines.append(head + " " + _SCALARS[cls](value))
-            elif cls is list and not value:
-                lines.append(head + " []")
-            else:
-                self.value(head, value, indent, in_mapping=True)
+            self.entry(lead + head[indent:] if not i else head, value, indent)
+
+    def entry(self, head: str, value, indent: int) -> None:
+        """One ``key: value`` of a mapping at ``indent`` (``head`` is ``key:``)."""
+        cls = type(value)
+        if cls is float:                               # the common cases, inline
+            text = repr(value)
+            self.lines.append(head + " " + (float_text(value) if "e" in text or "n" in text
+                                            else text))
+        elif cls is str:
+            self.lines.append(head + " " + self.string(value, len(head) + 1))
+        elif cls in _SCALARS:
+            self.lines.append(head + " " + _SCALARS[cls](value))
+        elif cls is list and not value:
+            self.lines.append(head + " []")
+        else:
+            self.value(head, value, indent, in_mapping=True)
 
     def sequence(self, items, indent: int, lead: str) -> None:
         """``- item`` lines at ``indent``; the first line starts with ``lead``."""
-        if self.rows(items, indent, lead):
+        if self.rows(items, indent, lead) or self.records(items, indent, lead):
             return
         pad = " " * indent
         scalar = _SCALARS.get
@@ -175,18 +196,133 @@ class _Writer:
         if not items or set(map(type, items)) != {list} or len(set(map(len, items))) != 1:
             return False
         flat = list(chain.from_iterable(items))
-        if not flat or not set(map(type, flat)) <= {float, int}:
+        kinds = set(map(type, flat))
+        if not flat or not kinds <= {float, int}:
             return False
-        texts = list(map(repr, flat))                  # repr is str for an int
-        joined = "".join(texts)
-        if "e" in joined or "n" in joined:
-            texts = [float_text(v) if type(v) is float else repr(v) for v in flat]
+        texts = number_texts(flat, kinds)
         pad = " " * indent
         row = pad + "- - %s" + ("\n" + pad + "  - %s") * (len(items[0]) - 1)
         first = len(self.lines)
         self.lines.extend(map(row.__mod__, zip(*[iter(texts)] * len(items[0]))))
         self.lines[first] = lead + self.lines[first][indent:]
         return True
+
+    def records(self, items, indent: int, lead: str) -> bool:
+        """Write a list of mappings with the same keys (dataclasses of one class, dicts with
+        the same keys: listed vehicles ...) field by field across the list, ``- key: value``
+        then ``  key: value`` per item; False (nothing written) for other lists."""
+        table = self.table(items)
+        if table is None:
+            return False
+        pad = " " * indent
+        cut = indent + 2
+        blocks = self.blocks(*table, indent + 2)
+        self.lines.append(lead + "- " + blocks[0][cut:])
+        self.lines.extend([pad + "- " + block[cut:] for block in blocks[1:]])
+        return True
+
+    def table(self, items) -> Optional[Tuple[tuple, list]]:
+        """(keys, rows of values) of two or more mappings with the same keys in the same
+        order (after sorting if asked), or None: then each is written on its own."""
+        if len(items) < 2:
+            return None
+        cls = type(items[0])
+        if set(map(type, items)) != {cls}:
+            return None
+        if cls is dict:
+            keys = tuple(items[0])
+            if any(tuple(item) != keys for item in items) or any(isinstance(k, Enum)
+                                                                  for k in keys):
+                return None
+            rows = [tuple(item.values()) for item in items]
+        elif dataclasses.is_dataclass(cls):
+            keys = field_names(cls)
+            rows = list(map(field_values, items))
+        else:
+            return None
+        if not keys:
+            return None
+        if self.sort_keys:
+            if set(map(type, keys)) != {str}:
+                return None
+            order = sorted(range(len(keys)), key=keys.__getitem__)
+            keys = tuple(keys[i] for i in order)
+            rows = [tuple(row[i] for i in order) for row in rows]
+        return keys, rows
+
+    def blocks(self, keys: tuple, rows: list, indent: int) -> List[str]:
+        """The ``key: value`` lines of each row at ``indent``, one string per row (lines
+        joined), each written as :meth:`mapping` writes it, column by column."""
+        columns = [self.column(head, values, indent)
+                   for head, values in zip(self.key_heads(keys, indent), zip(*rows))]
+        return list(map("\n".join, zip(*columns)))
+
+    def column(self, head: str, values: tuple, indent: int) -> List[str]:
+        """The text of ``head`` + each value, as :meth:`entry` writes it."""
+        kinds = set(map(type, values))
+        if kinds == {float}:
+            texts = list(map(repr, values))
+            if "e" in "".join(texts) or "n" in "".join(texts):
+                texts = list(map(float_text, values))
+            return [head + " " + text for text in texts]
+        if kinds == {str}:
+            column = len(head) + 1
+            return [head + " " + self.string(value, column) for value in values]
+        if kinds <= _SCALARS.keys():
+            return [head + " " + _SCALARS[type(value)](value) for value in values]
+        if kinds == {list}:
+            texts = self.list_column(values, indent)
+            if texts is not None:
+                return [head + " []" if text is None else head + "\n" + text
+                        for text in texts]
+        elif len(kinds) == 1:
+            table = self.table(values)
+            if table is not None:
+                return [head + "\n" + block for block in self.blocks(*table, indent + 2)]
+        lines, out = self.lines, []
+        try:
+            for value in values:                       # anything else: value by value
+                self.lines = []
+                self.entry(head, value, indent)
+                out.append("\n".join(self.lines))
+        finally:
+            self.lines = lines
+        return out
+
+    def list_column(self, values: tuple, indent: int) -> Optional[List[Optional[str]]]:
+        """The ``- item`` lines at ``indent`` of each list (None for an empty one), for lists
+        of ints and floats or of number rows all of one length (:meth:`rows`); else None."""
+        flat = list(chain.from_iterable(values))
+        kinds = set(map(type, flat))
+        width, nested = 1, kinds == {list}
+        if nested:
+            widths = set(map(len, flat))
+            if len(widths) != 1 or not flat[0]:
+                return None
+            width = len(flat[0])
+            flat = list(chain.from_iterable(flat))
+            kinds = set(map(type, flat))
+        if not kinds or not kinds <= {float, int}:
+            return None
+        texts = number_texts(flat, kinds)
+        pad = " " * indent
+        row = (pad + "- - %s" + ("\n" + pad + "  - %s") * (width - 1)) if nested else (
+            pad + "- %s")
+        templates: Dict[int, str] = {}
+        out: List[Optional[str]] = []
+        start = 0
+        for value in values:                           # one % per list
+            count = len(value)
+            if not count:
+                out.append(None)
+                continue
+            template = templates.get(count)
+            if template is None:
+                template = templates[count] = "\n".join([row] * count)
+            stop = start + count * width
+            out.append(template % tuple(texts[start:stop]))
+            start = stop
+        return out
 
     def value(self, head: str, value, indent: int, in_mapping: bool) -> None:
         """``value`` after ``head`` (``key:`` or ``- ``): inline if a scalar or empty, else

@@ -20,7 +20,8 @@ from gmtiflow import config, schema
 from gmtiflow.compose import compose
 from gmtiflow.config_tree import get_path, numeric_leaves, set_leaf
 from gmtiflow.errors import ConfigError
-from gmtiflow.scene.vehicles_config import SpeedChangeSpec, VehicleSpec, VehiclesConfig
+from gmtiflow.scene.vehicles_config import (ConvoySpec, SpeedChangeSpec, VehicleSpec,
+                                             VehiclesConfig)
 
 
 def reference_numeric_leaves(obj, prefix=""):
@@ -207,6 +208,63 @@ def test_problems_are_found_inside_plain_looking_lists(tree, depth):
                                                stopovers=[tree, holder])])
     assert config.problems_of(cfg) == reference_problems_of(cfg)
     assert config.problems_of(cfg)
+
+
+# --- long lists of dataclasses: checked field by field across the list, the same outcome ------
+
+good_numbers = st.sampled_from([0.0, 1.5, 13.9, -2000.0, 7, 1e12, -1e12])
+lenient_numbers = st.one_of(good_numbers, good_numbers, good_numbers, waypoint_values)
+rows = st.one_of(st.lists(st.lists(good_numbers, min_size=2, max_size=2), min_size=2,
+                          max_size=4), st.lists(points, max_size=3))
+vehicle_specs = st.builds(
+    VehicleSpec, name=st.sampled_from(["a", "b", "", "???"]),
+    start=st.sampled_from([None, "n1", [1.0, 2.0]]), end=st.sampled_from([None, "n2"]),
+    stopovers=st.one_of(st.just([]), st.lists(st.one_of(st.just("n3"), points), max_size=2)),
+    cruise_speed_mps=lenient_numbers, start_speed_mps=st.one_of(st.none(), lenient_numbers),
+    position_noise_m=st.one_of(st.just([0.0, 0.0, 0.0]), st.lists(lenient_numbers, max_size=4)),
+    max_wait_s=lenient_numbers, off_road=st.one_of(rows, rows, st.just([])),
+    speed_changes=st.one_of(st.just([]), st.lists(st.builds(
+        SpeedChangeSpec, at=st.sampled_from([None, "n1", [1.0, 2.0], {"x": 1e13}]),
+        cruise_speed_mps=lenient_numbers), max_size=2)),
+    convoy=st.builds(ConvoySpec, count=st.sampled_from([1, 1, 3, 0]),
+                     spacing_m=st.one_of(st.none(), lenient_numbers)))
+BASE = []
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(vehicle_specs, min_size=2, max_size=5), st.sampled_from([0.5, 1e12, math.inf]))
+def test_vehicle_lists_checked_field_by_field_give_the_same_problems(vehicles, bound):
+    if not BASE:
+        BASE.append(compose(["fidelity=fast"]))
+    cfg = dataclasses.replace(BASE[0], vehicles=VehiclesConfig(vehicles=vehicles))
+    def once(problems):                   # a parent may report its items' problems too
+        return problems if isinstance(problems, tuple) else list(dict.fromkeys(problems))
+    assert (once(same_result(config.problems_of, cfg.vehicles))
+            == once(same_result(reference_problems_of, cfg.vehicles)))
+    assert_same_outcome(cfg)
+    every = list(numeric_leaves(cfg))
+    some = list(numeric_leaves(cfg, bound=bound))
+
+    def beyond(leaves):                   # NaNs in a list within the bound may be left out
+        return [leaf for leaf in leaves if leaf[1] == leaf[1] and not -bound <= leaf[1] <= bound]
+    assert beyond(every) == beyond(some)
+    assert all(leaf in every for leaf in some)
+
+
+def test_a_clean_vehicle_list_is_checked_field_by_field():
+    # the bulk checks answer for the peer's list (no walk item by item), and are not fooled
+    from gmtiflow.config_tree import records_within
+    vehicles = peer_config(20).vehicles.vehicles
+    assert config._reported_records(vehicles, True) and records_within(vehicles, 1e12)
+    assert not config._reported_records(vehicles, False)      # their problems() must run
+    vehicles[7].convoy.spacing_m = -3e12
+    assert config._reported_records(vehicles, True) and not records_within(vehicles, 1e12)
+    vehicles[7].convoy.spacing_m = None
+    vehicles[3].speed_changes = [SpeedChangeSpec(at="n1")]
+    vehicles[4].speed_changes = [SpeedChangeSpec(at="n2", cruise_speed_mps=-1.0)]
+    assert config._reported_records(vehicles, True)          # reported by VehicleSpec.problems
+    vehicles[3].stopovers = [{"lat_deg": 1.0, "lon_deg": 2.0}]
+    assert not config._reported_records(vehicles, True)      # a dict: walked item by item
 
 
 # --- to_object: missing values listed as before, the walk that finds them only on failure -----

@@ -201,6 +201,93 @@ def test_enum_keys_are_written_by_name_once():
     assert fast_text(tree) == config.pyyaml_text(tree) == "modes:\n  instant_scan: 2\n  dwell_resolved: 3\n"
 
 
+def record_lists(strings, keys, depth=2):
+    """Lists of two or more dicts with the same keys, each key's values of one kind across
+    the list (floats, strings, number lists, rows, nested dicts or record lists with the same
+    keys) or of any kind: what the writer writes field by field across the list."""
+    scalars = st.one_of(strings, numbers, st.none(), st.booleans())
+    kinds = [st.floats(), strings, scalars, st.lists(numbers, max_size=3),
+             st.integers(1, 3).flatmap(lambda k: st.lists(
+                 st.lists(numbers, min_size=k, max_size=k), max_size=3)),
+             plain_trees(strings, keys, max_leaves=4)]
+    if depth:
+        kinds.append(record_lists(strings, keys, depth - 1))
+    same_keys = st.lists(keys, min_size=1, max_size=3, unique=True).map(
+        lambda ks: st.fixed_dictionaries({k: st.floats() | scalars for k in ks}))
+    column = st.one_of(st.sampled_from(kinds), same_keys)
+    return st.lists(keys, min_size=1, max_size=4, unique=True).flatmap(
+        lambda ks: st.tuples(*[column for _ in ks]).flatmap(
+            lambda columns: st.lists(st.fixed_dictionaries(dict(zip(ks, columns))),
+                                     min_size=2, max_size=4)))
+
+
+RECORD_TREES = st.dictionaries(SHORT_ASCII.filter(bool), record_lists(
+    st.one_of(st.sampled_from([s for s in AWKWARD_STRINGS if len(s) <= 12
+                               and all(" " <= c <= "~" for c in s)]), SHORT_ASCII),
+    st.one_of(SHORT_ASCII.filter(bool), st.sampled_from(["a", "yes", "1.5", "b"]))),
+    min_size=1, max_size=2)
+"""Short one-line ASCII strings and keys, little nesting: the fast writer writes them all."""
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(RECORD_TREES)
+def test_lists_of_records_are_written_as_pyyaml_writes_them(tree):
+    text = fast_text(tree)
+    assert text is not None and text == config.pyyaml_text(tree)
+    sorted_text, expected = fast_sorted_text(tree), omegaconf_sorted_text(tree)
+    assert sorted_text is not None and (expected is None or sorted_text == expected)
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.dictionaries(st.sampled_from(AWKWARD_STRINGS), record_lists(
+    st.one_of(st.sampled_from(AWKWARD_STRINGS), st.text(max_size=8),
+              st.text(alphabet=ONE_LINE_ASCII, max_size=90)),
+    st.one_of(st.sampled_from(AWKWARD_STRINGS), st.text(max_size=8))), max_size=2))
+def test_lists_of_awkward_records_are_written_as_pyyaml_writes_them_or_left_to_it(tree):
+    text = fast_text(tree)
+    if text is not None:
+        assert text == config.pyyaml_text(tree)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.builds(
+    VehicleSpec, name=st.sampled_from(AWKWARD_STRINGS), type=SHORT_ASCII,
+    cruise_speed_mps=st.one_of(st.floats(), st.sampled_from(AWKWARD_NUMBERS)),
+    start=st.one_of(st.none(), SHORT_ASCII, st.lists(numbers, max_size=2)),
+    position_noise_m=st.lists(numbers, max_size=3),
+    off_road=st.lists(st.lists(numbers, min_size=2, max_size=3), max_size=4)),
+    min_size=2, max_size=4))
+def test_vehicle_lists_are_written_as_pyyaml_writes_them(vehicles):
+    tree = VehiclesConfig(vehicles=vehicles)
+    text = fast_text(tree)
+    if text is not None:
+        assert text == config.pyyaml_text(tree)
+
+
+def test_many_repeated_waypoints_are_written_as_pyyaml_writes_them():
+    # a lapped route repeats its corners: each distinct value's text is made once
+    laps = [[1e-7, -2.5], [1e16, 3.0], [0.1 + 0.2, 123456789.123456789]] * 40
+    for extra in ([], [[0.0, 1.0]], [[-0.0, 1.0]], [[math.nan, math.inf]]):
+        tree = VehiclesConfig(vehicles=[VehicleSpec(name=f"v{i}", off_road=laps + extra)
+                                        for i in range(3)])
+        text = fast_text(tree)
+        assert text is not None and text == config.pyyaml_text(tree)
+        assert fast_text({"k": laps + extra}) == config.pyyaml_text({"k": laps + extra})
+
+
+@pytest.mark.parametrize("text", ["inf", "Infinity", "nAn", "inf ", "nan\t\n", "inf\x1c", "info",
+                                  "t0001", "yes", "null", "1e5", "+inf", "x"])
+def test_words_read_as_numbers_as_omegaconf_reads_them(text):
+    from omegaconf._utils import is_float, is_int
+    assert config._reads_as_number(text) == (is_int(text) or is_float(text))
+
+
+@given(st.text(alphabet="aAiInNfFtTyY_0.e+- \t\n\x0b\x1c\x85", max_size=10))
+def test_strings_read_as_numbers_as_omegaconf_reads_them(text):
+    from omegaconf._utils import is_float, is_int
+    assert config._reads_as_number(text) == (is_int(text) or is_float(text))
+
+
 # --- the stage cache's key text: OmegaConf.to_yaml(OmegaConf.create(tree), sort_keys=True) -----
 
 def omegaconf_sorted_text(tree):

@@ -122,10 +122,26 @@ class Merging:
         _set_ground(ctx, out, rows, out["dwell_id"][rows], out["range_m"][rows],
                     out["azimuth_rad"][rows])
         # Looks: an ancestor that is not the strongest is now "merged" into the group's report.
-        new_id_of_input = out["det_id"][res.group]
-        absorbed = res.strongest[res.group] != np.arange(n)
         looks = dict(looks)
         ld = np.asarray(looks["det_id"], np.int64)
+        if (np.array_equal(detections["det_id"], np.arange(n))
+                and _non_decreasing(out["dwell_id"])):
+            # the usual case, ids 0..n-1 and the output rows (in the order of their first
+            # input) still in dwell order: what reindex would give, without its sort and
+            # searches (a look's report is its input's group, the output row)
+            out["det_id"] = np.arange(len(res.strongest), dtype=np.int64)
+            has = np.flatnonzero(ld >= 0)
+            src = ld[has]
+            row = res.group[src]
+            new_ld = ld.copy()
+            new_ld[has] = row
+            outcome = np.asarray(looks["outcome"]).copy()
+            outcome[has[res.strongest[row] != src]] = Outcome.MERGED
+            looks["det_id"] = new_ld
+            looks["outcome"] = outcome
+            return out, looks
+        new_id_of_input = out["det_id"][res.group]
+        absorbed = res.strongest[res.group] != np.arange(n)
         has = ld >= 0
         sorter = np.argsort(detections["det_id"], kind="stable")
         pos = sorter[np.searchsorted(detections["det_id"], ld[has], sorter=sorter)]
@@ -279,12 +295,19 @@ class FalseAlarms:
         m = len(fa["dwell_id"])
         if m == 0:
             return detections, looks
+        # the false alarms in dwell order (stable: within a dwell as drawn), so that they
+        # merge into the dwell-ordered detections without a sort of every row (the rows are
+        # computed point by point: the same values in any order)
+        dw = np.asarray(fa["dwell_id"])
+        if not _non_decreasing(dw):
+            order = np.argsort(dw, kind="stable")
+            fa = {k: np.asarray(v)[order] for k, v in fa.items()}
         x, y = fa["x_m"], fa["y_m"]
         z = np.nan_to_num(np.asarray(ctx.terrain.height_at(x, y), float))
         rows = noise.false_alarm_rows(ctx, cfg, fa["dwell_id"], x, y, z,
                                       fa["clutter_range_rate_mps"], fa["snr"],
                                       _next_det_id(detections))
-        return reindex(noise.append_rows(detections, rows), looks)
+        return append_in_dwell_order(detections, rows, looks)
 
 
 class Ambiguities:

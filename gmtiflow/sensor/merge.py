@@ -399,9 +399,9 @@ def _decide(p, mode, threshold, seed, dwell, ident, i, j) -> np.ndarray:
     i_low = a <= b
     low = np.where(i_low, i, j)            # the point holding the lower identity
     high = np.where(i_low, j, i)
-    mixed = [np.take(rng.mix_counter(dwell), i), np.take(mixed_id, low),
-             np.take(mixed_id, high)]
-    u = rng.Counters(mixed=mixed).uniform(rng.counter_key(seed, "sensor", "merge"))
+    mixed = [np.take(mixed_id, low), np.take(mixed_id, high)]
+    u = rng.Counters(mixed=mixed, lead=(rng.mix_counter(dwell), i)).uniform(
+        rng.counter_key(seed, "sensor", "merge"))
     return u < p
 
 
