@@ -266,7 +266,7 @@ def _constant_planes(values: np.ndarray) -> np.ndarray:
     if k not in (1, 2, 4, 8) or not len(values):
         return np.zeros(k, bool)
     u = values.view(f"u{k}")
-    differ = np.bitwise_or.reduce(u ^ u[0])
+    differ = np.bitwise_or.reduce(u) ^ np.bitwise_and.reduce(u)    # bits not all 0 nor all 1
     return np.frombuffer(np.asarray(differ, u.dtype).tobytes(), np.uint8) == 0
 
 
