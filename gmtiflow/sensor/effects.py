@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from gmtiflow import frames
-from gmtiflow.sensor import (ambiguity, antenna, clutter, geolocate, measurement, merge, noise,
+from gmtiflow.sensor import (ambiguity, antenna, clutter, fastnp, geolocate, measurement, merge, noise,
                              scan, visibility)
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.outcome import Outcome
@@ -41,7 +41,7 @@ from gmtiflow.tables import Table, take
 
 
 def _world_azimuth(dx, dy):
-    return np.mod(np.arctan2(dx, dy), 2.0 * np.pi)
+    return fastnp.mod(np.arctan2(dx, dy), 2.0 * np.pi)
 
 
 def _local_rows(ctx, dwell_id):
@@ -91,7 +91,11 @@ class Merging:
             return detections, looks
         cfg, mcfg = self.cfg, self.cfg.merge
         k = _local_rows(ctx, detections["dwell_id"])
-        beam_cell = scan.broadened_beamwidth_rad(cfg, ctx.dwells["beam_scan_rad"][k])
+        beam = ctx.dwells["beam_scan_rad"]
+        # per dwell of the chunk and gathered when there are more reports than dwells (the
+        # same values)
+        beam_cell = (np.take(scan.broadened_beamwidth_rad(cfg, beam), k) if 2 * len(beam) < n
+                     else scan.broadened_beamwidth_rad(cfg, beam[k]))
         use_rr = mcfg.use_range_rate
         rr_cell = cfg.doppler_cell_hz * cfg.wavelength_m / 2.0
         res = merge.merge_reports(
@@ -268,7 +272,7 @@ class FalseAlarms:
                                                  antenna.take(ctx.antenna_up, k), ctx.terrain,
                                                  radius_m=ctx.radius_m)
         centre = to_world[k] + 0.5 * (lo[k] + hi[k])
-        rel = np.mod(np.arctan2(ground[0] - plat[0], ground[1] - plat[1]) - centre + np.pi,
+        rel = fastnp.mod(np.arctan2(ground[0] - plat[0], ground[1] - plat[1]) - centre + np.pi,
                      2.0 * np.pi) - np.pi
         rel = rel.reshape(n, m)
         ok = np.asarray(reached, bool).reshape(n, m).all(axis=1)
