@@ -52,8 +52,10 @@ def record(scene: str, out: Path) -> list:
     def recorded(name, method):
         def call(self, *a, **k):
             top = not getattr(self, "_recording", False)    # not write_table from append_table
-            if top:     # the path of __init__ is the replay's own
-                calls.append((name, () if name == "__init__" else a, k))
+            if top:     # the path of __init__ is the replay's own; a list of parts (a
+                # TableSink's block) is replayed joined: what a revision before lists takes
+                calls.append((name, () if name == "__init__" else
+                              (a[0], _whole(a[1]), *a[2:]) if len(a) > 1 else a, k))
             self._recording = True
             try:
                 return method(self, *a, **k)
@@ -75,6 +77,14 @@ def record(scene: str, out: Path) -> list:
         for name, method in saved.items():
             setattr(cls, name, method)
     return calls
+
+
+def _whole(table) -> dict:
+    """A table as the writer was given it: a table, or a list of parts (TableSink's blocks)."""
+    import numpy as np
+    if not isinstance(table, list):
+        return table
+    return {c: np.concatenate([p[c] for p in table]) for c in table[0]} if table else {}
 
 
 def _cut(calls: list, rows: int) -> list:

@@ -90,7 +90,15 @@ def mix_counter(counter) -> np.ndarray:
     return _mixed_counters([counter])[0]
 
 
-def _hash_mixed(key: np.uint64, mixed: list) -> np.ndarray:
+def _hash_mixed(key: np.uint64, mixed: list, lead=None) -> np.ndarray:
+    if lead is not None:
+        # the first counter is table[index]: its step mix(key + G + m) taken once per table
+        # value and gathered (the same values; the step depends on nothing else)
+        table, index = lead
+        with np.errstate(over="ignore"):
+            h = np.take(_mix_own(np.asarray(table, np.uint64) + (np.uint64(key) + _GOLDEN)),
+                        index)
+        return _hash_more(h, mixed)
     shape = np.broadcast_shapes(*(m.shape for m in mixed)) if mixed else ()
     with np.errstate(over="ignore"):
         if not mixed:
@@ -99,7 +107,17 @@ def _hash_mixed(key: np.uint64, mixed: list) -> np.ndarray:
         # part is one scalar, added to the first counter without a full array of keys
         h = np.asarray(mixed[0]) + (np.uint64(key) + _GOLDEN)
         h = _mix(np.broadcast_to(h, shape)) if h.shape != shape else _mix_own(h)
-        for m in mixed[1:]:
+    return _hash_more(h, mixed[1:])
+
+
+def _hash_more(h: np.ndarray, mixed: list) -> np.ndarray:
+    """The chain's further steps, h = mix(h + G + m) per mixed counter m, on ``h`` (the
+    caller's own array, or a scalar)."""
+    with np.errstate(over="ignore"):
+        if mixed and h.shape != np.broadcast_shapes(h.shape, *(m.shape for m in mixed)):
+            h = np.array(np.broadcast_to(h, np.broadcast_shapes(h.shape,
+                                                                *(m.shape for m in mixed))))
+        for m in mixed:
             h += _GOLDEN           # h is this function's own array from here on
             h += m
             h = _mix_own(h)
@@ -142,26 +160,45 @@ class Counters:
     """Counter arrays mixed once (the key-independent half of :func:`pair_hash`) for several
     draws on the same pairs: ``Counters(d, v).uniform(k)`` is ``pair_uniform(k, d, v)`` and
     ``.normal(k)`` is ``pair_normal(k, d, v)``, bit for bit, and :meth:`take` selects pairs
-    without mixing them again (SplitMix64 on uint64 is most of a draw's cost)."""
+    without mixing them again (SplitMix64 on uint64 is most of a draw's cost).
 
-    def __init__(self, *counters, mixed=None):
+    ``lead=(table, index)``: the first counter's mixed values are ``table[index]`` (one per
+    dwell, say, gathered per pair) and ``mixed`` holds the others (1-d, as ``index``).  A
+    draw's first step, which depends on the key and that counter alone, is then taken once
+    per table value and gathered: the same draws, one SplitMix64 step fewer per pair."""
+
+    def __init__(self, *counters, mixed=None, lead=None):
         self.mixed = _mixed_counters(counters) if mixed is None else mixed
+        if lead is not None:
+            table, index = np.asarray(lead[0], np.uint64), np.asarray(lead[1])
+            if 2 * table.size >= index.size or index.ndim != 1:
+                # as many table values as pairs: gathering first is as cheap
+                self.mixed, lead = [np.take(table, index)] + list(self.mixed), None
+            else:
+                lead = (table, index)
+        self.lead = lead
 
     def take(self, index) -> "Counters":
         """The draws of pairs ``index`` (an index or mask into the counters' broadcast shape)."""
-        shape = np.broadcast_shapes(*(m.shape for m in self.mixed))
         index = np.asarray(index)
+        if self.lead is not None:
+            if index.dtype.kind == "b":
+                index = np.flatnonzero(index)
+            table, at = self.lead
+            return Counters(mixed=[np.take(np.broadcast_to(m, at.shape), index)
+                                   for m in self.mixed], lead=(table, np.take(at, index)))
+        shape = np.broadcast_shapes(*(m.shape for m in self.mixed))
         if index.dtype.kind in "iu" and index.ndim == 1 and len(shape) == 1:
             return Counters(mixed=[np.take(np.broadcast_to(m, shape), index)
                                    for m in self.mixed])       # as fancy indexing, cheaper
         return Counters(mixed=[np.broadcast_to(m, shape)[index] for m in self.mixed])
 
     def uniform(self, key: np.uint64) -> np.ndarray:
-        return _unit(_hash_mixed(key, self.mixed))
+        return _unit(_hash_mixed(key, self.mixed, self.lead))
 
     def normal(self, key: np.uint64) -> np.ndarray:
         with np.errstate(over="ignore"):
             k2 = _mix(np.asarray(key, dtype=np.uint64) + _GOLDEN * np.uint64(7))
-        u1 = _unit(_hash_mixed(key, self.mixed))
-        u2 = _unit(_hash_mixed(k2, self.mixed))
+        u1 = _unit(_hash_mixed(key, self.mixed, self.lead))
+        u2 = _unit(_hash_mixed(k2, self.mixed, self.lead))
         return np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)

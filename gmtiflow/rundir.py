@@ -203,8 +203,8 @@ def prepare(out_dir: os.PathLike, planned: List[str], seed: int) -> List[Path]:
     out = Path(out_dir)
     claimed = read_manifest(out)
     names = list(dict.fromkeys([RUN_FILE, *claimed]))
-    write_manifest(out, {"complete": False, "seed": seed,
-                         "planned": list(dict.fromkeys([*planned, *names])), "files": []})
+    claiming = list(dict.fromkeys([*planned, *names]))
+    write_manifest(out, {"complete": False, "seed": seed, "planned": claiming, "files": []})
     paths = [out / n for n in names]
     for name in dict.fromkeys([*planned, *claimed]):
         paths += temporaries(out, name)
@@ -213,8 +213,9 @@ def prepare(out_dir: os.PathLike, planned: List[str], seed: int) -> List[Path]:
         if path.is_file() or path.is_symlink():
             path.unlink()
             removed.append(path)
-    write_manifest(out, {"complete": False, "seed": seed, "planned": list(planned),
-                         "files": []})
+    if claiming != list(planned):     # (a re-run of the same outputs: already written)
+        write_manifest(out, {"complete": False, "seed": seed, "planned": list(planned),
+                             "files": []})
     if removed:
         log.info("removed %d output(s) of an earlier run in %s: %s", len(removed), out,
                  ", ".join(p.name for p in removed))

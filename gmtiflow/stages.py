@@ -108,8 +108,7 @@ class TableSink:
     def _flush(self) -> None:
         if not self._pending:
             return
-        block = (self._pending[0] if len(self._pending) == 1 else
-                 {c: np.concatenate([p[c] for p in self._pending]) for c in self._pending[0]})
+        block = self._pending          # joined column by column as the writer compresses
         self._pending, self._n_pending = [], 0
         self.writer.append_table(self.name, block)
         self._created = True
@@ -118,8 +117,7 @@ class TableSink:
         if not self._created and self._pending:
             # every row arrived before the first block was due: one dataset of exactly these
             # rows (chunks of its own size; no padding to a full streaming chunk)
-            block = (self._pending[0] if len(self._pending) == 1 else
-                     {c: np.concatenate([p[c] for p in self._pending]) for c in self._pending[0]})
+            block = self._pending
             self._pending, self._n_pending = [], 0
             self.writer.write_table(self.name, block)
             self._created = True

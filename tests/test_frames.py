@@ -64,3 +64,19 @@ def test_ecef_to_lat_lon_is_pymap3ds_bit_for_bit():
     p_lat, p_lon = frames._ecef_to_lat_lon_deg(px, py, pz)
     w_lat, w_lon, _ = pymap3d.ecef2geodetic(px, py, pz)
     assert np.array_equal(p_lat, w_lat) and np.array_equal(p_lon, w_lon)
+
+
+def test_heading_and_wrap_are_np_mod_bit_for_bit():
+    """heading_rad and wrap_pi take fastnp.mod's path: np.mod's values, signed zeros, the
+    axes, ±π and non-finite inputs included, for arrays and scalars."""
+    import numpy as np
+    from gmtiflow import frames
+
+    g = np.random.default_rng(4)
+    e = np.concatenate([g.normal(size=5000), [0.0, -0.0, 0.0, -0.0, 1.0, -1.0, 0.0, np.nan, np.inf]])
+    n = np.concatenate([g.normal(size=5000), [0.0, 0.0, -0.0, -0.0, 0.0, 0.0, -1.0, 1.0, 1.0]])
+    want = np.mod(np.arctan2(e, n), 2.0 * np.pi)
+    assert frames.heading_rad(e, n).tobytes() == want.tobytes()
+    assert frames.heading_rad(-0.0, -1.0) == np.mod(np.arctan2(-0.0, -1.0), 2.0 * np.pi)
+    a = np.concatenate([g.uniform(-20, 20, 5000), [np.pi, -np.pi, 0.0, -0.0, 3 * np.pi, np.nan]])
+    assert frames.wrap_pi(a).tobytes() == (np.mod(a + np.pi, 2.0 * np.pi) - np.pi).tobytes()

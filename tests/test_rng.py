@@ -97,3 +97,28 @@ def test_counters_with_a_mixed_scalar_channel_are_pair_uniform_bit_for_bit():
         assert got.tobytes() == rng.pair_uniform(key, d, i, ch).tobytes()
         draws.append(got)
     assert not np.array_equal(draws[0], draws[1])        # the channel does change the draw
+
+
+def test_counters_with_a_leading_table_are_the_pair_draws_bit_for_bit():
+    """Counters(lead=(mixed table, index)): the first counter gathered from a table of mixed
+    values, its draw step taken per table value; the same draws as the gathered counters,
+    for a small table (the lead kept) and a large one (gathered at once), and after take."""
+    g = np.random.default_rng(9)
+    key, key2 = rng.counter_key(5, "lead"), rng.counter_key(5, "lead2")
+    v = g.integers(0, 10**6, 4000)
+    for n_table in (30, 5000):
+        dwells = g.integers(0, 10**9, n_table)
+        at = g.integers(0, n_table, 4000)
+        c = rng.Counters(mixed=[rng.mix_counter(v)], lead=(rng.mix_counter(dwells), at))
+        assert (c.lead is not None) == (n_table == 30)
+        assert c.uniform(key).tobytes() == rng.pair_uniform(key, dwells[at], v).tobytes()
+        assert c.normal(key2).tobytes() == rng.pair_normal(key2, dwells[at], v).tobytes()
+        idx = np.flatnonzero(g.random(4000) < 0.4)[::-1]
+        assert (c.take(idx).normal(key).tobytes()
+                == rng.pair_normal(key, dwells[at][idx], v[idx]).tobytes())
+        sel = g.random(4000) < 0.5
+        assert (c.take(sel).uniform(key2).tobytes()
+                == rng.pair_uniform(key2, dwells[at][sel], v[sel]).tobytes())
+        three = rng.Counters(mixed=[rng.mix_counter(v), rng.mix_counter(3)],
+                             lead=(rng.mix_counter(dwells), at))
+        assert three.uniform(key).tobytes() == rng.pair_uniform(key, dwells[at], v, 3).tobytes()

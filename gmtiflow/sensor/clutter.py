@@ -75,7 +75,7 @@ import numpy as np
 from gmtiflow import rng, schema
 from gmtiflow.errors import ConfigError
 from gmtiflow.schema import Problem
-from gmtiflow.sensor import detect
+from gmtiflow.sensor import detect, fastnp
 from gmtiflow.sensor import regions as geo
 from gmtiflow.tables import Table
 
@@ -554,7 +554,7 @@ def fan_point(fan: dict, polys: np.ndarray, u1, u2, u3, batch):
 
 def _wrap(a):
     """Angles wrapped to [−π, π)."""
-    return np.mod(a + np.pi, 2.0 * np.pi) - np.pi
+    return fastnp.mod(a + np.pi, 2.0 * np.pi) - np.pi
 
 
 def region_windows(region: ClutterRegionConfig, sectors: np.ndarray):
@@ -682,8 +682,9 @@ def sector_boxes(sectors: np.ndarray, n_arc: int = 16):
     sag = g1 * (1.0 - np.cos(0.5 * span / (n_arc - 1)))
     far = (g1 + sag)[:, None]
     near = g0[:, None]
-    xs = np.concatenate([far * np.sin(az), near * np.sin(az)], axis=1) + cx[:, None]
-    ys = np.concatenate([far * np.cos(az), near * np.cos(az)], axis=1) + cy[:, None]
+    sin_az, cos_az = np.sin(az), np.cos(az)          # once each (the same values)
+    xs = np.concatenate([far * sin_az, near * sin_az], axis=1) + cx[:, None]
+    ys = np.concatenate([far * cos_az, near * cos_az], axis=1) + cy[:, None]
     return xs.min(axis=1), ys.min(axis=1), xs.max(axis=1), ys.max(axis=1)
 
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from gmtiflow import frames
-from gmtiflow.sensor import (ambiguity, antenna, clutter, geolocate, measurement, merge, noise,
+from gmtiflow.sensor import (ambiguity, antenna, clutter, fastnp, geolocate, measurement, merge, noise,
                              scan, visibility)
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.outcome import Outcome
@@ -41,7 +41,7 @@ from gmtiflow.tables import Table, take
 
 
 def _world_azimuth(dx, dy):
-    return np.mod(np.arctan2(dx, dy), 2.0 * np.pi)
+    return fastnp.mod(np.arctan2(dx, dy), 2.0 * np.pi)
 
 
 def _local_rows(ctx, dwell_id):
@@ -91,7 +91,11 @@ class Merging:
             return detections, looks
         cfg, mcfg = self.cfg, self.cfg.merge
         k = _local_rows(ctx, detections["dwell_id"])
-        beam_cell = scan.broadened_beamwidth_rad(cfg, ctx.dwells["beam_scan_rad"][k])
+        beam = ctx.dwells["beam_scan_rad"]
+        # per dwell of the chunk and gathered when there are more reports than dwells (the
+        # same values)
+        beam_cell = (np.take(scan.broadened_beamwidth_rad(cfg, beam), k) if 2 * len(beam) < n
+                     else scan.broadened_beamwidth_rad(cfg, beam[k]))
         use_rr = mcfg.use_range_rate
         rr_cell = cfg.doppler_cell_hz * cfg.wavelength_m / 2.0
         res = merge.merge_reports(
@@ -122,10 +126,26 @@ class Merging:
         _set_ground(ctx, out, rows, out["dwell_id"][rows], out["range_m"][rows],
                     out["azimuth_rad"][rows])
         # Looks: an ancestor that is not the strongest is now "merged" into the group's report.
-        new_id_of_input = out["det_id"][res.group]
-        absorbed = res.strongest[res.group] != np.arange(n)
         looks = dict(looks)
         ld = np.asarray(looks["det_id"], np.int64)
+        if (np.array_equal(detections["det_id"], np.arange(n))
+                and _non_decreasing(out["dwell_id"])):
+            # the usual case, ids 0..n-1 and the output rows (in the order of their first
+            # input) still in dwell order: what reindex would give, without its sort and
+            # searches (a look's report is its input's group, the output row)
+            out["det_id"] = np.arange(len(res.strongest), dtype=np.int64)
+            has = np.flatnonzero(ld >= 0)
+            src = ld[has]
+            row = res.group[src]
+            new_ld = ld.copy()
+            new_ld[has] = row
+            outcome = np.asarray(looks["outcome"]).copy()
+            outcome[has[res.strongest[row] != src]] = Outcome.MERGED
+            looks["det_id"] = new_ld
+            looks["outcome"] = outcome
+            return out, looks
+        new_id_of_input = out["det_id"][res.group]
+        absorbed = res.strongest[res.group] != np.arange(n)
         has = ld >= 0
         sorter = np.argsort(detections["det_id"], kind="stable")
         pos = sorter[np.searchsorted(detections["det_id"], ld[has], sorter=sorter)]
@@ -252,7 +272,7 @@ class FalseAlarms:
                                                  antenna.take(ctx.antenna_up, k), ctx.terrain,
                                                  radius_m=ctx.radius_m)
         centre = to_world[k] + 0.5 * (lo[k] + hi[k])
-        rel = np.mod(np.arctan2(ground[0] - plat[0], ground[1] - plat[1]) - centre + np.pi,
+        rel = fastnp.mod(np.arctan2(ground[0] - plat[0], ground[1] - plat[1]) - centre + np.pi,
                      2.0 * np.pi) - np.pi
         rel = rel.reshape(n, m)
         ok = np.asarray(reached, bool).reshape(n, m).all(axis=1)
@@ -279,12 +299,19 @@ class FalseAlarms:
         m = len(fa["dwell_id"])
         if m == 0:
             return detections, looks
+        # the false alarms in dwell order (stable: within a dwell as drawn), so that they
+        # merge into the dwell-ordered detections without a sort of every row (the rows are
+        # computed point by point: the same values in any order)
+        dw = np.asarray(fa["dwell_id"])
+        if not _non_decreasing(dw):
+            order = np.argsort(dw, kind="stable")
+            fa = {k: np.asarray(v)[order] for k, v in fa.items()}
         x, y = fa["x_m"], fa["y_m"]
         z = np.nan_to_num(np.asarray(ctx.terrain.height_at(x, y), float))
         rows = noise.false_alarm_rows(ctx, cfg, fa["dwell_id"], x, y, z,
                                       fa["clutter_range_rate_mps"], fa["snr"],
                                       _next_det_id(detections))
-        return reindex(noise.append_rows(detections, rows), looks)
+        return append_in_dwell_order(detections, rows, looks)
 
 
 class Ambiguities:

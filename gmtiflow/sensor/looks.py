@@ -39,10 +39,11 @@ def _world_azimuth(raw):
 def _pair_counters(dwell_ids, vehicle_ids, dl, veh) -> rng.Counters:
     """The counters (dwell_ids[dl], veh) of pairs, mixed: each dwell's and each vehicle's id is
     mixed once and gathered per pair (the same values as ``rng.Counters(dwell_ids[dl], veh)``;
-    vehicles indexed by id, like the run's type codes)."""
+    vehicles indexed by id, like the run's type codes); the dwell leads, so each draw's first
+    step is taken once per dwell (``rng.Counters``' ``lead``)."""
     by_id = np.zeros(int(vehicle_ids.max()) + 1 if len(vehicle_ids) else 0, np.uint64)
     by_id[vehicle_ids] = rng.mix_counter(vehicle_ids)
-    return rng.Counters(mixed=[np.take(rng.mix_counter(dwell_ids), dl), np.take(by_id, veh)])
+    return rng.Counters(mixed=[np.take(by_id, veh)], lead=(rng.mix_counter(dwell_ids), dl))
 
 
 def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):

@@ -75,6 +75,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from gmtiflow import rng
+from gmtiflow.sensor import fastnp
 
 MODES = ("threshold", "draw")
 CENTROIDS = ("plain", "power")
@@ -249,7 +250,7 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
     az = azimuth_rad
     if circular_azimuth and n:
         a0 = azimuth_rad[ref]
-        az = a0 + (np.mod(azimuth_rad - a0 + np.pi, TWO_PI) - np.pi)
+        az = a0 + (fastnp.mod(azimuth_rad - a0 + np.pi, TWO_PI) - np.pi)
     values = [range_m, az] + ([range_rate_mps] if use_rr else [])
     scaled0 = np.column_stack([v / c for v, c in zip(values, cells)]) if n else np.zeros((0, len(values)))
     weight = snr if centroid == "power" else np.ones(n)
@@ -399,9 +400,9 @@ def _decide(p, mode, threshold, seed, dwell, ident, i, j) -> np.ndarray:
     i_low = a <= b
     low = np.where(i_low, i, j)            # the point holding the lower identity
     high = np.where(i_low, j, i)
-    mixed = [np.take(rng.mix_counter(dwell), i), np.take(mixed_id, low),
-             np.take(mixed_id, high)]
-    u = rng.Counters(mixed=mixed).uniform(rng.counter_key(seed, "sensor", "merge"))
+    mixed = [np.take(mixed_id, low), np.take(mixed_id, high)]
+    u = rng.Counters(mixed=mixed, lead=(rng.mix_counter(dwell), i)).uniform(
+        rng.counter_key(seed, "sensor", "merge"))
     return u < p
 
 
@@ -523,8 +524,9 @@ def _build(label, dwell_id, range_m, az, az_in, range_rate_mps, snr, truth_id, w
         r_out = mean(range_m)
         a_out = mean(az)
         rr_out = mean(range_rate_mps) if range_rate_mps is not None else None
-        if circular:
-            a_out = np.mod(a_out, TWO_PI)
+        if circular:            # the merged groups' (the others are replaced below)
+            merged_rows = np.flatnonzero(~single)
+            a_out[merged_rows] = fastnp.mod(a_out[merged_rows], TWO_PI)
     r_out[single] = range_m[strongest[single]]
     a_out[single] = az_in[strongest[single]]
     if rr_out is not None:

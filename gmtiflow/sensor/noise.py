@@ -47,7 +47,7 @@ from __future__ import annotations
 import numpy as np
 
 from gmtiflow import frames, rng
-from gmtiflow.sensor import antenna, detect, geolocate, measurement, scan, visibility
+from gmtiflow.sensor import antenna, detect, fastnp, geolocate, measurement, scan, visibility
 from gmtiflow.sensor.config import C_MPS, SensorConfig
 from gmtiflow.tables import Table
 
@@ -56,7 +56,7 @@ _CH_COUNT, _CH_RANGE, _CH_ANGLE, _CH_RR, _CH_SNR = range(5)
 
 
 def _world_azimuth(dx, dy):
-    return np.mod(np.arctan2(dx, dy), 2.0 * np.pi)
+    return fastnp.mod(np.arctan2(dx, dy), 2.0 * np.pi)
 
 
 def poisson_ppf(q, mean) -> np.ndarray:

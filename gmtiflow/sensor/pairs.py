@@ -121,6 +121,46 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     return st, d_rep, v_rep, active, rng_m, s
 
 
+def _instant_rows(run: SensorRun, poses: Poses, vehicle_ids):
+    """``instant_scan``: the (revisit, vehicle) pairs active at the scan's instant, revisit-major
+    (what :func:`_coarse` gives at its active rows, computed for those alone: an inactive pair
+    has no look, and a fleet with activity windows has most of its rows inactive in a long
+    scene).  Returns their state (the columns the sensor reads), reference dwell (chunk-local),
+    vehicle id and sine coordinate."""
+    sched, fleet, n_rev = run.sched, run.fleet, poses.n_rev
+    n_d = sched.n_dwells
+    n_v = len(vehicle_ids)
+    ref = np.arange(n_rev) * n_d + n_d // 2
+    t_rep = np.repeat(poses.time_s[ref], n_v)
+    v_rep = np.tile(vehicle_ids, n_rev)
+    maybe = _may_be_active(fleet, t_rep, v_rep)
+    rows = None if maybe is None else np.flatnonzero(maybe)
+    st = (fleet.state_at(t_rep, v_rep) if rows is None
+          else fleet.state_at(np.take(t_rep, rows), np.take(v_rep, rows)))
+    active = np.asarray(st["active"], bool)
+    if active.all():
+        st = {k: np.asarray(st[k]) for k in _STATE}
+    else:
+        act = np.flatnonzero(active)
+        st = {k: np.take(np.asarray(st[k]), act) for k in _STATE}
+        rows = act if rows is None else np.take(rows, act)
+    if rows is None:
+        d_ref, veh = np.repeat(ref, n_v), v_rep
+    else:
+        d_ref, veh = np.take(ref, rows // n_v) if n_v else rows, np.take(v_rep, rows)
+    xyz = _xyz(st)
+    d, _ = geometry.offsets(antenna.take(poses.pos, d_ref), xyz, poses.radius_m,
+                            target_frame=False)
+    b, h = antenna.take(poses.b, d_ref), antenna.take(poses.h, d_ref)
+    lb = d[0] * b[0] + d[1] * b[1] + d[2] * b[2]
+    lh = d[0] * h[0] + d[1] * h[1] + d[2] * h[2]
+    horiz = np.hypot(lb, lh)
+    sin_az = fastnp.ratio(lh, horiz)
+    # behind the antenna: beyond every beam, on the side it is turned to
+    s = np.where(lb > 0, sin_az, np.where(lh >= 0, 2.0, -2.0))
+    return st, d_ref, veh, s
+
+
 def _candidate_pairs(run: SensorRun, poses: Poses, vehicle_ids):
     """Candidate (chunk-local dwell, vehicle) pairs, grouped by (revisit, vehicle), dwells
     ascending within a group.  Returns ``(dwell_local, vehicle_id, group)``.
@@ -290,14 +330,12 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
     n_d = sched.n_dwells
     u_beam_all = np.sin(sched.beam_scan_rad)
     if sched.instant:
-        st, d_ref, veh, active, _, s = _coarse(run, poses, vehicle_ids)
+        st, d_ref, veh, s = _instant_rows(run, poses, vehicle_ids)
         dl = d_ref - n_d // 2 + _nearest_beam(u_beam_all, s)
-        sel = np.flatnonzero(active)
-        n_eval = len(sel)
+        n_eval = len(dl)
         # all dwells of an instant scan share one time and pose: the reference's geometry holds
-        geo = _pair_geometry(poses, d_ref[sel], {k: np.asarray(st[k])[sel] for k in _STATE})
+        geo = _pair_geometry(poses, d_ref, st)
         geo["in_fp"] = geo["lb"] > 0        # the beam is on the target, if it is in front
-        dl, veh = dl[sel], veh[sel]
         sel = np.arange(len(dl))
     else:
         dl, veh, group, mid_active, mid_dwell, starts, beam = _candidate_pairs(run, poses,

@@ -162,3 +162,39 @@ def test_ambiguities_leave_their_input_table_untouched_and_set_folded_rows():
 
     run(cfg, grid_fleet(200, speed=0.0), duration_s=11.0, effects=[check])
     assert sum(seen) > 0
+
+
+def test_clutter_false_alarms_merge_in_dwell_order_as_reindex_of_the_concatenation(monkeypatch):
+    """FalseAlarms sorts its false alarms by dwell (stable) and merges them into the
+    detections: the same tables as its former concatenation of the rows in the clutter's own
+    order (by source, then dwell) sorted by reindex."""
+    from gmtiflow.sensor import clutter as cl
+
+    cfg = SensorConfig()
+    ccfg = cl.ClutterConfig(fov_density_per_km2=0.5, regions=[
+        cl.ClutterRegionConfig(name="town", shape="circle", centre_m=[0.0, 0.0], radius_m=3000.0,
+                               density_per_km2=3.0)])
+    fleet = grid_fleet(40)
+    seen = {}
+    draw = cl.false_alarms
+
+    def record(*a, **kw):
+        seen["fa"] = draw(*a, **kw)
+        return seen["fa"]
+
+    def grab(ctx, det, looks):
+        seen["in"] = (ctx, dict(det), dict(looks))
+        return det, looks
+
+    monkeypatch.setattr(cl, "false_alarms", record)
+    out = run(cfg, fleet, duration_s=3 * cfg.revisit_s,
+              effects=[grab, effects.FalseAlarms(cfg, ccfg, 7)])
+    ctx, det, looks = seen["in"]
+    fa = seen["fa"]
+    assert not np.all(np.diff(fa["dwell_id"]) >= 0)        # by source: not in dwell order
+    z = np.nan_to_num(np.asarray(ctx.terrain.height_at(fa["x_m"], fa["y_m"]), float))
+    rows = noise.false_alarm_rows(ctx, cfg, fa["dwell_id"], fa["x_m"], fa["y_m"], z,
+                                  fa["clutter_range_rate_mps"], fa["snr"],
+                                  int(det["det_id"].max()) + 1)
+    want_d, want_l = effects.reindex(noise.append_rows(det, rows), looks)
+    _bits_equal({"d": out["detections"], "l": out["looks"]}, {"d": want_d, "l": want_l})
