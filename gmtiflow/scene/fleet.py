@@ -16,9 +16,11 @@ from gmtiflow.tables import Table
 
 
 #: Rows per block of :meth:`Fleet.state_at`: the ~100 temporaries of a block (16,384 float64:
-#: 128 kB each, (3, n) ones 384 kB) stay in the L2 cache and in the allocator's reused memory
-#: instead of fresh pages (a quarter less CPU time for the /truth of the fidelity_tradeoff
-#: scenes than whole 500,000-row requests, 2026-11-25).
+#: 128 kB each, (3, n) ones 384 kB) stay in the L2 cache and, with glibc's default malloc
+#: settings (a program using gmtiflow as a library), in reused memory instead of fresh pages:
+#: then a quarter less CPU for the /truth of the fidelity_tradeoff scenes than whole
+#: 500,000-row requests (2026-11-25); with the gmtiflow command's settings
+#: (:mod:`gmtiflow.allocator`) about the same time, and bounded temporaries either way.
 _BLOCK_ROWS = 16_384
 
 

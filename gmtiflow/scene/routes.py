@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, List, Optional, Sequence
 
 import numpy as np
 
@@ -148,3 +148,129 @@ def off_road_route(waypoints_m: Sequence[Sequence[float]], who: str = "vehicle")
                  edge_id=np.full(n - 1, -1, dtype=np.int64),
                  invisible=np.zeros(n - 1, dtype=bool),
                  speed_limit_mps=np.full(n - 1, np.nan))
+
+
+def _routes_from_flat(xyz: np.ndarray, offset: np.ndarray, node_ids: np.ndarray,
+                      edge_id: np.ndarray, invisible: np.ndarray,
+                      speed_limit_mps: np.ndarray) -> List[Route]:
+    """Routes whose vertices are the rows ``offset[i]:offset[i + 1]`` of flat vertex arrays
+    and whose segments are the rows ``offset[i] - i:offset[i + 1] - i - 1`` of flat segment
+    arrays: the arc lengths of each route by its own cumulative sum (as :func:`_polyline`;
+    the routes with the same number of vertices at once, one row each)."""
+    offset = np.asarray(offset, np.int64)
+    n_v = np.diff(offset)
+    seg = _seg_lengths(xyz)          # vertex i to i + 1 (across routes at their last vertex)
+    s = np.empty(len(xyz))
+    s[offset[:-1]] = 0.0
+    for n_b in np.unique(n_v).tolist():
+        first = offset[:-1][n_v == n_b]
+        cells = first[:, None] + np.arange(n_b - 1)
+        s[cells + 1] = np.cumsum(seg[cells], axis=1)
+    out = []
+    for i, (a, b) in enumerate(zip(offset[:-1].tolist(), offset[1:].tolist())):
+        out.append(Route(node_ids=node_ids[a:b], xyz_m=xyz[a:b], s_m=s[a:b],
+                         edge_id=edge_id[a - i:b - i - 1], invisible=invisible[a - i:b - i - 1],
+                         speed_limit_mps=speed_limit_mps[a - i:b - i - 1]))
+    return out
+
+
+def shortest_routes(roadmap: RoadMap, starts: Sequence[Any], ends: Sequence[Any]
+                    ) -> List[Optional[Route]]:
+    """``shortest_route(roadmap, start, end)`` of many vehicles at once, the same routes: each
+    node reference resolved once, one Dijkstra call for all new source nodes, the vertices of
+    all routes gathered at once.  None where :func:`shortest_route` raises (unknown or equal
+    nodes, no route): the caller asks it for that vehicle's error."""
+    names: dict = {}
+    ids = []
+    for ref in list(starts) + list(ends):
+        key = (type(ref), ref) if isinstance(ref, (str, int)) else None
+        if key is not None and key in names:
+            ids.append(names[key])
+            continue
+        try:
+            i = roadmap.node_index(ref)
+        except Exception:       # noqa: BLE001 - shortest_route raises it for that vehicle
+            i = None
+        if key is not None:
+            names[key] = i
+        ids.append(i)
+    n = len(starts)
+    src, dst = ids[:n], ids[n:]
+    csr, edge_of, preds = _csr(roadmap)
+    new = sorted({a for a, b in zip(src, dst)
+                  if a is not None and b is not None and a != b and a not in preds})
+    if new:
+        from scipy.sparse.csgraph import dijkstra
+        rows = dijkstra(csr, directed=True, indices=np.asarray(new, np.int64),
+                        return_predecessors=True)[1]
+        preds.update(zip(new, rows))
+    small = roadmap.n_nodes <= 4096     # predecessor rows as lists: faster walks
+    as_list: dict = {}
+    paths: List[Optional[list]] = []
+    for a, b in zip(src, dst):
+        if a is None or b is None or a == b or preds[a][b] < 0:
+            paths.append(None)
+            continue
+        pred = preds[a]
+        if small:
+            pred = as_list.get(a)
+            if pred is None:
+                pred = as_list[a] = preds[a].tolist()
+        leg = [b]
+        while leg[-1] != a:
+            leg.append(int(pred[leg[-1]]))
+        paths.append(leg[::-1])
+    good = [p for p in paths if p is not None]
+    if not good:
+        return [None] * n
+    flat = [v for p in good for v in p]
+    node_ids = np.asarray(flat, dtype=np.int64)
+    edge_id = np.asarray([edge_of[(a, b)] for p in good for a, b in zip(p[:-1], p[1:])],
+                         dtype=np.int64)
+    offset = np.concatenate([[0], np.cumsum([len(p) for p in good])])
+    routes = iter(_routes_from_flat(roadmap.node_xyz(node_ids), offset, node_ids, edge_id,
+                                    roadmap.edges["invisible"][edge_id],
+                                    roadmap.edges["speed_limit_mps"][edge_id]))
+    return [None if p is None else next(routes) for p in paths]
+
+
+def off_road_routes(waypoints: Sequence[Sequence[Sequence[float]]]) -> List[Optional[Route]]:
+    """``off_road_route(w)`` of many waypoint lists at once, the same routes; None where it
+    would raise or drop coinciding waypoints (the caller asks it for that vehicle)."""
+    pts, counts, ok = [], [], []
+    for w in waypoints:
+        vals = []
+        good = len(w) >= 2
+        try:
+            for p in w if good else ():
+                v = [float(c) for c in p]
+                if len(v) == 2:
+                    v.append(0.0)
+                if len(v) != 3:
+                    good = False
+                    break
+                vals.extend(v)
+        except (TypeError, ValueError):
+            good = False
+        good = good and all(map(math.isfinite, vals))
+        ok.append(good)
+        if good:
+            pts.extend(vals)
+            counts.append(len(vals) // 3)
+    if not counts:
+        return [None] * len(ok)
+    xyz = np.asarray(pts, dtype=float).reshape(-1, 3)
+    offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    seg = _seg_lengths(xyz)
+    zero = seg == 0
+    zero[offset[1:-1] - 1] = False           # the steps from one route to the next
+    n = len(xyz)
+    n_r = len(counts)
+    routes = _routes_from_flat(xyz, offset, np.full(n, -1, dtype=np.int64),
+                               np.full(n - n_r, -1, dtype=np.int64), np.zeros(n - n_r, bool),
+                               np.full(n - n_r, np.nan))
+    if zero.any():                           # coinciding waypoints: those routes one by one
+        bad = set((np.searchsorted(offset, np.flatnonzero(zero), side="right") - 1).tolist())
+        routes = [None if i in bad else r for i, r in enumerate(routes)]
+    it = iter(routes)
+    return [next(it) if g else None for g in ok]

@@ -44,7 +44,8 @@ from gmtiflow.scene import motion
 from gmtiflow.scene import wander as wander_mod
 from gmtiflow.scene.fleet import TRUTH_COLUMNS, Fleet
 from gmtiflow.scene.roadmap import RoadMap
-from gmtiflow.scene.routes import Route, off_road_route, shortest_route
+from gmtiflow.scene.routes import (Route, off_road_route, off_road_routes, shortest_route,
+                                   shortest_routes)
 from gmtiflow.scene.streams import streams
 from gmtiflow.scene.vehicles_config import (ConvoySpec, RandomFleetSpec, SpeedChangeSpec,
                                             VehicleSpec, VehiclesConfig)
@@ -110,9 +111,12 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
     specs = list(cfg.vehicles)
     if cfg.random.count > 0:
         specs += _random_specs(cfg.random, roadmap, seed)
-    for spec in specs:
+    pre = _batch_routes(specs, roadmap)
+    for spec, route in zip(specs, pre):
         who = f"vehicle {spec.name!r}"
-        if spec.off_road:
+        if route is not None:
+            pass
+        elif spec.off_road:
             try:    # waypoints in metres or {lat_deg, lon_deg, height_m} (frames.point_to_enu)
                 pts = [frames.point_to_enu(p, roadmap.origin) for p in spec.off_road]
             except (KeyError, TypeError, ValueError):
@@ -178,6 +182,31 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
         raise ConfigError(f"vehicles: vehicle name {dup!r} occurs twice (convoy members are "
                           f"named <name>-1, <name>-2, …)")
     return profiles, vehicles, routes
+
+
+def _batch_routes(specs, roadmap: RoadMap) -> List[Any]:
+    """The routes of the vehicles without stopovers (road) and of the off-road ones, all at
+    once (:func:`shortest_routes`, :func:`off_road_routes`: the same routes); None for the
+    others and where a route would be refused (the vehicle's own call then says why, in the
+    order of the vehicles)."""
+    out: List[Any] = [None] * len(specs)
+    road = [i for i, s in enumerate(specs) if not s.off_road and not s.stopovers]
+    if len(road) > 1:
+        for i, r in zip(road, shortest_routes(roadmap, [specs[i].start for i in road],
+                                              [specs[i].end for i in road])):
+            out[i] = r
+    off, pts = [], []
+    for i, s in enumerate(specs):
+        if s.off_road:
+            try:
+                pts.append([frames.point_to_enu(p, roadmap.origin) for p in s.off_road])
+                off.append(i)
+            except (KeyError, TypeError, ValueError):
+                pass
+    if len(off) > 1:
+        for i, r in zip(off, off_road_routes(pts)):
+            out[i] = r
+    return out
 
 
 def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[VehicleSpec]:

@@ -92,3 +92,59 @@ def test_off_road_route():
     for bad in ([1, float("nan")], [1, 2, float("inf")], [1, 2, 3, 4], [1]):
         with pytest.raises(RoadMapError, match="finite metres"):
             off_road_route([[0, 0], bad])
+
+
+def _same_route(a, b):
+    for f in ("node_ids", "xyz_m", "s_m", "edge_id", "invisible", "speed_limit_mps"):
+        x, y = getattr(a, f), getattr(b, f)
+        assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), f
+
+
+def test_many_routes_at_once_are_each_vehicles_own_route(square_map):
+    """shortest_routes (the random fleet's routes in one go) gives every vehicle the route
+    shortest_route gives it, bit for bit, in any order and with repeated pairs; None where
+    shortest_route refuses (same node, unreachable, unknown node) and the others unharmed."""
+    from gmtiflow.scene.routes import shortest_routes
+    for rm in (square_map, load_roadmap(RoadmapConfig())):
+        names = [str(x) for x in rm.nodes["name"]]
+        g = np.random.default_rng(4)
+        pairs = [tuple(g.choice(names, 2)) for _ in range(300)] + [(names[0], names[0])]
+        pairs += [("no such node", names[1]), (names[2], "nor this")]
+        if rm is square_map:
+            pairs += [("iso_a", "s0"), ("t1", "t0"), ("s0", "t1")]
+        rm._routing_csr = None                      # a fresh map: no searches cached
+        got = shortest_routes(rm, [a for a, _ in pairs], [b for _, b in pairs])
+        refused = 0
+        for (a, b), r in zip(pairs, got):
+            try:
+                want = shortest_route(rm, a, b)
+            except RoadMapError:
+                assert r is None
+                refused += 1
+                continue
+            _same_route(r, want)
+        assert refused >= 3 + (rm is square_map)
+
+
+def test_many_off_road_routes_at_once_are_each_vehicles_own():
+    from gmtiflow.scene.routes import off_road_routes
+    g = np.random.default_rng(6)
+    ways = [g.uniform(-5e3, 5e3, (int(g.integers(2, 9)), int(g.choice([2, 3])))).tolist()
+            for _ in range(200)]
+    ways += [[[0, 0], [0, 0], [5, 5]],              # coinciding: dropped, route by route
+             [[1, 1]],                              # one waypoint: refused
+             [[0, 0], [1, 2, 3, 4]],                # not a point: refused
+             [[0, 0], [float("nan"), 1]],           # not finite: refused
+             [[3, 4], [3, 4, 0.0]]]                 # all coincide: refused
+    got = off_road_routes(ways)
+    for w, r in zip(ways, got):
+        try:
+            want = off_road_route(w)
+        except RoadMapError:
+            assert r is None
+            continue
+        if r is None:                               # handed back: only for dropped waypoints
+            assert len(want.s_m) < len(w)
+            continue
+        _same_route(r, want)
+    assert sum(r is None for r in got) == 5 and got[0] is not None
