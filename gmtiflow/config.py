@@ -365,6 +365,25 @@ def to_yaml(obj: AppConfig) -> str:
     return pyyaml_text(obj)
 
 
+def omegaconf_text(cfg: DictConfig) -> str:
+    """``OmegaConf.to_yaml(cfg)`` (interpolations kept), what Hydra writes as
+    ``.hydra/config.yaml``: OmegaConf's plain container, written by :mod:`gmtiflow.config_yaml`
+    with the key limit of PyYAML's pure-Python emitter, which OmegaConf uses (the same text,
+    tests/test_config_yaml.py; that emitter took ~2 s for a scene listing 1,000 vehicles), or by
+    OmegaConf itself where that writer leaves the document to PyYAML."""
+    from omegaconf._utils import get_omega_conf_dumper
+
+    from gmtiflow import config_yaml
+    dumper = get_omega_conf_dumper()
+    if not dumper.yaml_path_resolvers and (dumper.yaml_implicit_resolvers
+                                           == _yaml_dumper().yaml_implicit_resolvers):
+        container = OmegaConf.to_container(cfg, resolve=False, enum_to_str=True)
+        text = config_yaml.dump(container, _resolves_as_str, max_key=config_yaml.PYTHON_MAX_KEY)
+        if text is not None:
+            return text
+    return OmegaConf.to_yaml(cfg)
+
+
 def pyyaml_text(obj) -> str:
     """The YAML PyYAML writes for the config tree as plain data: what :func:`to_yaml` gives."""
     import yaml

@@ -288,6 +288,74 @@ def test_strings_read_as_numbers_as_omegaconf_reads_them(text):
     assert config._reads_as_number(text) == (is_int(text) or is_float(text))
 
 
+# --- .hydra/config.yaml: OmegaConf.to_yaml of the composed DictConfig (config.omegaconf_text) --
+
+def composed(overrides=()):
+    """The composed DictConfig, as the CLI's job gets it."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
+            return hydra_compose(config_name="config", overrides=list(overrides))
+    finally:
+        GlobalHydra.instance().clear()
+
+
+LISTED = ("vehicles.vehicles=[{name: a1, off_road: [[0.0, 0.0], [1500.5, -20.25], [3000, 10]]}, "
+          "{name: 'yes', off_road: [[-100, 5.5], [-2000.125, 400.0]], cruise_speed_mps: 8.5}, "
+          "{name: b2, start: g_0_0, end: g_6_2, position_noise_m: [1, 0.5, 0.05]}]")
+
+
+@pytest.mark.parametrize("overrides", [[], ["experiment=monaco"], [LISTED, "fidelity=fast"],
+                                       ["vehicles=random", "clutter=windfarm", "export=stream",
+                                        "terrain=hills", "experiment=two_orbits"],
+                                       ["scene.epoch_utc=${now:%Y}-06-01T08:00:00Z"]])
+def test_hydras_config_text_is_omegaconfs(overrides):
+    cfg = composed(overrides)
+    text = config.omegaconf_text(cfg)
+    assert text == OmegaConf.to_yaml(cfg)
+    assert config_yaml.dump(OmegaConf.to_container(cfg, enum_to_str=True),
+                            config._resolves_as_str, max_key=config_yaml.PYTHON_MAX_KEY) == text
+    if overrides and overrides[0] == LISTED:
+        assert "  - name: 'yes'\n" in text and "    - - 3000\n      - 10\n" in text
+
+
+def test_peer_vehicles_config_text_is_omegaconfs():
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    try:
+        from stonesoup_peer import peer_vehicles
+    finally:
+        sys.path.pop(0)
+    cfg = OmegaConf.merge(composed(["fidelity=fast"]),
+                          {"vehicles": config._plain(peer_vehicles(30, 600.0))})
+    assert config.omegaconf_text(cfg) == OmegaConf.to_yaml(cfg)
+
+
+def omegaconf_create(tree):
+    try:
+        return OmegaConf.create(tree)
+    except Exception:           # noqa: BLE001 - trees OmegaConf refuses are not configs
+        return None
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.one_of(ONE_LINE_ASCII_TREES, RECORD_TREES, plain_trees(
+    st.one_of(st.sampled_from(AWKWARD_STRINGS), st.text(max_size=12),
+              st.text(alphabet=ONE_LINE_ASCII, max_size=90)),
+    st.one_of(st.sampled_from(AWKWARD_STRINGS), st.text(alphabet=ONE_LINE_ASCII, min_size=1,
+                                                        max_size=8)))))
+def test_config_text_of_plain_data_is_omegaconfs(tree):
+    cfg = omegaconf_create(tree)
+    if cfg is not None:
+        try:
+            expected = OmegaConf.to_yaml(cfg)
+        except GrammarParseError:
+            return
+        assert config.omegaconf_text(cfg) == expected
+
+
 # --- the stage cache's key text: OmegaConf.to_yaml(OmegaConf.create(tree), sort_keys=True) -----
 
 def omegaconf_sorted_text(tree):
