@@ -69,8 +69,10 @@ def poisson_ppf(q, mean) -> np.ndarray:
     For a few distinct means (the noise false alarms': one) the least k comes from a table of
     ``pdtr(k, μ)`` by bisection instead, ~10× cheaper than pdtrik per value: the same k, as
     pdtrik's root is within ~1e-10 (relative) of the true one, so its ceiling can only differ
-    when q lies within that of the CDF at k − 1; those q (within 1e-6), q at the table's end
-    and every other mean go through pdtrik.  tests/sensor/test_noise.py compares both.
+    when q lies within that of the CDF at k − 1; those q (within 1e-6) and q at the table's end
+    go through pdtrik.  For many distinct means (per-dwell clutter) each value steps up its own
+    CDF (``pdtr(0, μ)``, ``pdtr(1, μ)``, ... the table's entries) under the same conditions.
+    tests/sensor/test_noise.py compares them with pdtrik and scipy.stats.
     """
     q, mean = np.broadcast_arrays(np.asarray(q, float), np.asarray(mean, float))
     out = np.empty(q.shape)
