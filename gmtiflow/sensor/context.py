@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Callable, Tuple
 
 import numpy as np
@@ -117,12 +118,40 @@ class ChunkContext:
         """(low, high) antenna-frame scan angles of each dwell's cell: the sine-space interval
         between the midpoints to its neighbours (one beam step, ≤ the configured spacing); the
         cells tile the azimuth sector."""
-        k = self._local(dwell_id)
-        u = np.sin(self.dwells["beam_scan_rad"][k])
+        return self.per_beam(self._cell_rad, dwell_id)
+
+    def _cell_rad(self, beam_scan_rad):
+        u = np.sin(beam_scan_rad)
         u_min = math.sin(math.radians(self.cfg.az_min_deg))
         u_max = math.sin(math.radians(self.cfg.az_max_deg))
         half = 0.5 * (u_max - u_min) / scan.n_dwells(self.cfg)
         return np.arcsin(np.maximum(u - half, u_min)), np.arcsin(np.minimum(u + half, u_max))
+
+    def per_beam(self, fn, dwell_id):
+        """``fn(beam scan angles)`` (an array or a tuple of arrays, element by element) at the
+        dwells ``dwell_id``: evaluated once per beam position and gathered when the dwells
+        outnumber the beams (the same values), else at the dwells' own angles."""
+        k = self._local(dwell_id)
+        table = self._beam_table
+        if table is None or len(k) <= 2 * len(table[0]):
+            return fn(self.dwells["beam_scan_rad"][k])
+        beams, index = table
+        out = fn(beams)
+        at = np.take(index, k)
+        return (tuple(np.take(c, at) for c in out) if isinstance(out, tuple)
+                else np.take(out, at))
+
+    @cached_property
+    def _beam_table(self):
+        """(scan angle per beam position, beam position per dwell of the chunk), or None when
+        the dwells' angles are not one per position."""
+        index = np.asarray(self.dwells.get("dwell_index", ()), np.int64)
+        beam = np.asarray(self.dwells["beam_scan_rad"], float)
+        if index.size == 0 or index.size != beam.size or index.min() < 0:
+            return None
+        beams = np.zeros(int(index.max()) + 1)
+        beams[index] = beam
+        return (beams, index) if beams[index].tobytes() == beam.tobytes() else None
 
     def range_rate_of_ground(self, dwell_id, x_m, y_m, z_m):
         """ṙ_MLC = −v_p·ℓ of ground points (the clutter's range rate, m/s)."""

@@ -90,12 +90,8 @@ class Merging:
         if n < 2:
             return detections, looks
         cfg, mcfg = self.cfg, self.cfg.merge
-        k = _local_rows(ctx, detections["dwell_id"])
-        beam = ctx.dwells["beam_scan_rad"]
-        # per dwell of the chunk and gathered when there are more reports than dwells (the
-        # same values)
-        beam_cell = (np.take(scan.broadened_beamwidth_rad(cfg, beam), k) if 2 * len(beam) < n
-                     else scan.broadened_beamwidth_rad(cfg, beam[k]))
+        beam_cell = ctx.per_beam(lambda beam: scan.broadened_beamwidth_rad(cfg, beam),
+                                 detections["dwell_id"])
         use_rr = mcfg.use_range_rate
         rr_cell = cfg.doppler_cell_hz * cfg.wavelength_m / 2.0
         res = merge.merge_reports(

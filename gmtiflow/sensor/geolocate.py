@@ -98,16 +98,22 @@ def to_map(platform_xyz, o, radius_m, height_m=None):
 
 
 def geolocate(platform_xyz, range_m, az_rad, b, h, u, terrain, iterations: int = 8,
-              tol_m: float = 0.1, radius_m=DEFAULT_RADIUS_M, *, elevation: bool = True):
+              tol_m: float = 0.1, radius_m=DEFAULT_RADIUS_M, *, elevation: bool = True,
+              cos_sin=None):
     """Measured ground points ``(x, y, z)``, their antenna elevations and a ``reached`` flag.
 
     ``platform_xyz``, ``b``, ``h``, ``u`` are 3-tuples of arrays; ``range_m`` and ``az_rad``
     (antenna frame) arrays of the same shape.  ``terrain`` provides ``flat`` and
     ``height_at(x_m, y_m)``.  ``elevation=False``: the elevations are not computed (None).
+    ``cos_sin``: ``(np.cos(az_rad), np.sin(az_rad))`` when the caller has them (``az_rad`` is
+    then not read).
     """
     range_m = np.asarray(range_m, float)
-    az_rad = np.asarray(az_rad, float)
-    ca, sa = np.cos(az_rad), np.sin(az_rad)
+    if cos_sin is None:
+        az_rad = np.asarray(az_rad, float)
+        ca, sa = np.cos(az_rad), np.sin(az_rad)
+    else:
+        ca, sa = cos_sin
     # a terrain without data under the platform (NaN) starts from 0 m
     ground = np.asarray(terrain.height_at(platform_xyz[0], platform_xyz[1]), float)
     ground = np.broadcast_to(ground if np.isfinite(ground).all() else np.nan_to_num(ground),

@@ -509,10 +509,20 @@ def _build(label, dwell_id, range_m, az, az_in, range_rate_mps, snr, truth_id, w
     strongest[label[alone]] = alone
     anc = np.flatnonzero(~single[label])            # the members of merged groups
     lab = label[anc]
+    by_group = anc[np.argsort(lab, kind="stable")]  # by group, then input order
     if anc.size:
-        order = anc[np.lexsort((anc, -snr[anc], lab))]
-        lead = np.flatnonzero(np.r_[True, label[order][1:] != label[order][:-1]])
-        strongest[label[order[lead]]] = order[lead]
+        s_grp = snr[by_group]
+        if np.isnan(s_grp).any():
+            order = anc[np.lexsort((anc, -snr[anc], lab))]
+            lead = np.flatnonzero(np.r_[True, label[order][1:] != label[order][:-1]])
+            strongest[label[order[lead]]] = order[lead]
+        else:   # each group's first member of its highest SNR (that order's first)
+            g = label[by_group]
+            starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1]])
+            top = np.repeat(np.maximum.reduceat(s_grp, starts), np.diff(np.r_[starts, len(g)]))
+            at = np.flatnonzero(s_grp == top)
+            first = at[np.r_[True, g[at[1:]] != g[at[:-1]]]]
+            strongest[g[first]] = by_group[first]
     # Means of the merged groups (bincount over their members alone: the same sums, in the
     # same order); singletons keep their values bit for bit (no (w·x)/w round trip).
     wsum = np.bincount(lab, weights=weight[anc], minlength=m)
@@ -531,7 +541,7 @@ def _build(label, dwell_id, range_m, az, az_in, range_rate_mps, snr, truth_id, w
     a_out[single] = az_in[strongest[single]]
     if rr_out is not None:
         rr_out[single] = range_rate_mps[strongest[single]]
-    anc = anc[np.argsort(lab, kind="stable")]      # by group, then input order
+    anc = by_group
     return MergeResult(
         group=label, dwell_id=dwell_id[strongest], range_m=r_out, azimuth_rad=a_out,
         range_rate_mps=rr_out, snr=np.bincount(label, weights=snr, minlength=m),

@@ -75,7 +75,11 @@ def poisson_ppf(q, mean) -> np.ndarray:
     q, mean = np.broadcast_arrays(np.asarray(q, float), np.asarray(mean, float))
     out = np.empty(q.shape)
     slow = np.ones(q.shape, bool)
-    means, inv = np.unique(mean, return_inverse=True)
+    flat = mean.ravel()
+    if flat.size and (flat == flat[0]).all():     # one mean (the noise false alarms'): no sort
+        means, inv = flat[:1].copy(), np.zeros(flat.size, np.intp)
+    else:
+        means, inv = np.unique(mean, return_inverse=True)
     if len(means) <= _PPF_TABLE_MEANS:
         from scipy import special
         inv = inv.reshape(q.shape)
@@ -140,7 +144,7 @@ def false_alarm_rows(ctx, cfg: SensorConfig, dwell_id, x, y, z, own_rr, snr_lin,
     rng_m, ground_rr = ctx.range_and_ground_rate(dwell_id, x, y, z)
     az = _world_azimuth(x - d["platform_x_m"][k], y - d["platform_y_m"][k])
     rr = ground_rr + own_rr
-    bw = scan.broadened_beamwidth_rad(cfg, d["beam_scan_rad"][k])
+    bw = ctx.per_beam(lambda beam: scan.broadened_beamwidth_rad(cfg, beam), dwell_id)
     s_r, s_az, s_rr = measurement.sigmas(cfg, snr_lin, bw)
     lat, lon, h = frames.enu_to_geodetic(ctx.origin, x, y, z)
     false = np.zeros(m, bool)
@@ -185,8 +189,8 @@ def draw(ctx, cfg: SensorConfig, seed: int) -> Table:
     r0 = cfg.range_min_m
     r1 = cfg.range_max_m if cfg.pri_s is None else min(cfg.range_max_m, C_MPS * cfg.pri_s / 2.0)
     range_m = r0 + (r1 - r0) * uniform(_CH_RANGE)
-    lo, hi = ctx.dwell_cell_rad(dwell_id)
-    u_lo, u_hi = np.sin(lo), np.sin(hi)
+    u_lo, u_hi = ctx.per_beam(lambda beam: tuple(np.sin(c) for c in ctx._cell_rad(beam)),
+                              dwell_id)
     u = u_lo[batch] + (u_hi - u_lo)[batch] * uniform(_CH_ANGLE)
     az = np.arcsin(u)
     half = cfg.range_rate_band_mps

@@ -93,14 +93,21 @@ def dwell_table(run: SensorRun, poses: Poses) -> Table:
     beam = sched.beam_scan_rad[idx]
     st = poses.state
     n = len(dwell_ids)
-    beam_dir = antenna.direction(beam, np.zeros(n), poses.b, poses.h, poses.u)
+    # the beam's trigonometry once per beam position, gathered (the same values as per dwell)
+    cos_b = np.take(np.cos(sched.beam_scan_rad), idx)
+    sin_b = np.take(np.sin(sched.beam_scan_rad), idx)
+    zero = np.zeros(n)
+    # antenna.direction(beam, 0, b, h, u): cos 0 = 1 exactly, and 1·x = x
+    beam_dir = tuple(cos_b * poses.b[k] + sin_b * poses.h[k] + zero * poses.u[k]
+                     for k in range(3))
     if all(k in st for k in ("lat_deg", "lon_deg", "height_m")):
         plat, plon, ph = (np.asarray(st[k], float) for k in ("lat_deg", "lon_deg", "height_m"))
     else:
         plat, plon, ph = frames.enu_to_geodetic(origin, *poses.pos)
     r_centre = np.full(n, 0.5 * (cfg.range_min_m + cfg.range_max_m))
     centre, el_centre, _ = geolocate.geolocate(poses.pos, r_centre, beam, poses.b, poses.h,
-                                               poses.u, terrain, radius_m=poses.radius_m)
+                                               poses.u, terrain, radius_m=poses.radius_m,
+                                               elevation=cfg.mdv_auto, cos_sin=(cos_b, sin_b))
     poses.mdv = _mdv_per_dwell(cfg, poses, beam, el_centre)
     alat, alon, _ = frames.enu_to_geodetic(origin, *centre)
     return {
@@ -121,7 +128,8 @@ def dwell_table(run: SensorRun, poses: Poses) -> Table:
         "platform_lat_deg": plat, "platform_lon_deg": plon, "platform_height_m": ph,
         "area_lat_deg": alat, "area_lon_deg": alon,
         "range_half_extent_m": np.full(n, 0.5 * (cfg.range_max_m - cfg.range_min_m)),
-        "angle_half_extent_rad": 0.5 * scan.broadened_beamwidth_rad(cfg, beam),
+        "angle_half_extent_rad": np.take(0.5 * scan.broadened_beamwidth_rad(
+            cfg, sched.beam_scan_rad), idx),
         "mdv_mps": poses.mdv,
         "wrap_velocity_mps": np.full(n, cfg.wrap_velocity_mps),
     }

@@ -367,3 +367,16 @@ def test_decide_draws_as_draw_uniform_per_pair():
     got = mg._decide(p, "draw", 0.5, 11, dwell, ident, i, j)
     want = mg.draw_uniform(11, dwell[i], ident[i], ident[j]) < p
     assert np.array_equal(got, want) and 0 < got.sum() < len(got)
+
+
+def test_strongest_ancestor_is_the_first_of_the_highest_snr_in_input_order():
+    # three reports in one cell, two at the top SNR: the first of those is the strongest;
+    # a NaN SNR takes the sorting path (NaN sorts last: never the strongest)
+    r = [1000.0, 1001.0, 1002.0, 5000.0, 5001.0]
+    az = [0.5] * 5
+    for snr, want in (([2.0, 5.0, 5.0, 1.0, 1.0], [1, 3]), ([np.nan, 5.0, 4.0, 1.0, 3.0], [1, 4])):
+        res = _merge(r, az, snr=np.array(snr), tid=np.array([10, 11, 12, 13, 14]),
+                     mode="threshold", threshold=1e-3)
+        assert res.group.tolist() == [0, 0, 0, 1, 1]
+        assert res.strongest.tolist() == want
+        assert res.truth_id.tolist() == [10 + w for w in want]

@@ -198,3 +198,57 @@ def test_clutter_false_alarms_merge_in_dwell_order_as_reindex_of_the_concatenati
                                   int(det["det_id"].max()) + 1)
     want_d, want_l = effects.reindex(noise.append_rows(det, rows), looks)
     _bits_equal({"d": out["detections"], "l": out["looks"]}, {"d": want_d, "l": want_l})
+
+
+def test_per_beam_values_are_the_per_dwell_values_bit_for_bit():
+    """ChunkContext.per_beam (and dwell_cell_rad through it) evaluates once per beam position
+    and gathers: the values of the function at each dwell's own scan angle; without a
+    dwell_index column (or with angles that are not one per position) it takes those."""
+    from dataclasses import replace as dc_replace
+
+    from gmtiflow import frames
+    from gmtiflow.sensor import antenna, geolocate, scan
+
+    cfg = SensorConfig()
+    seen = {}
+
+    def grab(ctx, det, looks):
+        seen["ctx"] = ctx
+        return det, looks
+
+    out = run(cfg, grid_fleet(5), duration_s=6 * cfg.revisit_s, effects=[grab])
+    ctx = seen["ctx"]
+    d = ctx.dwells
+    assert ctx._beam_table is not None and len(d["dwell_id"]) > 2 * scan.n_dwells(cfg)
+    ids = np.repeat(d["dwell_id"], 3)[::-1]
+    k = ids - d["dwell_id"][0]
+
+    def fn(beam):
+        return scan.broadened_beamwidth_rad(cfg, beam), np.sin(beam)
+
+    want = fn(d["beam_scan_rad"][k])
+    for got, w in zip(ctx.per_beam(fn, ids), want):
+        assert got.tobytes() == w.tobytes()
+    lo, hi = ctx.dwell_cell_rad(ids)
+    w_lo, w_hi = ctx._cell_rad(d["beam_scan_rad"][k])
+    assert lo.tobytes() == w_lo.tobytes() and hi.tobytes() == w_hi.tobytes()
+    bare = dc_replace(ctx, dwells={c: v for c, v in d.items() if c != "dwell_index"})
+    assert bare._beam_table is None
+    assert bare.per_beam(np.cos, ids).tobytes() == np.cos(d["beam_scan_rad"][k]).tobytes()
+    odd = dict(d, beam_scan_rad=d["beam_scan_rad"] + np.arange(len(k) // 3) * 1e-9)
+    assert dc_replace(ctx, dwells=odd)._beam_table is None
+    # the dwell table's per-position trigonometry: antenna.direction and geolocate per dwell
+    dw = out["dwells"]
+    beam = dw["beam_scan_rad"]
+    st = LevelPlatform().state_at(dw["time_s"])
+    b, h, u = antenna.antenna_axes(st["heading_rad"], st.get("pitch_rad", 0 * beam),
+                                   st["bank_rad"], np.radians(cfg.mount_deg))
+    beam_dir = antenna.direction(beam, np.zeros(len(beam)), b, h, u)
+    assert frames.heading_rad(beam_dir[0], beam_dir[1]).tobytes() == dw["beam_az_rad"].tobytes()
+    pos = tuple(np.asarray(st[c], float) for c in ("x_m", "y_m", "z_m"))
+    centre, _, _ = geolocate.geolocate(pos, np.full(len(beam), 0.5 * (cfg.range_min_m + cfg.range_max_m)),
+                                       beam, b, h, u, ctx.terrain, radius_m=ctx.radius_m)
+    alat, alon, _ = frames.enu_to_geodetic(ORIGIN, *centre)
+    assert alat.tobytes() == dw["area_lat_deg"].tobytes()
+    assert alon.tobytes() == dw["area_lon_deg"].tobytes()
+    assert (0.5 * scan.broadened_beamwidth_rad(cfg, beam)).tobytes() == dw["angle_half_extent_rad"].tobytes()
