@@ -29,6 +29,7 @@ gzip + shuffle HDF5 file, with the same values, readable by any HDF5 reader.
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -156,6 +157,7 @@ def _dcpl(chunk_rows: int, compressed: bool):
     return plist
 
 
+@functools.lru_cache(maxsize=None)
 def _auto_chunk_rows(itemsize: int) -> int:
     """The chunk h5py picks for an empty resizable column (``chunks=True``)."""
     try:

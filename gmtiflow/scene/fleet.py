@@ -94,9 +94,10 @@ class Fleet:
         n = t.size
         if n <= _BLOCK_ROWS:
             out = self._state_flat(t, vid)
-        else:       # cache-sized blocks: every row's values are its own (elementwise)
-            parts = [self._state_flat(t[a:a + _BLOCK_ROWS], vid[a:a + _BLOCK_ROWS])
-                     for a in range(0, n, _BLOCK_ROWS)]
+        else:       # cache-sized blocks of equal size: every row's values are its own
+            size = -(-n // -(-n // _BLOCK_ROWS))
+            parts = [self._state_flat(t[a:a + size], vid[a:a + size])
+                     for a in range(0, n, size)]
             out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         return {k: c.reshape(shape) for k, c in out.items()}
 
