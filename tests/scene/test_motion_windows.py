@@ -142,3 +142,18 @@ def test_windows_reproduce_the_step_loop_any_parameters(monkeypatch, make_map, d
                        mean_wait_s=3.0, max_wait_s=6.0, random_stop_rate_per_s=rate)
     a, b = both(monkeypatch, VehiclesConfig(vehicles=[spec]), rm, 300.0, dt, seed=seed)
     assert_identical(a, b)
+
+
+@pytest.mark.parametrize("guess_above", [-1.0, 1.0 / 3.0, 2.0])
+@pytest.mark.parametrize("dt_s", [1.0, 0.2])
+def test_the_windows_first_guess_does_not_change_the_profiles(monkeypatch, default_map,
+                                                              guess_above, dt_s):
+    """Windows start from a guess of the positions: constant speed, or (NOISE_GUESS_ABOVE:
+    from the start, once second passes are frequent, never) the speed noise's; the profiles
+    are the step loop's whichever guess is taken."""
+    monkeypatch.setattr(motion, "NOISE_GUESS_ABOVE", guess_above)
+    cfg = VehiclesConfig(random=RandomFleetSpec(**{**RANDOM, "count": 60,
+                                                   "speed_noise_mps": 0.4}))
+    a, b = both(monkeypatch, cfg, default_map, 400.0, dt_s)
+    assert_identical(a, b)
+    assert np.any(a.bridge_flat) and np.any(a.mode_flat == motion.MODE_STOPPED)
