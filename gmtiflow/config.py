@@ -23,6 +23,7 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from gmtiflow import config_yaml
 from gmtiflow.cache import CacheConfig
 from gmtiflow.config_tree import (SCALARS, field_names, field_values, holds_only_scalars,
                                   is_empty, numeric_leaves)
@@ -357,7 +358,6 @@ def to_yaml(obj: AppConfig) -> str:
     :mod:`gmtiflow.config_yaml` writes the text of plain values itself (PyYAML's representer
     walks every node in Python: ~0.5 s for those 1,000 vehicles); where it cannot be sure of
     PyYAML's text, PyYAML writes the whole document (:func:`pyyaml_text`)."""
-    from gmtiflow import config_yaml
     if not _yaml_dumper().yaml_path_resolvers:
         text = config_yaml.dump(obj, _resolves_as_str)
         if text is not None:
@@ -373,7 +373,6 @@ def omegaconf_text(cfg: DictConfig) -> str:
     OmegaConf itself where that writer leaves the document to PyYAML."""
     from omegaconf._utils import get_omega_conf_dumper
 
-    from gmtiflow import config_yaml
     dumper = get_omega_conf_dumper()
     if not dumper.yaml_path_resolvers and (dumper.yaml_implicit_resolvers
                                            == _yaml_dumper().yaml_implicit_resolvers):
