@@ -321,9 +321,9 @@ def _deflated_chunk(values: np.ndarray) -> bytes:
     to nothing before (so stored blocks, other sections, or the next chunk, can follow): with
     zlib's run-length strategy (``Z_RLE``), or with :data:`_MATCH_STRATEGY` when that deflates
     the plane to fewer bytes, as judged from its sample (:data:`_LITERAL_BITS`).  Each thread
-    has one compressor of each (:func:`_compressor`).  On the columns of real runs this takes a
-    quarter to a sixth of the CPU of HDF5's own level-1 deflate, for up to 6 % more bytes or
-    fewer (docs/tables.md).  zlib releases the GIL while compressing.  A chunk of fewer than
+    has one compressor of each (:func:`_compressor`).  On the columns of real runs this takes
+    about a quarter of the CPU of HDF5's own level-1 deflate, for 1-2 % more bytes
+    (docs/tables.md).  zlib releases the GIL while compressing.  A chunk of fewer than
     :data:`_SMALL_BYTES` is shuffled and deflated whole, as HDF5's filters would."""
     k = values.dtype.itemsize
     raw = values.view(np.uint8)
