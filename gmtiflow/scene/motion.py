@@ -123,16 +123,28 @@ def _asinh_ratio(z):
     return np.where(small, 1.0 - z * z / 6.0, np.arcsinh(safe) / safe)
 
 
-def _bridge(x0, x1, kappa, f):
+def _bridge_constants(kappa):
+    """The parts of :func:`_bridge` that depend on κ alone, per profile: m, √m, √(κ/m) and
+    asinh(z)/z at z = −½√(κ/m) (the lower end of the integral)."""
+    m = 1.0 - 0.25 * kappa
+    rk = np.sqrt(kappa / m)
+    return m, np.sqrt(m), rk, _asinh_ratio(-0.5 * rk)
+
+
+def _bridge(x0, x1, kappa, f, const=None):
     """The free-cruise speed bridge of a step (module doc): δ(f), dδ/df and ∫_0^f δ df'.
 
     ``x0``, ``x1`` = σξ_k, σξ_{k+1} (m/s), ``kappa`` = 2(1 − ρ) in [0, 2], ``f`` in [0, 1].
     With g = f − ½, q = κg² + m (m = 1 − κ/4), L = A + Bg (A = (x0 + x1)/2, B = x1 − x0):
     ∫ L q^{-1/2} dg = A asinh(g√(κ/m))/√κ + (B/κ)√q, written stably for κ → 0 as
     A g m^{-1/2} asinh(z)/z and B(g² − ¼)/(√q + 1) from g = −½.
+    ``const``: :func:`_bridge_constants` of ``kappa`` (the same values, computed once per
+    profile instead of per row).
     """
     g = f - 0.5
-    m = 1.0 - 0.25 * kappa
+    if const is None:
+        const = _bridge_constants(kappa)
+    m, sm, rk, ratio_low = const
     q = kappa * g * g + m
     rq = 1.0 / np.sqrt(q)
     a = 0.5 * (x0 + x1)
@@ -140,12 +152,9 @@ def _bridge(x0, x1, kappa, f):
     lin = a + b * g
     delta = lin * (rq - 1.0)
     d_delta = b * (rq - 1.0) - lin * kappa * g * rq ** 3
-    rk = np.sqrt(kappa / m)
-
-    def prim(gg):
-        return a * gg / np.sqrt(m) * _asinh_ratio(gg * rk)
-
-    integral_n = prim(g) - prim(-0.5) + b * (g * g - 0.25) / (np.sqrt(q) + 1.0)
+    prim_g = a * g / sm * _asinh_ratio(g * rk)
+    prim_low = a * -0.5 / sm * ratio_low
+    integral_n = prim_g - prim_low + b * (g * g - 0.25) / (np.sqrt(q) + 1.0)
     integral_l = x0 * f + 0.5 * b * f * f
     return delta, d_delta, integral_n - integral_l
 
@@ -228,6 +237,7 @@ class Profiles:
     bridge_flat: np.ndarray    # bool per step
     kappa: np.ndarray          # (P,)
     _dense: dict = field(default_factory=dict, repr=False)
+    _bconst: Optional[tuple] = field(default=None, repr=False)    # _bridge_constants(kappa)
 
     @property
     def n_steps(self) -> int:
@@ -293,8 +303,11 @@ class Profiles:
         if 2 * nb > br.size:
             # most rows bridged (free cruise with speed noise): the bridge of every row
             # (finite for any grid values) and a select, instead of gathers and scatters
+            if self._bconst is None:
+                self._bconst = _bridge_constants(self.kappa)
             d, dd, integral = _bridge(self.noise_flat[g], self.noise_flat[g + 1],
-                                      self.kappa[p], u / dt)
+                                      self.kappa[p], u / dt,
+                                      tuple(c[p] for c in self._bconst))
             s, v, acc = np.broadcast_arrays(s, v, acc)
             s = np.where(br, s + integral * dt, s)
             v = np.where(br, v + d, v)

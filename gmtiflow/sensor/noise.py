@@ -69,8 +69,10 @@ def poisson_ppf(q, mean) -> np.ndarray:
     For a few distinct means (the noise false alarms': one) the least k comes from a table of
     ``pdtr(k, μ)`` by bisection instead, ~10× cheaper than pdtrik per value: the same k, as
     pdtrik's root is within ~1e-10 (relative) of the true one, so its ceiling can only differ
-    when q lies within that of the CDF at k − 1; those q (within 1e-6), q at the table's end
-    and every other mean go through pdtrik.  tests/sensor/test_noise.py compares both.
+    when q lies within that of the CDF at k − 1; those q (within 1e-6) and q at the table's end
+    go through pdtrik.  For many distinct means (per-dwell clutter) each value steps up its own
+    CDF (``pdtr(0, μ)``, ``pdtr(1, μ)``, ... the table's entries) under the same conditions.
+    tests/sensor/test_noise.py compares them with pdtrik and scipy.stats.
     """
     q, mean = np.broadcast_arrays(np.asarray(q, float), np.asarray(mean, float))
     out = np.empty(q.shape)
@@ -95,9 +97,43 @@ def poisson_ppf(q, mean) -> np.ndarray:
             ok = (k < size - 1) & (qs - below >= _PPF_MARGIN) & (qs > 0.0) & (qs < 1.0)
             out.ravel()[sel[ok]] = k[ok]
             slow.ravel()[sel[ok]] = False
+    else:       # many means (per-dwell clutter): the same search, each value up its own CDF
+        sel = np.flatnonzero(slow.ravel())
+        k, ok = _least_k(q.ravel()[sel], mean.ravel()[sel])
+        out.ravel()[sel[ok]] = k[ok]
+        slow.ravel()[sel[ok]] = False
     if slow.any():
         out[slow] = _poisson_ppf_pdtrik(q[slow], mean[slow])
     return out
+
+
+def _least_k(q, mean, max_steps: int = 200):
+    """The table search of :func:`poisson_ppf` for one mean per value: the least k with
+    ``pdtr(k, μ) >= q``, stepping k = 0, 1, 2, ... over the values not yet answered (most k are
+    small), and whether it stands (``ok``: the same conditions as the table's — k below the
+    table's last entry, q at least the margin above the CDF at k − 1, 0 < q < 1; the others
+    go through pdtrik).  Each ``pdtr(k, μ)`` is the table's own entry, value by value."""
+    from scipy import special
+    n = q.size
+    k = np.zeros(n, np.int64)
+    ok = np.zeros(n, bool)
+    valid = (mean > 0.0) & (mean <= _PPF_TABLE_MAX_MEAN) & (q > 0.0) & (q < 1.0)
+    size = np.zeros(n, np.int64)
+    size[valid] = (mean[valid] + 12.0 * np.sqrt(mean[valid]) + 30.0).astype(np.int64)
+    rest = np.flatnonzero(valid)
+    below = np.zeros(rest.size)                       # the CDF at k − 1 (0 for k = 0)
+    for step in range(max_steps):
+        if rest.size == 0:
+            break
+        inside = step < size[rest]
+        rest, below = rest[inside], below[inside]     # past the table's end: pdtrik
+        cdf = special.pdtr(float(step), mean[rest])
+        hit = cdf >= q[rest]
+        at = rest[hit]
+        k[at] = step
+        ok[at] = (step < size[at] - 1) & (q[at] - below[hit] >= _PPF_MARGIN)
+        rest, below = rest[~hit], cdf[~hit]
+    return k, ok
 
 
 _PPF_TABLE_MEANS = 64

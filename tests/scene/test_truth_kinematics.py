@@ -265,3 +265,18 @@ def test_state_at_in_blocks_is_state_at_at_once(monkeypatch):
     assert table["x_m"].size > 3 * 333
     for k in table:
         assert table[k].dtype == table_b[k].dtype and table[k].tobytes() == table_b[k].tobytes()
+
+
+def test_bridge_with_per_profile_constants_is_the_bridge():
+    """Profiles.evaluate passes the κ-only parts of the speed bridge computed once per
+    profile; the bridge (δ, dδ/df, its integral) is the one computed row by row, bit for bit,
+    including κ = 0 (independent noise) and κ near 2."""
+    from gmtiflow.scene.motion import _bridge, _bridge_constants
+    g = np.random.default_rng(12)
+    kappa_p = np.concatenate([[0.0, 2.0, 1e-9], g.uniform(0.0, 2.0, 20)])
+    p = g.integers(0, kappa_p.size, 5000)
+    x0, x1, f = g.normal(0, 0.5, 5000), g.normal(0, 0.5, 5000), g.uniform(0, 1, 5000)
+    want = _bridge(x0, x1, kappa_p[p], f)
+    got = _bridge(x0, x1, kappa_p[p], f, tuple(c[p] for c in _bridge_constants(kappa_p)))
+    for w, o in zip(want, got):
+        assert np.isfinite(w).all() and w.tobytes() == o.tobytes()

@@ -289,3 +289,32 @@ def test_poisson_ppf_table_path_is_scipy_stats_poisson_ppf_exactly(monkeypatch):
     assert sum(through_pdtrik) < 0.05 * q.size            # the table really answered
     assert np.array_equal(got, stats.poisson.ppf(q, mean))
     assert np.array_equal(got, slow(q, mean))
+
+
+def test_poisson_ppf_for_many_means_searches_each_cdf_as_the_table_does(monkeypatch):
+    """More distinct means than the table takes (per-dwell clutter means): each value steps up
+    its own CDF; the same values as pdtrik and scipy.stats bit for bit, on and next to the
+    steps, with pdtrik left for the few values within the margin of a step."""
+    g = np.random.default_rng(8)
+    mean = np.concatenate([g.uniform(1e-6, 0.05, 3000), g.uniform(0.05, 4.0, 6000),
+                           g.uniform(4.0, 300.0, 1000)])
+    q = (g.integers(0, 2 ** 53, mean.size) + 0.5) * 2.0 ** -53
+    k = g.integers(0, 12, 3000)
+    m_step = mean[:3000]
+    steps = stats.poisson.cdf(k, m_step)
+    near = np.concatenate([np.nextafter(steps, 0.0), steps, np.nextafter(steps, 1.0),
+                           steps + 1e-7, steps - 1e-7, steps + 2e-6])
+    q = np.concatenate([q, near, [0.0, 1.0, 0.5]])
+    mean = np.concatenate([mean, np.tile(m_step, 6), [0.3, 0.3, 2e4]])
+    keep = (q > 0.0) & (q < 1.0)
+    q, mean = q[keep], mean[keep]
+    through_pdtrik = []
+    slow = noise._poisson_ppf_pdtrik
+    monkeypatch.setattr(noise, "_poisson_ppf_pdtrik",
+                        lambda a, b: through_pdtrik.append(len(a)) or slow(a, b))
+    got = noise.poisson_ppf(q, mean)
+    assert np.array_equal(got, stats.poisson.ppf(q, mean))
+    assert np.array_equal(got, slow(q, mean))
+    through_pdtrik.clear()
+    noise.poisson_ppf(q[:9000], mean[:9000])              # uniform q's: the search answers
+    assert 0 < sum(through_pdtrik) < 0.01 * 9000
