@@ -110,7 +110,7 @@ def hydra_figures(counts) -> None:
             GlobalHydra.instance().clear()
             config.to_object(cfg)
             t2 = time.process_time()
-            text = config.omegaconf_text(cfg)
+            text = getattr(config, "omegaconf_text", OmegaConf.to_yaml)(cfg)  # (older: none)
             t3 = time.process_time()
             old = OmegaConf.to_yaml(cfg)
             t4 = time.process_time()

@@ -290,9 +290,12 @@ class _Writer:
         return out
 
     def list_column(self, values: tuple, indent: int) -> Optional[List[Optional[str]]]:
-        """The ``- item`` lines at ``indent`` of each list (None for an empty one), for lists
-        of ints and floats or of number rows all of one length (:meth:`rows`); else None."""
+        """The ``- item`` lines at ``indent`` of each list (None for an empty one), for lists of
+        ints and floats, of number rows all of one length (:meth:`rows`) or all empty; else
+        None."""
         flat = list(chain.from_iterable(values))
+        if not flat:
+            return [None] * len(values)                # every list empty: ``key: []``
         kinds = set(map(type, flat))
         width, nested = 1, kinds == {list}
         if nested:

@@ -62,7 +62,15 @@ def sphere_radius_m(origin: Origin) -> float:
 def _sin_ratio(theta):
     """sin θ / θ (1 at 0)."""
     small = np.abs(theta) < 1e-4
-    if np.ndim(theta) and not small.any():      # the same values, without the masking
+    if np.ndim(theta) == 1:     # the same values, without the masking: the few small ones set
+        with np.errstate(invalid="ignore", divide="ignore"):       # 0/0 at 0: replaced
+            out = np.sin(theta) / theta
+        i = np.flatnonzero(small)
+        if i.size:
+            t = theta[i]
+            out[i] = 1.0 - t * t / 6.0
+        return out
+    if np.ndim(theta) and not small.any():
         return np.sin(theta) / theta
     safe = np.where(small, 1.0, theta)
     return np.where(small, 1.0 - theta * theta / 6.0, np.sin(safe) / safe)

@@ -80,3 +80,19 @@ def test_heading_and_wrap_are_np_mod_bit_for_bit():
     assert frames.heading_rad(-0.0, -1.0) == np.mod(np.arctan2(-0.0, -1.0), 2.0 * np.pi)
     a = np.concatenate([g.uniform(-20, 20, 5000), [np.pi, -np.pi, 0.0, -0.0, 3 * np.pi, np.nan]])
     assert frames.wrap_pi(a).tobytes() == (np.mod(a + np.pi, 2.0 * np.pi) - np.pi).tobytes()
+
+
+def test_sin_ratio_is_the_masked_form_bit_for_bit():
+    import numpy as np
+    from gmtiflow import frames
+
+    g = np.random.default_rng(2)
+    theta = np.concatenate([g.uniform(-0.1, 0.1, 4000), g.uniform(-2e-4, 2e-4, 4000),
+                            [0.0, -0.0, 1e-4, -1e-4, 1e-300, np.nan, 3.0]])
+    small = np.abs(theta) < 1e-4
+    with np.errstate(invalid="ignore"):
+        safe = np.where(small, 1.0, theta)
+        want = np.where(small, 1.0 - theta * theta / 6.0, np.sin(safe) / safe)
+        got = frames._sin_ratio(theta)
+    assert got.tobytes() == want.tobytes()
+    assert frames._sin_ratio(theta[:50]).tobytes() == want[:50].tobytes()   # none small

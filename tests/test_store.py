@@ -241,20 +241,26 @@ def test_each_plane_is_deflated_the_way_that_stores_it_in_fewer_bytes(monkeypatc
     """A plane whose strings repeat (a periodic column: vehicles on laps, a beam scan) is
     deflated with zlib-ng's matches, one whose bytes only have skewed frequencies with zlib's
     run-length strategy (zlib-ng's quick deflate codes every byte it cannot match in 8-9
-    bits); a chunk of both comes out no bigger than with either way alone."""
+    bits), and so is one of one dominant byte, whose repeated strings are its runs; a chunk
+    of all these comes out smaller than with either way alone."""
     if store._MATCH_STRATEGY is None:
         pytest.skip("zlib-ng is not installed: every plane is deflated with Z_RLE")
     n = store._CHUNK_ROWS
     rng = np.random.default_rng(6)
     periodic = np.resize(rng.normal(size=10), n)
-    assert len(store._deflated_chunk(periodic)) < 0.02 * periodic.nbytes
+    dominant = np.where(rng.random(n) < 0.05, rng.integers(0, 256, n), 0).astype(np.uint8)
     mixed = _strategy_planes(n)
-    chosen = len(store._deflated_chunk(mixed))
+    chosen = {name: len(store._deflated_chunk(v)) for name, v in
+              (("periodic", periodic), ("dominant", dominant), ("mixed", mixed))}
     sizes = {}
-    for name, literal_bits in (("run-length", np.inf), ("matches", -np.inf)):
+    for way, literal_bits in (("run-length", 1e9), ("matches", -1.0)):     # every plane one way
         monkeypatch.setattr(store, "_LITERAL_BITS", literal_bits)
-        sizes[name] = len(store._deflated_chunk(mixed))
-    assert chosen < 0.95 * min(sizes.values()), (chosen, sizes)
+        sizes[way] = {name: len(store._deflated_chunk(v)) for name, v in
+                      (("periodic", periodic), ("dominant", dominant), ("mixed", mixed))}
+    assert chosen["periodic"] < 0.05 * periodic.nbytes < sizes["run-length"]["periodic"]
+    assert chosen["dominant"] == sizes["run-length"]["dominant"] < \
+        0.7 * sizes["matches"]["dominant"]
+    assert chosen["mixed"] < 0.95 * min(sizes["run-length"]["mixed"], sizes["matches"]["mixed"])
 
 
 def test_without_zlib_ng_the_chunks_are_deflated_by_cpythons_zlib(monkeypatch):

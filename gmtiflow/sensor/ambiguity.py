@@ -47,6 +47,8 @@ def fold_range(range_m, prf_hz):
     r = np.asarray(range_m, dtype=float)
     ru = unambiguous_range_m(prf_hz)
     inside = (r >= 0) & (r < ru)
+    if r.ndim and np.ndim(ru) == 0 and inside.all():  # nothing folds: what the steps give
+        return r.copy(), np.zeros(r.shape, np.int64)
     folds = np.where(inside, 0.0, np.floor(r / ru))   # inside: untouched, bit for bit
     folded = np.where(inside, r, r - folds * ru)
     # Rounding can leave folded at -tiny or at R_u; push it into [0, R_u).
@@ -74,6 +76,8 @@ def wrap_range_rate(range_rate_mps, wavelength_m, prf_hz):
     vw = wrap_velocity_mps(wavelength_m, prf_hz)
     period = 2.0 * vw
     inside = (rr >= -vw) & (rr < vw)
+    if rr.ndim and np.ndim(vw) == 0 and inside.all():  # nothing wraps: what the steps give
+        return rr.copy(), np.zeros(rr.shape, np.int64)
     wraps = np.where(inside, 0.0, np.floor((rr + vw) / period))  # inside: untouched, bit for bit
     wrapped = np.where(inside, rr, rr - wraps * period)
     over = wrapped >= vw

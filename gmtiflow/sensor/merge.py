@@ -270,7 +270,8 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
         # pass 1: every pair of original reports within the cut-off, decided once
         i, j, p = _near_pairs(scaled0, dw_rank, radius)
         accept = _decide(p, mode, threshold, seed, dwell_id, ident0, i, j)
-        edges = (i[accept], j[accept], p[accept])
+        a = np.flatnonzero(accept)        # index gathers (a boolean mask's cost ~4x more)
+        edges = (np.take(i, a), np.take(j, a), np.take(p, a))
         cols = [np.ascontiguousarray(scaled0[:, k]) for k in range(scaled0.shape[1])]
         wcols = [weight * c for c in cols]          # weight * scaled0[:, k], once
         while True:
@@ -285,7 +286,8 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
                 g_dwell[label] = dwell_id
                 ident = _group_reduce_xor(ident0, label, m) if mode == "draw" else None
                 ok = _decide(gp, mode, threshold, seed, g_dwell, ident, gi, gj)
-                gi, gj, gp = gi[ok], gj[ok], gp[ok]
+                ok = np.flatnonzero(ok)
+                gi, gj, gp = np.take(gi, ok), np.take(gj, ok), np.take(gp, ok)
                 by_pair = False
             else:
                 # sparse (and the first dense pass): the accepted pairs of original reports
@@ -339,20 +341,21 @@ def _near_pairs(pts: np.ndarray, rank: np.ndarray, radius: float):
         if k > _SWEEP_MAX_PASSES:
             return _near_pairs_tree(pts, rank, radius)
         if pos[-1] + k >= n:
-            pos = pos[pos + k < n]
+            pos = pos[:np.searchsorted(pos, n - k)]        # pos ascending: those with pos + k < n
         nxt = pos + k
-        close = ks[nxt] - ks[pos] <= window
-        pos, nxt = pos[close], nxt[close]
+        # index arrays, not boolean masks (numpy's mask gathers cost ~5x more)
+        close = np.flatnonzero(np.take(ks, nxt) - np.take(ks, pos) <= window)
+        pos, nxt = np.take(pos, close), np.take(nxt, close)
         if pos.size:
-            d = sorted_cols[0][nxt] - sorted_cols[0][pos]
+            d = np.take(sorted_cols[0], nxt) - np.take(sorted_cols[0], pos)
             s2 = d * d
             for c in sorted_cols[1:]:
-                d = c[nxt] - c[pos]
+                d = np.take(c, nxt) - np.take(c, pos)
                 s2 += d * d        # (x_i − x_j)² = (x_j − x_i)² exactly: either order
             near = np.flatnonzero(s2 <= cut2)
-            found_at.append(pos[near])
+            found_at.append(np.take(pos, near))
             found_k.append(np.full(near.size, k, np.int64))
-            found_s2.append(s2[near])
+            found_s2.append(np.take(s2, near))
         k += 1
     at = np.concatenate(found_at) if found_at else np.zeros(0, np.int64)
     a = np.take(order, at)
@@ -417,7 +420,8 @@ def _group_edges(a, b, p):
     ordered by (lo, hi)."""
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     keep = lo != hi
-    lo, hi, p = lo[keep], hi[keep], p[keep]
+    keep = np.flatnonzero(keep)
+    lo, hi, p = np.take(lo, keep), np.take(hi, keep), np.take(p, keep)
     if len(lo) == 0:
         return lo, hi, p
     span = int(hi.max()) + 1
@@ -469,7 +473,8 @@ def _merge_round(label, m, weight, cols, wcols, gi, gj, gp, by_pair=False):
     worst = np.zeros(len(lo))
     np.maximum.at(worst, q, d2)
     ok = worst <= 1.0 + 1e-9
-    lo, hi, gp = lo[ok], hi[ok], gp[ok]
+    ok = np.flatnonzero(ok)
+    lo, hi, gp = np.take(lo, ok), np.take(hi, ok), np.take(gp, ok)
     if len(lo) == 0:
         return None
     # --- matching: each group's best candidate under one global order of the pairs --------

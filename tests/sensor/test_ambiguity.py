@@ -99,3 +99,22 @@ def test_apply_ambiguities_sets_the_flags():
     assert out["below_surface"].tolist() == [False, True, False]
     assert out["implausible"].tolist() == [False, True, False]
     assert np.all(out["wrap_velocity_mps"] == amb.wrap_velocity_mps(lam, prf))
+
+
+def test_nothing_to_fold_or_wrap_returns_the_general_steps_values():
+    """All ranges inside [0, R_u) and all range rates inside [−v_w, v_w): the shortcut gives
+    what the folding and wrapping steps give (values, signed zeros, dtypes), as checked by
+    running the same values with one outlier appended (the general path)."""
+    g = np.random.default_rng(3)
+    prf, lam = 4000.0, 0.03
+    ru = amb.unambiguous_range_m(prf)
+    vw = amb.wrap_velocity_mps(lam, prf)
+    r = np.concatenate([g.uniform(0.0, ru, 500), [0.0, -0.0, np.nextafter(ru, 0.0)]])
+    rr = np.concatenate([g.uniform(-vw, vw, 500), [-vw, -0.0, np.nextafter(vw, 0.0)]])
+    for fn, x, out, args in ((amb.fold_range, r, 2.5 * ru, (prf,)),
+                             (amb.wrap_range_rate, rr, 3.5 * vw, (lam, prf))):
+        fast = fn(x, *args)
+        general = fn(np.append(x, out), *args)
+        assert fast[0].tobytes() == general[0][:-1].tobytes()
+        assert fast[1].dtype == general[1].dtype and np.array_equal(fast[1], general[1][:-1])
+        assert not np.shares_memory(fast[0], x)
