@@ -201,10 +201,15 @@ def shortest_routes(roadmap: RoadMap, starts: Sequence[Any], ends: Sequence[Any]
                   if a is not None and b is not None and a != b and a not in preds})
     if new:
         from scipy.sparse.csgraph import dijkstra
-        rows = dijkstra(csr, directed=True, indices=np.asarray(new, np.int64),
-                        return_predecessors=True)[1]
-        preds.update(zip(new, rows))
-    small = roadmap.n_nodes <= 4096     # predecessor rows as lists: faster walks
+        # sources in groups: the call's distance matrix (freed after it) stays <= 32 MB
+        step = max(1, 4_000_000 // max(roadmap.n_nodes, 1))
+        for c in range(0, len(new), step):
+            part = new[c:c + step]
+            rows = dijkstra(csr, directed=True, indices=np.asarray(part, np.int64),
+                            return_predecessors=True)[1]
+            preds.update(zip(part, rows))
+    # predecessor rows as lists (faster walks) while they stay small: <= 1 M entries
+    small = roadmap.n_nodes * len({a for a in src if a is not None}) <= 1_000_000
     as_list: dict = {}
     paths: List[Optional[list]] = []
     for a, b in zip(src, dst):

@@ -286,3 +286,29 @@ def test_arcs_and_largest_component_are_networkx_s(monaco):
     best = max(comps, key=lambda c: (len(c), -min(c)))
     assert len(comps) > 1
     assert monaco.largest_component().tolist() == sorted(best)
+
+
+@needs_data
+def test_many_routes_at_once_on_monaco_are_each_vehicles_own(monaco):
+    """shortest_routes on a map of thousands of nodes (predecessor rows walked as arrays, not
+    lists; Dijkstra from many sources in one call) gives every vehicle shortest_route's route
+    bit for bit, None where it refuses."""
+    from gmtiflow.errors import RoadMapError
+    from gmtiflow.scene.routes import shortest_route, shortest_routes
+    names = [str(x) for x in monaco.nodes["name"]]
+    g = np.random.default_rng(8)
+    pairs = [tuple(g.choice(names, 2)) for _ in range(400)]
+    monaco._routing_csr = None
+    got = shortest_routes(monaco, [a for a, _ in pairs], [b for _, b in pairs])
+    assert monaco.n_nodes * len({a for a, _ in pairs}) > 1_000_000      # the array walk
+    refused = 0
+    for (a, b), r in zip(pairs, got):
+        try:
+            want = shortest_route(monaco, a, b)
+        except RoadMapError:
+            assert r is None
+            refused += 1
+            continue
+        for f in ("node_ids", "xyz_m", "s_m", "edge_id", "invisible", "speed_limit_mps"):
+            assert getattr(r, f).tobytes() == getattr(want, f).tobytes()
+    assert refused < len(pairs) // 2
