@@ -31,6 +31,7 @@ need whole tables; they are kept in memory only when ``tracker.enabled`` or
 """
 from __future__ import annotations
 
+import gc
 import logging
 import os
 import time
@@ -166,14 +167,27 @@ def run(cfg: AppConfig, out_dir, *, on_prepared: Optional[Callable[[], None]] = 
     first (:mod:`gmtiflow.rundir`); ``on_prepared`` is called after that, before any work (the
     CLI writes Hydra's config files there).  Then every stage of :func:`stages` runs in order,
     its value looked up in the stage cache when it has a key, then written.
+
+    Objects alive before the run (the config, the modules) are moved out of the garbage
+    collector's generations for its duration (``gc.freeze``, undone on return, finished or
+    failed): the run's full collections no longer rescan them (a 1,000-vehicle config: the
+    peer benchmark's 1,000-target child 0.69 -> 0.64 s CPU, median of 5 alternated).
     """
+    gc.freeze()
+    try:
+        return _checked_run(cfg, Path(out_dir), on_prepared)
+    finally:
+        gc.unfreeze()
+
+
+def _checked_run(cfg: AppConfig, out_dir: Path,
+                 on_prepared: Optional[Callable[[], None]]) -> Path:
     config_mod.validate(cfg)
     budget.check(cfg)                  # refuse what cannot fit before touching the directory
     trajectory.check_scene_coverage(cfg)   # an external log must span the whole scene
     problem = stream_problem(cfg.export, len(sensor_slots(cfg)))
     if problem:
         raise ConfigError(problem)
-    out_dir = Path(out_dir)
     with rundir.claim(out_dir):
         rundir.prepare(out_dir, planned_names(cfg), cfg.seed)
         if on_prepared is not None:

@@ -10,6 +10,7 @@
 """
 from __future__ import annotations
 
+import gc
 import json
 import os
 import signal
@@ -104,6 +105,35 @@ def test_second_run_into_a_locked_directory_fails_cleanly(tmp_path):
     assert len(errors) == 1 and "Traceback" not in res.stderr, res.stderr
     assert partial.read_bytes() == b"first run writing"
     assert not (out / ".hydra").exists() and not (out / "run.h5").exists()
+
+
+class _Cycle:
+    pass
+
+
+def test_a_run_leaves_the_garbage_collector_as_it_found_it(tmp_path):
+    """pipeline.run freezes what lives before it (its collections skip the config and the
+    modules) and unfreezes on the way out, finished or failed: a cycle made before the run is
+    collected after it."""
+    import weakref
+    assert gc.get_freeze_count() == 0
+    cycle = _Cycle()
+    cycle.me = cycle
+    alive = weakref.ref(cycle)
+    del cycle
+    pipeline.run(compose(TINY), tmp_path / "ok")
+    assert gc.get_freeze_count() == 0
+    gc.collect()
+    assert alive() is None
+    busy = tmp_path / "busy"
+    busy.mkdir()
+    fd = rundir._lock(busy)
+    try:
+        with pytest.raises(rundir.RunDirBusyError):
+            pipeline.run(compose(TINY), busy)
+    finally:
+        os.close(fd)
+    assert gc.get_freeze_count() == 0
 
 
 def test_claim_is_reentrant_and_released(tmp_path):
