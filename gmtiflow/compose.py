@@ -14,19 +14,25 @@ from typing import Iterable
 from hydra import compose as hydra_compose
 from hydra import initialize_config_module
 from hydra.core.global_hydra import GlobalHydra
+from omegaconf import DictConfig
 
 from gmtiflow import config
 from gmtiflow.pipeline import run
 
-__all__ = ["compose", "run"]
+__all__ = ["compose", "compose_dictconfig", "run"]
 
 
 def compose(overrides: Iterable[str] = ()) -> config.AppConfig:
     """The validated app config of ``conf/config.yaml`` with ``overrides`` applied."""
+    return config.to_object(compose_dictconfig(overrides))
+
+
+def compose_dictconfig(overrides: Iterable[str] = ()) -> DictConfig:
+    """Hydra's composed ``DictConfig`` of ``conf/config.yaml`` with ``overrides``, as the CLI's
+    job gets it: before conversion and validation (:func:`compose` does both)."""
     GlobalHydra.instance().clear()
     try:
         with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-            cfg = hydra_compose(config_name="config", overrides=list(overrides))
+            return hydra_compose(config_name="config", overrides=list(overrides))
     finally:
         GlobalHydra.instance().clear()
-    return config.to_object(cfg)

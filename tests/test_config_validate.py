@@ -17,7 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gmtiflow import config, schema
-from gmtiflow.compose import compose
+from gmtiflow.compose import compose, compose_dictconfig
 from gmtiflow.config_tree import get_path, numeric_leaves, set_leaf
 from gmtiflow.errors import ConfigError
 from gmtiflow.scene.vehicles_config import (ConvoySpec, SpeedChangeSpec, VehicleSpec,
@@ -286,15 +286,7 @@ def reference_to_object(cfg):
 
 def composed(overrides=()):
     """The composed DictConfig (before conversion)."""
-    from hydra import compose as hydra_compose
-    from hydra import initialize_config_module
-    from hydra.core.global_hydra import GlobalHydra
-    GlobalHydra.instance().clear()
-    try:
-        with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-            return hydra_compose(config_name="config", overrides=list(overrides))
-    finally:
-        GlobalHydra.instance().clear()
+    return compose_dictconfig(overrides)
 
 
 def merged(cfg, **changes):

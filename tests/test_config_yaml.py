@@ -12,7 +12,7 @@ from omegaconf import OmegaConf
 from omegaconf.errors import GrammarParseError
 
 from gmtiflow import config, config_yaml
-from gmtiflow.compose import compose
+from gmtiflow.compose import compose, compose_dictconfig
 from gmtiflow.scene.vehicles import VehicleSpec, VehiclesConfig
 
 
@@ -292,15 +292,7 @@ def test_strings_read_as_numbers_as_omegaconf_reads_them(text):
 
 def composed(overrides=()):
     """The composed DictConfig, as the CLI's job gets it."""
-    from hydra import compose as hydra_compose
-    from hydra import initialize_config_module
-    from hydra.core.global_hydra import GlobalHydra
-    GlobalHydra.instance().clear()
-    try:
-        with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
-            return hydra_compose(config_name="config", overrides=list(overrides))
-    finally:
-        GlobalHydra.instance().clear()
+    return compose_dictconfig(overrides)
 
 
 LISTED = ("vehicles.vehicles=[{name: a1, off_road: [[0.0, 0.0], [1500.5, -20.25], [3000, 10]]}, "

@@ -433,8 +433,10 @@ class Profiles:
 
 
 def _bridge_exact(x0, x1, kappa, f):
-    """:func:`_bridge_scalar` on arrays, bit for bit: the same operations in the same order,
-    asinh from the math module (as the scalar form takes it)."""
+    """:func:`_bridge` for :meth:`Profiles.times_at`'s Newton steps, bit for bit the same as
+    the one-float form written with the math module (kept as the oracle in
+    tests/scene/test_truth_kinematics.py): the same operations in the same order, asinh from
+    the math module."""
     g = f - 0.5
     m = 1.0 - 0.25 * kappa
     q = kappa * g * g + m
@@ -455,26 +457,6 @@ def _bridge_exact(x0, x1, kappa, f):
 
     half = np.full_like(g, -0.5)
     integral = (prim(g) - prim(half) + b * (g * g - 0.25) / (np.sqrt(q) + 1.0)
-                - (x0 * f + 0.5 * b * f * f))
-    return lin * (rq - 1.0), integral
-
-
-def _bridge_scalar(x0, x1, kappa, f):
-    """:func:`_bridge` for one float (math module: no numpy overhead in a per-vehicle loop)."""
-    g = f - 0.5
-    m = 1.0 - 0.25 * kappa
-    q = kappa * g * g + m
-    rq = 1.0 / math.sqrt(q)
-    a, b = 0.5 * (x0 + x1), x1 - x0
-    lin = a + b * g
-    rk = math.sqrt(kappa / m)
-
-    def prim(gg):
-        z = gg * rk
-        ratio = 1.0 - z * z / 6.0 if abs(z) < 1e-4 else math.asinh(z) / z
-        return a * gg / math.sqrt(m) * ratio
-
-    integral = (prim(g) - prim(-0.5) + b * (g * g - 0.25) / (math.sqrt(q) + 1.0)
                 - (x0 * f + 0.5 * b * f * f))
     return lin * (rq - 1.0), integral
 

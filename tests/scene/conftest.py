@@ -43,3 +43,33 @@ def make_map():
 def long_road():
     """A 200 km straight road for long statistical runs."""
     return inline({"a": [0, 0, 0], "b": [200_000, 0, 0]}, [RoadSpec("a", "b")])
+
+
+ROUTE_FIELDS = ("node_ids", "xyz_m", "s_m", "edge_id", "invisible", "speed_limit_mps")
+
+
+def same_route(a, b):
+    """Two routes bit for bit the same, field by field (dtype, shape and bytes)."""
+    for f in ROUTE_FIELDS:
+        x, y = getattr(a, f), getattr(b, f)
+        assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), f
+
+
+def batch_routes_match_one_by_one(rm, pairs) -> int:
+    """``routes.shortest_routes`` of ``pairs`` on road map ``rm`` (its routing searches
+    cleared first) against ``shortest_route`` pair by pair: the same route bit for bit, None
+    where the one-pair call refuses; returns how many were refused."""
+    from gmtiflow.errors import RoadMapError
+    from gmtiflow.scene.routes import shortest_route, shortest_routes
+    rm._routing_csr = None                      # a fresh map: no searches cached
+    got = shortest_routes(rm, [a for a, _ in pairs], [b for _, b in pairs])
+    refused = 0
+    for (a, b), r in zip(pairs, got):
+        try:
+            want = shortest_route(rm, a, b)
+        except RoadMapError:
+            assert r is None, (a, b)
+            refused += 1
+            continue
+        same_route(r, want)
+    return refused

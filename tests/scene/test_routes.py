@@ -9,6 +9,8 @@ from gmtiflow.errors import RoadMapError
 from gmtiflow.scene.roadmap import RoadmapConfig, load_roadmap
 from gmtiflow.scene.routes import off_road_route, shortest_route
 
+from .conftest import batch_routes_match_one_by_one, same_route
+
 
 def brute_force_shortest(graph, a, b):
     return min(sum(graph.edges[u, v]["length_m"] for u, v in zip(p[:-1], p[1:]))
@@ -94,17 +96,10 @@ def test_off_road_route():
             off_road_route([[0, 0], bad])
 
 
-def _same_route(a, b):
-    for f in ("node_ids", "xyz_m", "s_m", "edge_id", "invisible", "speed_limit_mps"):
-        x, y = getattr(a, f), getattr(b, f)
-        assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), f
-
-
 def test_many_routes_at_once_are_each_vehicles_own_route(square_map):
     """shortest_routes (the random fleet's routes in one go) gives every vehicle the route
     shortest_route gives it, bit for bit, in any order and with repeated pairs; None where
     shortest_route refuses (same node, unreachable, unknown node) and the others unharmed."""
-    from gmtiflow.scene.routes import shortest_routes
     for rm in (square_map, load_roadmap(RoadmapConfig())):
         names = [str(x) for x in rm.nodes["name"]]
         g = np.random.default_rng(4)
@@ -112,17 +107,7 @@ def test_many_routes_at_once_are_each_vehicles_own_route(square_map):
         pairs += [("no such node", names[1]), (names[2], "nor this")]
         if rm is square_map:
             pairs += [("iso_a", "s0"), ("t1", "t0"), ("s0", "t1")]
-        rm._routing_csr = None                      # a fresh map: no searches cached
-        got = shortest_routes(rm, [a for a, _ in pairs], [b for _, b in pairs])
-        refused = 0
-        for (a, b), r in zip(pairs, got):
-            try:
-                want = shortest_route(rm, a, b)
-            except RoadMapError:
-                assert r is None
-                refused += 1
-                continue
-            _same_route(r, want)
+        refused = batch_routes_match_one_by_one(rm, pairs)
         assert refused >= 3 + (rm is square_map)
 
 
@@ -146,5 +131,5 @@ def test_many_off_road_routes_at_once_are_each_vehicles_own():
         if r is None:                               # handed back: only for dropped waypoints
             assert len(want.s_m) < len(w)
             continue
-        _same_route(r, want)
+        same_route(r, want)
     assert sum(r is None for r in got) == 5 and got[0] is not None

@@ -2,6 +2,8 @@
 derivative of position and acceleration that of velocity (central differences at random
 instants, not on the motion grid), no position or velocity jump at corners, and the wander's
 configured σ at random instants."""
+import math
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -177,12 +179,30 @@ def test_road_frames_of_all_routes_at_once_are_each_routes_own():
     assert np.any(turn != 0) and np.any(blend != 0)
 
 
+def _bridge_scalar(x0, x1, kappa, f):
+    """The speed bridge (``motion._bridge``) for one float, with the math module: the form the
+    one-pair inversion used, which ``motion._bridge_exact`` must match bit for bit."""
+    g = f - 0.5
+    m = 1.0 - 0.25 * kappa
+    q = kappa * g * g + m
+    rq = 1.0 / math.sqrt(q)
+    a, b = 0.5 * (x0 + x1), x1 - x0
+    lin = a + b * g
+    rk = math.sqrt(kappa / m)
+
+    def prim(gg):
+        z = gg * rk
+        ratio = 1.0 - z * z / 6.0 if abs(z) < 1e-4 else math.asinh(z) / z
+        return a * gg / math.sqrt(m) * ratio
+
+    integral = (prim(g) - prim(-0.5) + b * (g * g - 0.25) / (math.sqrt(q) + 1.0)
+                - (x0 * f + 0.5 * b * f * f))
+    return lin * (rq - 1.0), integral
+
+
 def _time_at_scalar(prof, p, s_target):
     """The one-pair inversion as it was written before ``times_at`` (Python floats, math
     module): the oracle ``times_at`` must match bit for bit."""
-    import math
-
-    from gmtiflow.scene.motion import _bridge_scalar
     i0, n, dt = int(prof.step_offset[p]), int(prof.n_steps_p[p]), prof.dt_s
     col = prof.s_flat[i0 + p:i0 + p + n + 1]
     i = int(np.searchsorted(col, s_target, side="left"))
