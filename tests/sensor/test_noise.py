@@ -266,6 +266,26 @@ def test_poisson_ppf_is_scipy_stats_poisson_ppf_exactly():
     assert got.min() >= 0 and np.all(np.isfinite(got))
 
 
+def _with_cdf_steps(q, mean, steps, step_means):
+    """``q`` and ``mean`` with the CDF values ``steps`` (of ``step_means``) and their
+    neighbours appended (on a step, one ulp either side, a little either side), kept in (0, 1)."""
+    near = np.concatenate([np.nextafter(steps, 0.0), steps, np.nextafter(steps, 1.0),
+                           steps + 1e-7, steps - 1e-7, steps + 2e-6])
+    q = np.concatenate([q, near])
+    mean = np.concatenate([mean, np.tile(step_means, 6)])
+    keep = (q > 0.0) & (q < 1.0)
+    return q[keep], mean[keep]
+
+
+def _count_pdtrik(monkeypatch):
+    """The slow pdtrik path, and a list that records how many values each call sent it."""
+    calls = []
+    slow = noise._poisson_ppf_pdtrik
+    monkeypatch.setattr(noise, "_poisson_ppf_pdtrik",
+                        lambda a, b: calls.append(len(a)) or slow(a, b))
+    return slow, calls
+
+
 def test_poisson_ppf_table_path_is_scipy_stats_poisson_ppf_exactly(monkeypatch):
     """A few distinct means (the noise false alarms' case) go through the CDF table, not
     pdtrik: the same values bit for bit, on and next to the CDF's steps too."""
@@ -274,17 +294,8 @@ def test_poisson_ppf_table_path_is_scipy_stats_poisson_ppf_exactly(monkeypatch):
     mean = np.repeat(means, 40_000)
     q = (g.integers(0, 2 ** 53, mean.size) + 0.5) * 2.0 ** -53
     steps = np.concatenate([stats.poisson.cdf(np.arange(60), m) for m in means])
-    step_means = np.repeat(means, 60)
-    near = np.concatenate([np.nextafter(steps, 0.0), steps, np.nextafter(steps, 1.0),
-                           steps + 1e-7, steps - 1e-7, steps + 2e-6])
-    q = np.concatenate([q, near])
-    mean = np.concatenate([mean, np.tile(step_means, 6)])
-    keep = (q > 0.0) & (q < 1.0)
-    q, mean = q[keep], mean[keep]
-    through_pdtrik = []
-    slow = noise._poisson_ppf_pdtrik
-    monkeypatch.setattr(noise, "_poisson_ppf_pdtrik",
-                        lambda a, b: through_pdtrik.append(len(a)) or slow(a, b))
+    q, mean = _with_cdf_steps(q, mean, steps, np.repeat(means, 60))
+    slow, through_pdtrik = _count_pdtrik(monkeypatch)
     got = noise.poisson_ppf(q, mean)
     assert sum(through_pdtrik) < 0.05 * q.size            # the table really answered
     assert np.array_equal(got, stats.poisson.ppf(q, mean))
@@ -301,17 +312,10 @@ def test_poisson_ppf_for_many_means_searches_each_cdf_as_the_table_does(monkeypa
     q = (g.integers(0, 2 ** 53, mean.size) + 0.5) * 2.0 ** -53
     k = g.integers(0, 12, 3000)
     m_step = mean[:3000]
-    steps = stats.poisson.cdf(k, m_step)
-    near = np.concatenate([np.nextafter(steps, 0.0), steps, np.nextafter(steps, 1.0),
-                           steps + 1e-7, steps - 1e-7, steps + 2e-6])
-    q = np.concatenate([q, near, [0.0, 1.0, 0.5]])
-    mean = np.concatenate([mean, np.tile(m_step, 6), [0.3, 0.3, 2e4]])
-    keep = (q > 0.0) & (q < 1.0)
-    q, mean = q[keep], mean[keep]
-    through_pdtrik = []
-    slow = noise._poisson_ppf_pdtrik
-    monkeypatch.setattr(noise, "_poisson_ppf_pdtrik",
-                        lambda a, b: through_pdtrik.append(len(a)) or slow(a, b))
+    q, mean = _with_cdf_steps(np.concatenate([q, [0.0, 1.0, 0.5]]),
+                              np.concatenate([mean, [0.3, 0.3, 2e4]]),
+                              stats.poisson.cdf(k, m_step), m_step)
+    slow, through_pdtrik = _count_pdtrik(monkeypatch)
     got = noise.poisson_ppf(q, mean)
     assert np.array_equal(got, stats.poisson.ppf(q, mean))
     assert np.array_equal(got, slow(q, mean))
