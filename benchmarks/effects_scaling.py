@@ -94,7 +94,7 @@ def bench_clutter(densities, repeats, n_dwells=100):
 class _NoFleet:
     vehicles = {"vehicle_id": np.zeros(0, np.int64), "vehicle_type": np.zeros(0, str)}
 
-    def state_at(self, time_s, vehicle_id):      # never called without vehicles
+    def state_at(self, time_s, vehicle_id, columns=None):   # never called without vehicles
         raise AssertionError
 
 

@@ -59,7 +59,7 @@ class LineFleet:
         self.vehicles = {"vehicle_id": np.arange(n, dtype=np.int64),
                          "vehicle_type": np.array(["car", "truck"] * (n // 2) + ["car"] * (n % 2))}
 
-    def state_at(self, time_s, vehicle_id):
+    def state_at(self, time_s, vehicle_id, columns=None):   # every column, whatever asked
         t, vid = np.broadcast_arrays(np.asarray(time_s, float), np.asarray(vehicle_id))
         x = self.p0[vid, 0] + self.v[vid, 0] * t
         y = self.p0[vid, 1] + self.v[vid, 1] * t

@@ -79,12 +79,16 @@ class Fleet:
     def n_vehicles(self) -> int:
         return len(self._veh)
 
-    def state_at(self, time_s, vehicle_id) -> Table:
+    def state_at(self, time_s, vehicle_id, columns=None) -> Table:
         """Truth of ``vehicle_id[i]`` at ``time_s[i]`` (broadcast): /truth columns + ``active``.
 
         ``active`` is False before the vehicle appears, from its arrival on, and after the
         simulated horizon (the profile grid covers at least ``duration_s``); inactive rows hold
         NaN, -1 ids, mode 255 and invisible False.
+
+        ``columns``: only these /truth columns (and ``active``, always), the work for the
+        others skipped (the sensor reads 8 of the 18); each one's values are those of the
+        whole call.  None: all of them.
         """
         t, vid = np.broadcast_arrays(np.asarray(time_s, dtype=float),
                                      np.asarray(vehicle_id, dtype=np.int64))
@@ -92,42 +96,53 @@ class Fleet:
         t = t.ravel()
         vid = vid.ravel()
         n = t.size
+        cols = _columns(columns)
         if n <= _BLOCK_ROWS:
-            out = self._state_flat(t, vid)
+            out = self._state_flat(t, vid, cols)
         else:       # cache-sized blocks of equal size: every row's values are its own
             size = -(-n // -(-n // _BLOCK_ROWS))
-            parts = [self._state_flat(t[a:a + size], vid[a:a + size])
+            parts = [self._state_flat(t[a:a + size], vid[a:a + size], cols)
                      for a in range(0, n, size)]
             out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         return {k: c.reshape(shape) for k, c in out.items()}
 
-    def _state_flat(self, t, vid) -> Table:
-        """:meth:`state_at` of flat (time, vehicle) arrays."""
+    def _state_flat(self, t, vid, cols=None) -> Table:
+        """:meth:`state_at` of flat (time, vehicle) arrays; ``cols``: the /truth columns asked
+        (a tuple in ``TRUTH_COLUMNS`` order, None: all)."""
+        cols = TRUTH_COLUMNS if cols is None else cols
         n = t.size
         if self.n_vehicles == 0:
-            out = _empty_truth(n)
-            out["time_s"] = t.copy()
-            out["vehicle_id"] = vid.copy()
+            out = _empty_truth(n, cols)
+            _put_ids(out, t, vid)
             out["active"] = np.zeros(n, bool)
             return out
         active, valid, vs, tau = self._active(t, vid)
         idx = np.flatnonzero(active)
         # every row active (truth_table): no fill values, no gather, no scatter
         whole = idx.size == n and n > 0
-        out = dict.fromkeys(TRUTH_COLUMNS) if whole else _empty_truth(n)
-        out["time_s"] = t.copy()
-        out["vehicle_id"] = vid.copy()
+        out = dict.fromkeys(cols) if whole else _empty_truth(n, cols)
+        _put_ids(out, t, vid)
         out["active"] = active
-        out["convoy_id"] = np.where(valid, self.vehicles["convoy_id"][vs], -1)
+        if "convoy_id" in out:
+            out["convoy_id"] = np.where(valid, self.vehicles["convoy_id"][vs], -1)
+        want = out.__contains__
+        need_pos = want("x_m") or want("y_m") or want("z_m")
+        need_vel = want("vx_mps") or want("vy_mps") or want("vz_mps")
+        need_acc = want("ax_mps2") or want("ay_mps2") or want("az_mps2")
+        need = need_pos or need_vel or need_acc or any(
+            want(c) for c in ("speed_mps", "heading_rad", "route_s_m", "edge_id", "mode",
+                              "invisible"))
 
         def put(names, values):
             for name, val in zip(names, values):
+                if not want(name):
+                    continue
                 if whole:
                     out[name] = np.asarray(val, dtype=_TRUTH_DTYPES[name])
                 else:
                     out[name][idx] = val
 
-        if idx.size:
+        if idx.size and need:
             v_ids = vs if whole else vs[idx]
             t_a = t if whole else t[idx]
             p = self._profile[v_ids]
@@ -150,12 +165,13 @@ class Fleet:
             safe = np.where(seg_len > 0, seg_len, 1.0)
             f = np.where(seg_len > 0, (s - self._vx_s[j]) / safe, 0.0)
             unit = d / safe
-            pos = p0 + f * d
-            vel = speed * unit
-            accel = acc * unit
+            pos = p0 + f * d if need_pos else None
+            vel = speed * unit if need_vel else None
+            accel = acc * unit if need_acc else None
             # Wander: a smooth process in continuous time, in a frame that turns smoothly
             # through corners; its rates are added, so velocity = d/dt position exactly.
-            moving = np.flatnonzero(self._w_off[v_ids + 1] > self._w_off[v_ids])
+            moving = (np.flatnonzero(self._w_off[v_ids + 1] > self._w_off[v_ids])
+                      if need_pos or need_vel or need_acc else np.zeros(0, np.int64))
             if moving.size:
                 # every row wanders (the usual case): whole arrays, no gathers or scatters
                 every = moving.size == v_ids.size
@@ -170,20 +186,31 @@ class Fleet:
                     self._vx_turn[jm + 1])
                 off, v_off, a_off = wander_mod.world_offset(n, nd, ndd, psi, dpsi, d2psi,
                                                             sub(speed), sub(acc))
-                if every:
-                    pos += off.T
-                    vel += v_off.T
-                    accel += a_off.T
-                else:
-                    pos[:, moving] += off.T
-                    vel[:, moving] += v_off.T
-                    accel[:, moving] += a_off.T
-            put(("x_m", "y_m", "z_m"), pos)
-            put(("vx_mps", "vy_mps", "vz_mps"), vel)
-            put(("ax_mps2", "ay_mps2", "az_mps2"), accel)
-            put(("speed_mps", "heading_rad", "route_s_m", "edge_id", "mode", "invisible"),
-                (speed, frames.heading_rad(unit[0], unit[1]), s, self._seg_edge[j], mode,
-                 self._seg_inv[j]))
+                for total, add in ((pos, off), (vel, v_off), (accel, a_off)):
+                    if total is None:
+                        continue
+                    if every:
+                        total += add.T
+                    else:
+                        total[:, moving] += add.T
+            if need_pos:
+                put(("x_m", "y_m", "z_m"), pos)
+            if need_vel:
+                put(("vx_mps", "vy_mps", "vz_mps"), vel)
+            if need_acc:
+                put(("ax_mps2", "ay_mps2", "az_mps2"), accel)
+            if want("speed_mps"):
+                put(("speed_mps",), (speed,))
+            if want("heading_rad"):
+                put(("heading_rad",), (frames.heading_rad(unit[0], unit[1]),))
+            if want("route_s_m"):
+                put(("route_s_m",), (s,))
+            if want("edge_id"):
+                put(("edge_id",), (self._seg_edge[j],))
+            if want("mode"):
+                put(("mode",), (mode,))
+            if want("invisible"):
+                put(("invisible",), (self._seg_inv[j],))
         return out
 
     def _active(self, t, vid):
@@ -276,9 +303,29 @@ _TRUTH_DTYPES = {c: (np.int64 if c in ("vehicle_id", "convoy_id", "edge_id") els
                  for c in TRUTH_COLUMNS}
 
 
-def _empty_truth(n: int) -> Table:
+def _columns(columns):
+    """``columns`` of :meth:`Fleet.state_at` as a tuple in ``TRUTH_COLUMNS`` order (None: all)."""
+    if columns is None:
+        return None
+    asked = set(columns)
+    unknown = asked.difference(TRUTH_COLUMNS, ("active",))
+    if unknown:
+        raise ValueError(f"unknown truth columns {sorted(unknown)}; "
+                         f"known: {', '.join(TRUTH_COLUMNS)}")
+    return tuple(c for c in TRUTH_COLUMNS if c in asked)
+
+
+def _put_ids(out: Table, t, vid) -> None:
+    """The time and vehicle id columns of a state, where asked."""
+    if "time_s" in out:
+        out["time_s"] = t.copy()
+    if "vehicle_id" in out:
+        out["vehicle_id"] = vid.copy()
+
+
+def _empty_truth(n: int, cols=TRUTH_COLUMNS) -> Table:
     out: Table = {}
-    for c in TRUTH_COLUMNS:
+    for c in cols:
         if c in ("vehicle_id", "convoy_id", "edge_id"):
             out[c] = np.full(n, -1, dtype=np.int64)
         elif c == "mode":

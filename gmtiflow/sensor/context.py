@@ -28,7 +28,8 @@ class SensorRun:
 
     cfg         the sensor config, normalised
     sched       the scan schedule (dwell times and beam positions)
-    fleet       truth: ``state_at``, ``vehicles`` (and ``start_time_s``/``end_time_s``)
+    fleet       truth: ``state_at(time_s, vehicle_id, columns=...)`` (the columns asked, or
+                more), ``vehicles`` (and ``start_time_s``/``end_time_s``)
     platform    ``state_at(time_s)`` of the radar's platform
     terrain     heights and line of sight (``flat`` skips the terrain tests)
     seed        the sensor's stream seed (counter-based draws)

@@ -135,8 +135,8 @@ def _instant_rows(run: SensorRun, poses: Poses, vehicle_ids):
     v_rep = np.tile(vehicle_ids, n_rev)
     maybe = _may_be_active(fleet, t_rep, v_rep)
     rows = None if maybe is None else np.flatnonzero(maybe)
-    st = (fleet.state_at(t_rep, v_rep) if rows is None
-          else fleet.state_at(np.take(t_rep, rows), np.take(v_rep, rows)))
+    st = (fleet.state_at(t_rep, v_rep, columns=_STATE) if rows is None
+          else fleet.state_at(np.take(t_rep, rows), np.take(v_rep, rows), columns=_STATE))
     active = np.asarray(st["active"], bool)
     if active.all():
         st = {k: np.asarray(st[k]) for k in _STATE}
@@ -290,7 +290,7 @@ def _first_in_group(group, mask):
 
 
 _STATE = ("active", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "heading_rad",
-          "invisible")   # the truth columns the sensor reads
+          "invisible")   # the truth columns the sensor reads (fleet.state_at's ``columns``)
 
 
 def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:

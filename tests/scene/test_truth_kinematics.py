@@ -287,6 +287,38 @@ def test_state_at_in_blocks_is_state_at_at_once(monkeypatch):
         assert table[k].dtype == table_b[k].dtype and table[k].tobytes() == table_b[k].tobytes()
 
 
+
+@pytest.mark.parametrize("columns", [
+    ("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "heading_rad", "invisible"),
+    ("active", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps"),
+    ("ax_mps2", "mode", "route_s_m"), ("vy_mps", "edge_id", "time_s"), ("convoy_id",), ()])
+@pytest.mark.parametrize("mixed", [True, False])
+def test_state_at_of_some_columns_is_those_of_all(monkeypatch, columns, mixed):
+    """Fleet.state_at(..., columns=...) gives the columns asked and ``active``, each bit for bit
+    the one of the call for all columns: rows of active and inactive vehicles (``mixed``) or
+    of active ones only (the path without gathers), in one block and in several."""
+    from gmtiflow.scene import fleet as fleet_mod
+    from gmtiflow.scene.roadmap import RoadmapConfig, load_roadmap
+    fl = build_fleet(VehiclesConfig(random=RandomFleetSpec(
+        count=40, start_time_max_s=60.0, position_noise_m=[1.0, 0.5, 0.05])),
+        load_roadmap(RoadmapConfig()), 2, 300.0, 1.0)
+    g = np.random.default_rng(9)
+    t = g.uniform(-10.0, 320.0, 5000)
+    v = g.integers(-1, 42, 5000)
+    if not mixed:
+        keep = fl.state_at(t, v)["active"]
+        t, v = t[keep], v[keep]
+    for block_rows in (fleet_mod._BLOCK_ROWS, 333):
+        monkeypatch.setattr(fleet_mod, "_BLOCK_ROWS", block_rows)
+        every, some = fl.state_at(t, v), fl.state_at(t, v, columns=columns)
+        assert (0.2 < every["active"].mean() < 0.9) if mixed else every["active"].all()
+        assert list(some) == [c for c in every if c in columns or c == "active"]
+        for k in some:
+            assert some[k].dtype == every[k].dtype and some[k].tobytes() == every[k].tobytes()
+    with pytest.raises(ValueError, match="speed_mp"):
+        fl.state_at(t, v, columns=("x_m", "speed_mp"))
+
+
 def test_bridge_with_per_profile_constants_is_the_bridge():
     """Profiles.evaluate passes the κ-only parts of the speed bridge computed once per
     profile; the bridge (δ, dδ/df, its integral) is the one computed row by row, bit for bit,

@@ -69,7 +69,7 @@ class LineFleet:
         self._speed = np.hypot(self.v[:, 0], self.v[:, 1])
         self._heading = frames.heading_rad(self.v[:, 0], self.v[:, 1])
 
-    def state_at(self, time_s, vehicle_id):
+    def state_at(self, time_s, vehicle_id, columns=None):   # every column, whatever asked
         t, vid = np.broadcast_arrays(np.asarray(time_s, float), np.asarray(vehicle_id))
         t, vid = t.ravel(), vid.ravel().astype(np.int64)
         active = (t >= self.start[vid]) & (t <= self.end[vid])
