@@ -70,15 +70,15 @@ def _may_be_active(fleet, time_s, vehicle_id):
     return None if maybe.all() else maybe
 
 
-def _state_at(fleet, time_s, vehicle_id) -> Table:
+def _state_at(fleet, time_s, vehicle_id, columns=None) -> Table:
     """``fleet.state_at`` asked only for the rows its activity windows leave open; the others
     are inactive rows (NaN, False, −1), which is what the fleet gives for them.  Only
     ``active`` is read of an inactive row."""
     maybe = _may_be_active(fleet, time_s, vehicle_id)
     if maybe is None:
-        return fleet.state_at(time_s, vehicle_id)
+        return fleet.state_at(time_s, vehicle_id, columns=columns)
     ask = np.flatnonzero(maybe)
-    sub = fleet.state_at(time_s[ask], vehicle_id[ask])
+    sub = fleet.state_at(time_s[ask], vehicle_id[ask], columns=columns)
     out = {}
     for k, v in sub.items():
         v = np.asarray(v)
@@ -103,7 +103,8 @@ def _coarse(run: SensorRun, poses: Poses, vehicle_ids):
     ref = np.arange(n_rev) * n_d + n_d // 2
     d_rep = np.repeat(ref, n_v)
     v_rep = np.tile(vehicle_ids, n_rev)
-    st = _state_at(fleet, np.repeat(poses.time_s[ref], n_v), v_rep)   # = time_s[d_rep]
+    st = _state_at(fleet, np.repeat(poses.time_s[ref], n_v), v_rep,    # = time_s[d_rep]
+                   columns=_COARSE)
     active = np.asarray(st["active"], bool)
     xyz = [(c if np.all(active) else np.where(active, c, 0.0)).reshape(n_rev, n_v)
            for c in _xyz(st)]
@@ -254,7 +255,8 @@ def _active_at_ends(run: SensorRun, poses: Poses, v_rep, rev):
         maybe = _may_be_active(fleet, t, v_rep)
         ask = np.flatnonzero(~out if maybe is None else maybe & ~out)
         if ask.size:
-            out[ask] = np.asarray(fleet.state_at(t[ask], v_rep[ask])["active"], bool)
+            out[ask] = np.asarray(fleet.state_at(t[ask], v_rep[ask], columns=())["active"],
+                                  bool)
     return out
 
 
@@ -291,6 +293,7 @@ def _first_in_group(group, mask):
 
 _STATE = ("active", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "heading_rad",
           "invisible")   # the truth columns the sensor reads (fleet.state_at's ``columns``)
+_COARSE = _STATE[:7]     # those the candidate search reads (position and velocity)
 
 
 def _pair_geometry(poses: Poses, dl, st: Table) -> Dict[str, np.ndarray]:
@@ -341,7 +344,8 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
         dl, veh, group, mid_active, mid_dwell, starts, beam = _candidate_pairs(run, poses,
                                                                                vehicle_ids)
         n_eval = len(dl)
-        geo = _pair_geometry(poses, dl, fleet.state_at(np.take(poses.time_s, dl), veh))
+        geo = _pair_geometry(poses, dl, fleet.state_at(np.take(poses.time_s, dl), veh,
+                                                       columns=_STATE))
         active = geo["active"]
         sel = np.zeros(0, np.int64)
         extra = False
@@ -360,7 +364,8 @@ def select_pairs(run: SensorRun, poses: Poses, vehicle_ids):
                 extra = True
                 g_lost = group[starts[lost]]
                 dl_x, veh_x = mid_dwell[g_lost], veh[starts[lost]]
-                geo_x = _pair_geometry(poses, dl_x, fleet.state_at(poses.time_s[dl_x], veh_x))
+                geo_x = _pair_geometry(poses, dl_x, fleet.state_at(poses.time_s[dl_x], veh_x,
+                                                                   columns=_STATE))
                 n_eval += lost.size
                 geo = {k: np.concatenate([v, geo_x[k]]) for k, v in geo.items()}
                 dl, veh = np.concatenate([dl, dl_x]), np.concatenate([veh, veh_x])
