@@ -26,7 +26,7 @@ from omegaconf.errors import OmegaConfBaseException
 from gmtiflow import config_yaml
 from gmtiflow.cache import CacheConfig
 from gmtiflow.config_tree import (SCALARS, field_names, field_values, holds_only_scalars,
-                                  is_empty, numeric_leaves)
+                                  is_empty, numeric_leaves, record_columns)
 from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.export import ExportConfig
@@ -304,15 +304,14 @@ def _reported_records(items, reported: bool) -> bool:
     the whole list, plain scalars, lists of them (waypoints ...) or dataclasses of one class for
     which the same holds (``problems_include``).  Checked field by field across the list (a
     long vehicle list), not item by item; anything else (False) is walked item by item."""
-    if len(items) < 2:
+    columns = record_columns(items)
+    if columns is None:
         return False
     cls = type(items[0])
-    if not dataclasses.is_dataclass(cls) or set(map(type, items)) != {cls}:
-        return False
     if not reported and callable(getattr(cls, "problems", None)):
         return False
     included = getattr(cls, "problems_include", ())
-    for name, column in zip(field_names(cls), zip(*map(field_values, items))):
+    for name, column in columns:
         kinds = set(map(type, column))
         if kinds <= SCALARS:
             continue

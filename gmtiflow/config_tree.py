@@ -10,7 +10,7 @@ import dataclasses
 import operator
 import re
 from itertools import chain
-from typing import Callable, Dict, Iterator, Optional, Set, Tuple
+from typing import Callable, Dict, Iterator, List, Optional, Set, Tuple
 
 _PART = re.compile(r"[^.\[\]]+|\[\d+\]")
 
@@ -107,17 +107,26 @@ def numbers_within(items, bound: float) -> bool:
     return not flat or (-bound <= min(flat) and max(flat) <= bound)
 
 
+def record_columns(items) -> Optional[List[Tuple[str, tuple]]]:
+    """``(field name, its values across the list)`` of two or more dataclasses of one class (a
+    vehicle list: walked column by column, not item by item), or None for any other list."""
+    if len(items) < 2:
+        return None
+    cls = type(items[0])
+    if not dataclasses.is_dataclass(cls) or set(map(type, items)) != {cls}:
+        return None
+    return list(zip(field_names(cls), zip(*map(field_values, items))))
+
+
 def records_within(items, bound: float) -> bool:
     """Every numeric leaf of two or more dataclasses of one class lies within ±``bound`` (NaNs
     aside, as in :func:`numbers_within`), checked field by field across the list (a long
     vehicle list), not item by item: fields that hold plain scalars, lists of them (or of
     number lists) or dataclasses of one class for which the same holds.  False otherwise."""
-    if len(items) < 2:
+    columns = record_columns(items)
+    if columns is None:
         return False
-    cls = type(items[0])
-    if not dataclasses.is_dataclass(cls) or set(map(type, items)) != {cls}:
-        return False
-    for column in zip(*map(field_values, items)):
+    for _, column in columns:
         kinds = set(map(type, column))
         if kinds <= _NOT_NUMERIC:
             continue

@@ -192,19 +192,14 @@ class _Writer:
 
     def rows(self, items, indent: int, lead: str) -> bool:
         """Write a list of equally long, non-empty lists of ints and floats (waypoints ...)
-        in bulk, ``- - x`` then ``  - y`` per row; False (nothing written) for other lists."""
-        if not items or set(map(type, items)) != {list} or len(set(map(len, items))) != 1:
+        in bulk (:meth:`list_column` of the one list), ``- - x`` then ``  - y`` per row; False
+        (nothing written) for other lists."""
+        if not items or set(map(type, items)) != {list}:
             return False
-        flat = list(chain.from_iterable(items))
-        kinds = set(map(type, flat))
-        if not flat or not kinds <= {float, int}:
+        texts = self.list_column((items,), indent)
+        if texts is None:
             return False
-        texts = number_texts(flat, kinds)
-        pad = " " * indent
-        row = pad + "- - %s" + ("\n" + pad + "  - %s") * (len(items[0]) - 1)
-        first = len(self.lines)
-        self.lines.extend(map(row.__mod__, zip(*[iter(texts)] * len(items[0]))))
-        self.lines[first] = lead + self.lines[first][indent:]
+        self.lines.append(lead + texts[0][indent:])
         return True
 
     def records(self, items, indent: int, lead: str) -> bool:
@@ -261,10 +256,7 @@ class _Writer:
         """The text of ``head`` + each value, as :meth:`entry` writes it."""
         kinds = set(map(type, values))
         if kinds == {float}:
-            texts = list(map(repr, values))
-            if "e" in "".join(texts) or "n" in "".join(texts):
-                texts = list(map(float_text, values))
-            return [head + " " + text for text in texts]
+            return [head + " " + text for text in number_texts(list(values), kinds)]
         if kinds == {str}:
             column = len(head) + 1
             return [head + " " + self.string(value, column) for value in values]

@@ -351,19 +351,17 @@ def _draw_wander(vehicles, seed, t0, on, off, horizon_s, dt):
     wanders = np.asarray([vi for vi, veh in enumerate(vehicles)
                           if np.any(veh.sigma_pos > 0) and math.isfinite(on[vi])], np.int64)
     if wanders.size:
-        # the knots' span per vehicle (wander.knot_spacing_s and n_knots, all at once)
         prof = np.asarray([vehicles[vi].profile for vi in wanders], np.int64)
-        corr = np.asarray([float(vehicles[vi].pos_corr_s) for vi in wanders])
         w_t0[wanders] = t0[prof]
-        w_h[wanders] = np.where(corr > 0, corr, float(dt))
+        w_h[wanders] = wander_mod.knot_spacing_s([vehicles[vi].pos_corr_s for vi in wanders],
+                                                 dt)
         end = t0[prof] + np.minimum(off[wanders], horizon_s[prof])
-        span = np.maximum(end - w_t0[wanders], 0.0) / w_h[wanders]
-        n_k[wanders] = np.ceil(span - 1e-9).astype(np.int64) + 4
+        n_k[wanders] = wander_mod.n_knots(w_t0[wanders], end, w_h[wanders])
     knot_off = np.concatenate([[0], np.cumsum(n_k)]).astype(np.int64)
     knots = np.empty((int(knot_off[-1]), 3))
     gens = streams(seed, ("truth", "vehicle"), [vehicles[vi].name for vi in wanders.tolist()],
                    ("wander",))
-    for vi, g in zip(wanders.tolist(), gens):      # wander.draw_knots, in place
+    for vi, g in zip(wanders.tolist(), gens):      # N(0, 1) in place, scaled by σ below
         g.standard_normal(out=knots[knot_off[vi]:knot_off[vi + 1]])
     if wanders.size:
         sigma = np.asarray([np.asarray(v.sigma_pos, float) for v in vehicles]).reshape(N, 3)

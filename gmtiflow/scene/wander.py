@@ -38,19 +38,17 @@ CORNER_BLEND_M = 10.0
 _CHUNK = 500_000       # rows per block when evaluating (bounded temporaries)
 
 
-def knot_spacing_s(corr_s: float, dt_s: float) -> float:
-    """h: the correlation time, or the motion step when it is 0."""
-    return float(corr_s) if corr_s > 0 else float(dt_s)
+def knot_spacing_s(corr_s, dt_s: float) -> np.ndarray:
+    """h per vehicle: its correlation time, or the motion step where that is 0 (arrays)."""
+    corr_s = np.asarray(corr_s, float)
+    return np.where(corr_s > 0, corr_s, float(dt_s))
 
 
-def n_knots(t0_s: float, end_s: float, h_s: float) -> int:
-    """Knots covering [t0, end] (x from 0 to (end − t0)/h, plus the spline's 3 neighbours)."""
-    return int(math.ceil(max(end_s - t0_s, 0.0) / h_s - 1e-9)) + 4
-
-
-def draw_knots(gen: np.random.Generator, sigma_m, n: int) -> np.ndarray:
-    """(n, 3) knot values, N(0, σ²) per axis (σ = along, across, up)."""
-    return gen.standard_normal((n, 3)) * np.asarray(sigma_m, float)
+def n_knots(t0_s, end_s, h_s) -> np.ndarray:
+    """Knots covering [t0, end] per vehicle (x from 0 to (end − t0)/h, plus the spline's 3
+    neighbours; arrays)."""
+    span = np.maximum(np.asarray(end_s, float) - t0_s, 0.0) / h_s
+    return np.ceil(span - 1e-9).astype(np.int64) + 4
 
 
 def _basis(x):
