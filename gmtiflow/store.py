@@ -62,7 +62,7 @@ after the shuffle finds a column's runs of equal bytes (its exponents) and codes
 their frequencies.  zlib-ng's level 1 (its "quick" deflate: matches found by a hash, static
 codes) deflates such a plane ~10x faster and to a fraction of ``Z_RLE``'s bytes, but codes
 every other byte in 8-9 bits whatever their frequencies; CPython's zlib has no such mode
-(None: ``Z_RLE`` for every plane)."""
+(None: ``Z_RLE`` or Huffman-only for every plane, :data:`_HUFFMAN_MARGIN_BITS`)."""
 
 LAYOUT_VERSION = 1
 """Bumped whenever a table, column or attribute changes meaning."""
@@ -193,6 +193,22 @@ runs keeps a plane of one dominant byte, whose repeated strings are its runs, wi
 (zlib-ng's quick deflate spent ~2x its bytes): on the columns of the Stone Soup peer runs (10
 and 1,000 targets) and the fidelity benchmark's `fast` scene, 2-4 % fewer bytes than without,
 for ~1 ms more CPU on the 10-target run."""
+_HUFFMAN_MARGIN_BITS = 0.5
+"""A plane that is neither noise nor for :data:`_MATCH_STRATEGY` is deflated with zlib's
+Huffman-only strategy (``Z_HUFFMAN_ONLY``: no matches, each byte coded by its frequency) when
+what that spends, about (the sample's entropy, at least 1 bit a byte: a Huffman code's
+shortest), is at most what ``Z_RLE`` spends, about (the entropy over the bytes that no
+run-length match covers, those equal to the three before: a match needs three, plus this
+margin for the matches' own codes).  Short runs (the sensor's σ's and RCS, one value for every
+false alarm between the targets' own) then cost ``Z_RLE`` a match search at every byte, and
+it codes them in more bytes than Huffman-only: on the planes of the fidelity benchmark's
+`fast` and `full` scenes (1,000 vehicles, issue 18) 14-16 % less deflate CPU for as many
+bytes."""
+_MEM_LEVEL = 9
+"""zlib's ``memLevel`` of the plane compressors (:func:`_compressor`): 9 (256 KiB of buffers
+more than the default 8) lets a deflate block hold 32,768 symbols, so a 64 KiB plane ends
+half as many blocks (each a Huffman tree built and written): ~6 % less deflate CPU on the
+planes of the fidelity benchmark's scenes, for the same bytes within 0.1 %."""
 _XLOGX = np.zeros(_SAMPLE_BLOCKS * _SAMPLE_BYTES + 1)
 _XLOGX[1:] = np.arange(1, len(_XLOGX)) * np.log2(np.arange(1, len(_XLOGX)))
 _ZLIB_HEADER = b"\x78\x01"            # deflate, 32 KiB window, fastest
@@ -205,17 +221,18 @@ _KEY_OFFSETS = np.arange(256, dtype=np.uint16) << 8
 
 
 def _plane_samples(planes: np.ndarray):
-    """``(bits, repeated, strings, noise)`` of ``planes`` (byte planes, one a row), from a
-    sample of :data:`_SAMPLE_BLOCKS` runs of :data:`_SAMPLE_BYTES` bytes spread over each plane:
-    its entropy in bits a byte, the fraction of its bytes equal to the one before, the fraction
-    of the 4-byte strings of its middle run that occur twice or more in that run (what
-    deflate's matches can replace), and whether the plane looks like noise: more than
+    """``(bits, repeated, strings, noise, runs)`` of ``planes`` (byte planes, one a row), from
+    a sample of :data:`_SAMPLE_BLOCKS` runs of :data:`_SAMPLE_BYTES` bytes spread over each
+    plane: its entropy in bits a byte, the fraction of its bytes equal to the one before, the
+    fraction of the 4-byte strings of its middle run that occur twice or more in that run (what
+    deflate's matches can replace), whether the plane looks like noise: more than
     :data:`_NOISE_BITS` bits a byte and hardly a byte equal to the one before (the low bytes of
-    measured floats).  All None for planes too short to sample.  Depends on the bytes only
-    (deterministic files)."""
+    measured floats), and the fraction of its bytes equal to the three before (what a
+    run-length match can cover).  All None for planes too short to sample.  Depends on the
+    bytes only (deterministic files)."""
     k, n = planes.shape
     if k == 0 or n < 4 * _SAMPLE_BLOCKS * _SAMPLE_BYTES:
-        return None, None, None, None
+        return None, None, None, None, None
     index = _SAMPLE_INDEX.get(n)
     if index is None:
         if len(_SAMPLE_INDEX) >= 256:
@@ -227,16 +244,20 @@ def _plane_samples(planes: np.ndarray):
     m = sample.shape[1]
     bits = np.log2(m) - _XLOGX[counts].reshape(k, 256).sum(axis=1) / m
     runs = sample.reshape(k, _SAMPLE_BLOCKS, _SAMPLE_BYTES)
-    repeats = np.add.reduce((runs[:, :, 1:] == runs[:, :, :-1]).reshape(k, -1), axis=1,
-                            dtype=np.intp)
+    same = runs[:, :, 1:] == runs[:, :, :-1]          # byte i + 1 equal to byte i
+    repeats = np.add.reduce(same.reshape(k, -1), axis=1, dtype=np.intp)
     repeated = repeats / runs[0, :, 1:].size
+    in_run = same[:, :, 2:] & same[:, :, 1:-1]
+    in_run &= same[:, :, :-2]                         # byte i + 3 equal to bytes i .. i + 2
+    run_bytes = np.add.reduce(in_run.reshape(k, -1), axis=1, dtype=np.intp) / \
+        in_run[0].size
     noise = (bits > _NOISE_BITS) & (repeated < 1 / 32)
     mid = runs[:, _SAMPLE_BLOCKS // 2].astype(np.uint32)
     keys = mid[:, :-3] | mid[:, 1:-2] << 8 | mid[:, 2:-1] << 16 | mid[:, 3:] << 24
     keys.sort(axis=1)
     strings = np.add.reduce(keys[:, 1:] == keys[:, :-1], axis=1, dtype=np.intp) / \
         (keys.shape[1] - 1)
-    return bits, repeated, strings, noise
+    return bits, repeated, strings, noise, run_bytes
 
 
 def _noise_planes(planes: np.ndarray) -> np.ndarray:
@@ -247,13 +268,14 @@ def _noise_planes(planes: np.ndarray) -> np.ndarray:
 
 
 def _compressor(strategy: int):
-    """This thread's compressor of ``strategy`` (raw deflate, level 1), made once: a new one
-    costs ~50 µs of page faults.  Every section it gives ends with a full flush, after which it
-    refers to nothing before: its sections are those of a new compressor."""
+    """This thread's compressor of ``strategy`` (raw deflate, level 1, memLevel
+    :data:`_MEM_LEVEL`), made once: a new one costs ~50 µs of page faults.  Every section it
+    gives ends with a full flush, after which it refers to nothing before: its sections are
+    those of a new compressor."""
     key = f"z{strategy}"
     z = getattr(_local, key, None)
     if z is None:
-        z = zlib.compressobj(_DEFLATE_LEVEL, zlib.DEFLATED, -15, 8, strategy)
+        z = zlib.compressobj(_DEFLATE_LEVEL, zlib.DEFLATED, -15, _MEM_LEVEL, strategy)
         setattr(_local, key, z)
     return z
 
@@ -320,7 +342,9 @@ def _deflated_chunk(values: np.ndarray) -> bytes:
     blocks, any other deflated and ended by a full flush, after which the compressor refers
     to nothing before (so stored blocks, other sections, or the next chunk, can follow): with
     zlib's run-length strategy (``Z_RLE``), or with :data:`_MATCH_STRATEGY` when that deflates
-    the plane to fewer bytes, as judged from its sample (:data:`_LITERAL_BITS`).  Each thread
+    the plane to fewer bytes, as judged from its sample (:data:`_LITERAL_BITS`), or with
+    Huffman-only when its runs are too short to repay ``Z_RLE`` (:data:`_HUFFMAN_MARGIN_BITS`;
+    a plane too short to sample: ``Z_RLE``).  Each thread
     has one compressor of each (:func:`_compressor`).  On the columns of real runs this takes
     about a quarter of the CPU of HDF5's own level-1 deflate, for 1-2 % more bytes
     (docs/tables.md).  zlib releases the GIL while compressing.  A chunk of fewer than
@@ -339,7 +363,7 @@ def _deflated_chunk(values: np.ndarray) -> bytes:
         planes = raw.reshape(1, -1)[:0]
     else:
         planes = raw.reshape(-1, k).T[varying]       # the varying planes only (a copy)
-    bits, repeated, strings, noise = _plane_samples(planes)
+    bits, repeated, strings, noise, run_bytes = _plane_samples(planes)
     rows = iter(planes)
     first = raw[:k].tolist()
     parts = [_ZLIB_HEADER]
@@ -347,14 +371,19 @@ def _deflated_chunk(values: np.ndarray) -> bytes:
     z_open = None             # the compressor of the open section (not yet flushed)
     try:
         rle = _compressor(zlib.Z_RLE)
-        if noise is None or _MATCH_STRATEGY is None:
-            how = [rle] * len(planes) if noise is None else \
-                [None if noisy else rle for noisy in noise.tolist()]
+        if noise is None:
+            how = [rle] * len(planes)
         else:   # per plane: stored (None) or the compressor expected to deflate it smaller
-            quick = _compressor(_MATCH_STRATEGY)
-            matched = (1 - strings) * _LITERAL_BITS < bits * (1 - repeated)   # bits a byte
-            how = [None if noisy else quick if match else rle
-                   for noisy, match in zip(noise.tolist(), matched.tolist())]
+            huff = _compressor(zlib.Z_HUFFMAN_ONLY)
+            runs_pay = np.maximum(bits, 1.0) > bits * (1 - run_bytes) + _HUFFMAN_MARGIN_BITS
+            if _MATCH_STRATEGY is None:
+                matched = np.zeros(len(planes), bool)
+            else:
+                quick = _compressor(_MATCH_STRATEGY)
+                matched = (1 - strings) * _LITERAL_BITS < bits * (1 - repeated)  # bits a byte
+            how = [None if noisy else quick if match else rle if pay else huff
+                   for noisy, match, pay in zip(noise.tolist(), matched.tolist(),
+                                                runs_pay.tolist())]
         how = iter(how)
         for j in range(k):
             if const[j]:

@@ -263,6 +263,29 @@ def test_each_plane_is_deflated_the_way_that_stores_it_in_fewer_bytes(monkeypatc
     assert chosen["mixed"] < 0.95 * min(sizes["run-length"]["mixed"], sizes["matches"]["mixed"])
 
 
+def test_planes_of_short_runs_are_deflated_huffman_only(monkeypatch):
+    """A plane whose runs are too short to repay Z_RLE's matches (one value for most rows,
+    between them values of their own: a σ column with false alarms among targets) is deflated
+    Huffman-only, into no more bytes than Z_RLE would; a plane of long runs stays with Z_RLE,
+    which codes a run in a match."""
+    n = store._CHUNK_ROWS
+    rng = np.random.default_rng(8)
+    short = np.where(rng.random(n) < 0.4, 1.2345, np.round(rng.normal(size=n), 1))
+    long_runs = np.repeat(rng.integers(0, 256, n // 64), 64).astype(np.uint8)
+    chosen = {name: len(store._deflated_chunk(v)) for name, v in
+              (("short", short), ("long", long_runs))}
+    sizes = {}
+    for way, margin in (("huffman", np.inf), ("run-length", -np.inf)):    # every plane one way
+        monkeypatch.setattr(store, "_HUFFMAN_MARGIN_BITS", margin)
+        sizes[way] = {name: len(store._deflated_chunk(v)) for name, v in
+                      (("short", short), ("long", long_runs))}
+    assert chosen["short"] == sizes["huffman"]["short"] < 0.95 * sizes["run-length"]["short"]
+    assert chosen["long"] == sizes["run-length"]["long"] < 0.2 * sizes["huffman"]["long"]
+    raw = zlib.decompress(store._deflated_chunk(short))
+    back = np.frombuffer(raw, np.uint8).reshape(8, n).T.copy().view(np.float64).ravel()
+    assert back.tobytes() == short.tobytes()
+
+
 def test_without_zlib_ng_the_chunks_are_deflated_by_cpythons_zlib(monkeypatch):
     """zlib-ng is a dependency, but the run file needs only the deflate streams: with
     CPython's zlib every deflated plane is run-length coded, and the values come back."""
