@@ -63,11 +63,15 @@ class Fleet:
         self._vx_xyz = np.concatenate([r.xyz_m for r in routes]) if routes else np.zeros((0, 3))
         self._vx_xyz_t = np.ascontiguousarray(self._vx_xyz.T)
         self._vx_s = np.concatenate([r.s_m for r in routes]) if routes else np.zeros(0)
-        pad = lambda a, fill: np.concatenate([a, [fill]])  # noqa: E731
-        self._seg_edge = (np.concatenate([pad(r.edge_id, -1) for r in routes])
-                          if routes else np.zeros(0, np.int64))
-        self._seg_inv = (np.concatenate([pad(r.invisible, False) for r in routes])
-                         if routes else np.zeros(0, bool))
+        # Per vertex, the edge id and invisibility of the segment it starts (a route's last
+        # vertex: -1 and False), placed at once instead of padding route by route.
+        starts = np.ones(len(self._vx_s), bool)
+        starts[self._vx_off[1:] - 1] = False
+        self._seg_edge = np.full(len(self._vx_s), -1, np.int64)
+        self._seg_inv = np.zeros(len(self._vx_s), bool)
+        if routes:
+            self._seg_edge[starts] = np.concatenate([r.edge_id for r in routes])
+            self._seg_inv[starts] = np.concatenate([r.invisible for r in routes])
         route_of_vx = np.repeat(np.arange(len(routes)), np.diff(self._vx_off))
         self._vx_key = self._vx_s + route_of_vx * self._span
         # Road-frame heading per segment (indexed by its first vertex) and the corner blend

@@ -348,8 +348,8 @@ def _draw_wander(vehicles, seed, t0, on, off, horizon_s, dt):
     w_t0 = np.zeros(N)
     w_h = np.ones(N)
     n_k = np.zeros(N, np.int64)
-    wanders = np.asarray([vi for vi, veh in enumerate(vehicles)
-                          if np.any(veh.sigma_pos > 0) and math.isfinite(on[vi])], np.int64)
+    sigma = np.asarray([v.sigma_pos for v in vehicles], float).reshape(N, 3)    # σ (m), (N, 3)
+    wanders = np.flatnonzero((sigma > 0).any(axis=1) & np.isfinite(on))
     if wanders.size:
         prof = np.asarray([vehicles[vi].profile for vi in wanders], np.int64)
         w_t0[wanders] = t0[prof]
@@ -364,6 +364,5 @@ def _draw_wander(vehicles, seed, t0, on, off, horizon_s, dt):
     for vi, g in zip(wanders.tolist(), gens):      # N(0, 1) in place, scaled by σ below
         g.standard_normal(out=knots[knot_off[vi]:knot_off[vi + 1]])
     if wanders.size:
-        sigma = np.asarray([np.asarray(v.sigma_pos, float) for v in vehicles]).reshape(N, 3)
         knots *= np.repeat(sigma, n_k, axis=0)
     return knots, knot_off, w_t0, w_h
