@@ -78,6 +78,18 @@ class Fleet:
         # (half-width, turn) per vertex, for the wander's smoothly turning frame.
         self._seg_psi, self._vx_blend, self._vx_turn = _road_frames(
             routes, self._vx_xyz, self._vx_s, self._vx_off)
+        # Per vertex j, of the segment j -> j + 1 it starts (a route's last vertex: unused):
+        # the displacement (3, n) m, the length (m), the truth heading of its direction (rad)
+        # and the sine and cosine of its road-frame heading, so that state_at gathers them
+        # instead of computing them row by row (the same operations, so the same values).
+        nv = len(self._vx_s)
+        self._seg_d_t = np.zeros((3, nv))
+        self._seg_d_t[:, :-1] = self._vx_xyz_t[:, 1:] - self._vx_xyz_t[:, :-1]
+        self._seg_len = np.zeros(nv)
+        self._seg_len[:-1] = self._vx_s[1:] - self._vx_s[:-1]
+        safe = np.where(self._seg_len > 0, self._seg_len, 1.0)
+        self._seg_heading = frames.heading_rad(self._seg_d_t[0] / safe, self._seg_d_t[1] / safe)
+        self._seg_sin, self._seg_cos = np.sin(self._seg_psi), np.cos(self._seg_psi)
 
     @property
     def n_vehicles(self) -> int:
@@ -164,10 +176,11 @@ class Fleet:
             # (3, n) arrays: each axis a long contiguous row (an (n, 3) layout with n rows of
             # 3 makes every numpy loop 3 elements long)
             p0 = np.take(self._vx_xyz_t, j, axis=1)     # (np.take: 4x faster than [:, j])
-            d = np.take(self._vx_xyz_t, j + 1, axis=1) - p0
-            seg_len = self._vx_s[j + 1] - self._vx_s[j]
+            d = np.take(self._seg_d_t, j, axis=1)       # = vertex j + 1 - vertex j
+            s_j, s_j1 = self._vx_s[j], self._vx_s[j + 1]
+            seg_len = self._seg_len[j]                  # = s_j1 - s_j
             safe = np.where(seg_len > 0, seg_len, 1.0)
-            f = np.where(seg_len > 0, (s - self._vx_s[j]) / safe, 0.0)
+            f = np.where(seg_len > 0, (s - s_j) / safe, 0.0)
             unit = d / safe
             pos = p0 + f * d if need_pos else None
             vel = speed * unit if need_vel else None
@@ -184,12 +197,19 @@ class Fleet:
                 n, nd, ndd = wander_mod.evaluate(sub(t_a), m_ids, None, self._w_off,
                                                  self._w_t0, self._w_h, knots_t=self._w_knots_t)
                 jm = sub(j)
+                psi_j = self._seg_psi[jm]
                 psi, dpsi, d2psi = wander_mod.corner_heading(
-                    sub(s), self._vx_s[jm], self._vx_s[jm + 1], self._seg_psi[jm],
-                    self._vx_blend[jm], self._vx_turn[jm], self._vx_blend[jm + 1],
-                    self._vx_turn[jm + 1])
+                    sub(s), sub(s_j), sub(s_j1), psi_j, self._vx_blend[jm], self._vx_turn[jm],
+                    self._vx_blend[jm + 1], self._vx_turn[jm + 1])
+                # sin and cos of ψ: the segment's, except in a corner blend (ψ ≠ ψ_j)
+                sin_psi, cos_psi = self._seg_sin[jm], self._seg_cos[jm]
+                bent = np.flatnonzero(psi != psi_j)
+                if bent.size:
+                    sin_psi[bent] = np.sin(psi[bent])
+                    cos_psi[bent] = np.cos(psi[bent])
                 off, v_off, a_off = wander_mod.world_offset(n, nd, ndd, psi, dpsi, d2psi,
-                                                            sub(speed), sub(acc))
+                                                            sub(speed), sub(acc),
+                                                            sin_cos=(sin_psi, cos_psi))
                 for total, add in ((pos, off), (vel, v_off), (accel, a_off)):
                     if total is None:
                         continue
@@ -206,7 +226,7 @@ class Fleet:
             if want("speed_mps"):
                 put(("speed_mps",), (speed,))
             if want("heading_rad"):
-                put(("heading_rad",), (frames.heading_rad(unit[0], unit[1]),))
+                put(("heading_rad",), (self._seg_heading[j],))
             if want("route_s_m"):
                 put(("route_s_m",), (s,))
             if want("edge_id"):
@@ -246,7 +266,9 @@ class Fleet:
         first = np.cumsum(count) - count
         ti = np.arange(len(vid), dtype=np.int64) - np.repeat(first - i0[:n], count) \
             if len(vid) else np.zeros(0, np.int64)
-        order = np.argsort(ti * max(n, 1) + vid, kind="stable")
+        # by time, then vehicle: vid ascends within each time already, so a stable sort of ti
+        # alone (a radix sort when ti fits 16 bits) gives the order of (ti, vid)
+        order = np.argsort(ti.astype(np.uint16) if len(times) <= 1 << 16 else ti, kind="stable")
         vid, ti = vid[order], ti[order]
         if len(vid):        # the active pairs only (state_at then neither gathers nor scatters)
             keep = self._active(times[ti], vid)[0]

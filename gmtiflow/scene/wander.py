@@ -164,15 +164,16 @@ def corner_heading(s, s_j, s_j1, psi_j, b_j, turn_j, b_j1, turn_j1):
     return psi, d1, d2
 
 
-def world_offset(n, nd, ndd, psi, dpsi_ds, d2psi_ds2, speed, accel):
+def world_offset(n, nd, ndd, psi, dpsi_ds, d2psi_ds2, speed, accel, sin_cos=None):
     """Offset, velocity and acceleration (each (k, 3), ENU) of the wander in a frame turning
     with heading ψ(s(t)): along A = (sin ψ, cos ψ, 0), across C = (−cos ψ, sin ψ, 0) (left), up.
+    ``sin_cos``: (sin ψ, cos ψ) when the caller has them (else computed from ``psi``).
 
     With ω = ψ'·v and ω' = ψ''·v² + ψ'·a (A' = −ωC, C' = ωA):
     velocity (ṅ_a + ω n_c) A + (ṅ_c − ω n_a) C + ṅ_u U;
     acceleration (n̈_a + ω' n_c + 2ω ṅ_c − ω² n_a) A + (n̈_c − ω' n_a − 2ω ṅ_a − ω² n_c) C + n̈_u U.
     """
-    sp, cp = np.sin(psi), np.cos(psi)
+    sp, cp = (np.sin(psi), np.cos(psi)) if sin_cos is None else sin_cos
     w = dpsi_ds * speed
     wd = d2psi_ds2 * speed * speed + dpsi_ds * accel
     na, nc, nu = n.T
