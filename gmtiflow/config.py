@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from enum import Enum
 from itertools import chain
-from typing import Dict, List
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 from hydra.core.config_store import ConfigStore
@@ -33,8 +33,9 @@ from gmtiflow.export import ExportConfig
 from gmtiflow.report.config import ReportConfig
 from gmtiflow.scene.platform_config import PlatformConfig
 from gmtiflow.scene.roadmap_config import RoadmapConfig
+from gmtiflow.scene import vehicles_file
 from gmtiflow.scene.terrain_config import TerrainConfig
-from gmtiflow.scene.vehicles_config import VehiclesConfig
+from gmtiflow.scene.vehicles_config import VehiclesConfig, VehiclesGroupConfig
 from gmtiflow.schema import Problem, positive
 from gmtiflow.sensor.clutter import ClutterConfig
 from gmtiflow.sensor.config import SensorConfig
@@ -240,9 +241,19 @@ def sensor_problems(cfg: "AppConfig") -> List[Problem]:
     return out
 
 
+@dataclass
+class ComposedConfig(AppConfig):
+    """The schema Hydra composes (``base_config``): :class:`AppConfig` whose ``vehicles`` group
+    also takes ``file`` (:class:`~gmtiflow.scene.vehicles_config.VehiclesGroupConfig`).
+    :func:`to_object` reads that file and returns the :class:`AppConfig`, which has no ``file``
+    key: its ``/config`` text and cache keys are those of the same vehicles listed in a group."""
+
+    vehicles: VehiclesGroupConfig = MISSING
+
+
 def register() -> None:
     """Register the schema as ``base_config`` (the first entry of config.yaml's defaults)."""
-    ConfigStore.instance().store(name="base_config", node=AppConfig)
+    ConfigStore.instance().store(name="base_config", node=ComposedConfig)
 
 
 register()
@@ -253,7 +264,11 @@ def to_object(cfg: DictConfig) -> AppConfig:
 
     Every missing value (``???``) is listed when there are any.  ``OmegaConf.to_object``
     refuses a config with one, so the walk that lists them (``OmegaConf.missing_keys``: ~0.9 s
-    CPU for 1,000 listed vehicles) runs only when the conversion fails."""
+    CPU for 1,000 listed vehicles) runs only when the conversion fails.
+
+    ``vehicles.file`` is read here (:func:`resolved`), relative to the working directory (the
+    launch directory), before validation: the problems of its vehicles are named by the file
+    and their index in it (``vehicles.file /x/big.yaml: vehicles[12].cruise_speed_mps: …``)."""
     try:
         obj = OmegaConf.to_object(cfg)
     except Exception as exc:
@@ -264,8 +279,22 @@ def to_object(cfg: DictConfig) -> AppConfig:
         if isinstance(exc, OmegaConfBaseException):
             raise ConfigError(f"invalid config: {exc}") from None
         raise
-    validate(obj)
+    obj, vehicles_file = resolved(obj)
+    validate(obj, vehicles_file=vehicles_file)
     return obj
+
+
+def resolved(obj: AppConfig, base_dir: Optional[str] = None) -> Tuple[AppConfig, Optional[str]]:
+    """``obj`` as an :class:`AppConfig` whose vehicles group is a plain ``VehiclesConfig``: the
+    vehicles of ``vehicles.file`` read (:mod:`gmtiflow.scene.vehicles_file`, relative paths
+    against ``base_dir``, default the working directory), and the absolute path of that file
+    (None without one).  Not validated."""
+    vehicles, path = vehicles_file.expand(obj.vehicles, base_dir)
+    if type(obj) is AppConfig and vehicles is obj.vehicles:
+        return obj, None
+    values = {name: getattr(obj, name) for name in field_names(AppConfig)}
+    values["vehicles"] = vehicles
+    return AppConfig(**values), path
 
 
 def problems_of(obj, prefix: str = "", reported: bool = False) -> List[Problem]:
@@ -340,13 +369,26 @@ def magnitude_problems(obj) -> List[Problem]:
             and abs(value) > MAX_MAGNITUDE]
 
 
-def validate(obj: AppConfig) -> None:
-    """Raise one ConfigError listing every invalid value by its full key path."""
+def validate(obj: AppConfig, vehicles_file: Optional[str] = None) -> None:
+    """Raise one ConfigError listing every invalid value by its full key path.
+
+    With ``vehicles_file`` (the vehicles were read from that file), the keys of listed vehicles
+    name the file instead: ``vehicles.file <path>: vehicles[12].name``."""
     # A group's problems() may already report its nested items; list each problem once.
     found = list(dict.fromkeys(problems_of(obj) + magnitude_problems(obj)))
     if found:
-        lines = [f"{p.key}: {p.message}" for p in found]
+        lines = [f"{_file_key(p.key, vehicles_file)}: {p.message}" for p in found]
         raise ConfigError("invalid config: " + "; ".join(lines))
+
+
+_LISTED = "vehicles.vehicles["
+
+
+def _file_key(key: str, vehicles_file: Optional[str]) -> str:
+    """The key of a problem as the user wrote it: a listed vehicle's in its file, if any."""
+    if vehicles_file is None or not key.startswith(_LISTED):
+        return key
+    return f"vehicles.file {vehicles_file}: {key[len('vehicles.'):]}"
 
 
 def to_yaml(obj: AppConfig) -> str:

@@ -188,3 +188,21 @@ class VehiclesConfig:
             seen.add(spec.name)
         out += schema.prefixed("random", self.random.problems())
         return out
+
+
+@dataclass
+class VehiclesGroupConfig(VehiclesConfig):
+    """The ``vehicles`` group as Hydra composes it: :class:`VehiclesConfig` plus ``file``.
+
+    ``file``: None, or the path of a YAML file holding ``vehicles: [...]`` in the schema of
+    ``vehicles`` above (a vehicles group file works as is; a top-level ``random:`` is refused),
+    relative to the directory the command was launched from.  For a long list (1,000 vehicles):
+    Hydra sees only the path, and :mod:`gmtiflow.scene.vehicles_file` reads the file with libyaml
+    and the same type checks.  Refused when the group itself lists vehicles (the file's list is
+    the scene's list: ``vehicles=file vehicles.file=big.yaml``); the ``random`` fleet applies as
+    usual.  ``config.to_object`` returns the plain :class:`VehiclesConfig` holding the file's
+    vehicles, so the run's ``/config`` and the stage cache keys list them, not the path: the
+    same vehicles as a group file or as ``file`` give the same run file.
+    """
+
+    file: Optional[str] = None
