@@ -70,3 +70,97 @@ def test_bad_config_is_one_clear_error_and_no_output(tmp_path, overrides, needle
     assert needle in proc.stderr
     assert "Traceback" not in proc.stderr
     assert not list(tmp_path.rglob("*.h5"))
+
+
+def many_vehicles_text(copies: int = 8) -> str:
+    """The default group's 8 vehicles (convoy, stop points, tunnel, off-road ...) ``copies``
+    times, renamed and staggered: a group file of 64 vehicles, in the group file's own text."""
+    import yaml
+    group = yaml.safe_load((ROOT / "conf" / "vehicles" / "default.yaml").read_text())
+    listed = []
+    for k in range(copies):
+        for spec in group["vehicles"]:
+            listed.append({**spec, "name": f"{spec['name']}-{k}",
+                           "start_time_s": spec.get("start_time_s", 0) + 7 * k})
+    return yaml.safe_dump({"vehicles": listed, "random": group["random"]}, sort_keys=False)
+
+
+def h5_contents(path):
+    """Every dataset (dtype and values, bit for bit) and every attribute of a run file."""
+    import h5py
+    out = {}
+
+    def bits(value):
+        value = np.asarray(value)
+        return (str(value.dtype), value.shape,
+                value.tolist() if value.dtype == object else value.tobytes())
+
+    def record(name, obj):
+        out[f"{name}@attrs"] = {k: bits(v) for k, v in obj.attrs.items()}
+        if isinstance(obj, h5py.Dataset):
+            out[name] = bits(obj[()])
+
+    with h5py.File(path, "r") as f:
+        record("", f)
+        f.visititems(record)
+    return out
+
+
+def test_vehicles_file_gives_the_run_of_the_same_group_file(tmp_path):
+    """64 vehicles as a vehicles group file (on hydra.searchpath) and as ``vehicles.file``
+    (relative to the launch directory): the same run file, /config and attributes included."""
+    text = many_vehicles_text()
+    (tmp_path / "conf" / "vehicles").mkdir(parents=True)
+    (tmp_path / "conf" / "vehicles" / "many.yaml").write_text(text)
+    (tmp_path / "many.yaml").write_text(text)
+    common = ["scene.duration_s=30", "cache.enabled=false", *LEAN]
+    group = gmtiflow(tmp_path / "group", f"hydra.searchpath=[file://{tmp_path / 'conf'}]",
+                     "vehicles=many", *common)
+    assert group.returncode == 0, group.stderr
+    from_file = gmtiflow(tmp_path / "file", "vehicles=file", "vehicles.file=many.yaml", *common,
+                         cwd=tmp_path)
+    assert from_file.returncode == 0, from_file.stderr
+    a = h5_contents(tmp_path / "group" / "run" / "run.h5")
+    b = h5_contents(tmp_path / "file" / "run" / "run.h5")
+    assert a["vehicles/name"][1] == (64 + 2 * 8,)     # each convoy brings two more trucks
+    assert a.keys() == b.keys()
+    assert [k for k in a if a[k] != b[k]] == []
+    hydra_config = (tmp_path / "file" / "run" / ".hydra" / "config.yaml").read_text()
+    assert "file: many.yaml" in hydra_config      # Hydra's record keeps the path as given
+
+
+def test_vehicles_file_in_a_multirun_reads_the_launch_directory(tmp_path):
+    """``-m`` with the basic launcher: every job reads the relative path from where the
+    command started (hydra.job.chdir is false); tests/test_sweeps.py does the same with joblib."""
+    (tmp_path / "two.yaml").write_text("vehicles:\n  - {name: rel-1, start: g_0_0, end: g_6_2}\n"
+                                       "  - {name: rel-2, start: g_3_2, end: hw_x4000}\n")
+    env = dict(os.environ, HYDRA_FULL_ERROR="0")
+    cmd = [sys.executable, "-m", "gmtiflow.cli", "-m", f"hydra.sweep.dir={tmp_path / 'sweep'}",
+           "scene.duration_s=20", "tracker=none", "progress=false", "cache.enabled=false",
+           *LEAN, "vehicles=file", "vehicles.file=two.yaml", "seed=1,2"]
+    proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, env=env,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    for job in ("0", "1"):
+        names = store.read_table(tmp_path / "sweep" / job / "run.h5", "vehicles")["name"]
+        assert [str(n) for n in names] == ["rel-1", "rel-2"]
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("vehicles:\n  - {name: a, start: g_0_0, end: g_6_2}\n  - {name: b, cruise_speed_mps: fast}\n",
+     "big.yaml: vehicles[1].cruise_speed_mps: expected a number, got 'fast'"),
+    ("vehicles:\n  - {name: a, start: g_0_0\n", "big.yaml: line 3, column 1: "),
+    ("vehicles:\n  - {name: a, start: g_0_0, end: g_6_2}\n  - {name: a, start: g_0_0, end: g_6_2}\n",
+     "big.yaml: vehicles[1].name: vehicle name 'a' is used twice"),
+    (None, "big.yaml: no such file"),
+])
+def test_a_bad_vehicles_file_is_one_error_line_and_no_run_file(tmp_path, text, needle):
+    if text is not None:
+        (tmp_path / "big.yaml").write_text(text)
+    proc = gmtiflow(tmp_path, "vehicles=file", "vehicles.file=big.yaml", "scene.duration_s=20")
+    assert proc.returncode == 1, proc.stderr
+    assert f"vehicles.file {tmp_path / 'big.yaml'}: " in proc.stderr, proc.stderr
+    assert needle in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert len([line for line in proc.stderr.splitlines() if "vehicles.file" in line]) == 1
+    assert not list(tmp_path.rglob("*.h5")) and not list(tmp_path.rglob("*.partial"))

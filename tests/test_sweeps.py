@@ -95,3 +95,14 @@ def test_submitit_local_sweep(tmp_path):
     runs = job_runs(tmp_path, 2)
     assert [int(store.open_run(r).attrs["seed"]) for r in runs] == [1, 2]
     assert (tmp_path / "sweep" / ".submitit").is_dir()
+
+
+@pytest.mark.slow
+def test_joblib_jobs_read_a_relative_vehicles_file_from_the_launch_directory(tmp_path):
+    """vehicles.file relative to where the command started, in joblib's worker processes too."""
+    (tmp_path / "two.yaml").write_text("vehicles:\n  - {name: rel-1, start: g_0_0, end: g_6_2}\n"
+                                       "  - {name: rel-2, start: g_3_2, end: hw_x4000}\n")
+    sweep(tmp_path, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "seed=1,2",
+          "vehicles=file", "vehicles.file=two.yaml", "report=none", "export=none")
+    for run in job_runs(tmp_path, 2):
+        assert [str(n) for n in store.read_table(run, "vehicles")["name"]] == ["rel-1", "rel-2"]
