@@ -80,6 +80,7 @@ BENCHMARKS = {
     "startup_time": ("startup_time", "README.md", [], ["--repeat", "2"]),
     "config_scale": ("config_scale", "docs/scale.md", ["--omegaconf", "--hydra"],
                      ["--repeat", "1"]),
+    "vehicles_file": ("vehicles_file", "docs/scale.md", [], ["--vehicles", "200", "--repeat", "1"]),
     "reliability_table": ("reliability_table", "docs/reliability.md", [],
                           ["--fuzz-cases", "100", "--config-runs", "5"]),
     "benchmark_suite": ("benchmark_suite", "docs/benchmark.md", [], ["--quick"]),

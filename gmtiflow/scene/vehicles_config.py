@@ -169,7 +169,10 @@ class RandomFleetSpec:
 
 @dataclass
 class VehiclesConfig:
-    """Schema of the ``vehicles`` config group: listed vehicles plus a random fleet."""
+    """Schema of the ``vehicles`` config group: listed vehicles plus a random fleet.
+
+    This is the group once the config is converted; as composed, the group also takes ``file``
+    (:class:`VehiclesGroupConfig`: vehicles read from a YAML file past Hydra)."""
 
     vehicles: List[VehicleSpec] = field(default_factory=list)
     random: RandomFleetSpec = field(default_factory=RandomFleetSpec)
