@@ -4,8 +4,10 @@ Each group's schema is declared next to the code that uses it and typed here, at
 (``roadmap: RoadmapConfig``), so that group YAML files need no ``defaults:`` list and
 ``group=glob(*)`` sweeps see only real options (``../shared/reference/hydra.md`` §3).
 Hydra/OmegaConf reject unknown keys, wrong types and unknown options at compose time;
-:func:`to_object` then converts to dataclasses and :func:`validate` runs every ``problems()``
-check, raising one :class:`~gmtiflow.errors.ConfigError` that names each full key path.
+:func:`to_object` then converts to dataclasses, reads ``vehicles.file`` (a long vehicle list
+kept out of Hydra, :mod:`gmtiflow.scene.vehicles_file`) and :func:`validate` runs every
+``problems()`` check, raising one :class:`~gmtiflow.errors.ConfigError` that names each full key
+path.  Hydra composes :class:`ComposedConfig`; the run gets the plain :class:`AppConfig`.
 """
 from __future__ import annotations
 
@@ -31,9 +33,9 @@ from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.export import ExportConfig
 from gmtiflow.report.config import ReportConfig
+from gmtiflow.scene import vehicles_file
 from gmtiflow.scene.platform_config import PlatformConfig
 from gmtiflow.scene.roadmap_config import RoadmapConfig
-from gmtiflow.scene import vehicles_file
 from gmtiflow.scene.terrain_config import TerrainConfig
 from gmtiflow.scene.vehicles_config import VehiclesConfig, VehiclesGroupConfig
 from gmtiflow.schema import Problem, positive
@@ -279,8 +281,8 @@ def to_object(cfg: DictConfig) -> AppConfig:
         if isinstance(exc, OmegaConfBaseException):
             raise ConfigError(f"invalid config: {exc}") from None
         raise
-    obj, vehicles_file = resolved(obj)
-    validate(obj, vehicles_file=vehicles_file)
+    obj, file_path = resolved(obj)
+    validate(obj, vehicles_file=file_path)
     return obj
 
 
