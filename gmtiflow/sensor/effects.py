@@ -258,23 +258,26 @@ class FalseAlarms:
         cfg = self.cfg
         ranges = np.linspace(cfg.range_min_m, cfg.range_max_m, 5)
         n, m = len(rows), 2 * len(ranges)
-        k = np.repeat(rows, m)
-        az = np.column_stack([np.repeat(lo[rows], len(ranges)).reshape(n, -1),
-                              np.repeat(hi[rows], len(ranges)).reshape(n, -1)]).ravel()
-        r = np.tile(np.concatenate([ranges, ranges]), n)
-        plat = tuple(np.asarray(d[f"platform_{c}_m"], float)[k] for c in "xyz")
-        ground, _, reached = geolocate.geolocate(plat, r, az, antenna.take(ctx.boresight, k),
-                                                 antenna.take(ctx.scan_axis, k),
-                                                 antenna.take(ctx.antenna_up, k), ctx.terrain,
-                                                 radius_m=ctx.radius_m)
-        centre = to_world[k] + 0.5 * (lo[k] + hi[k])
-        rel = fastnp.mod(np.arctan2(ground[0] - plat[0], ground[1] - plat[1]) - centre + np.pi,
-                     2.0 * np.pi) - np.pi
-        rel = rel.reshape(n, m)
+        # (n, m) points, dwell by dwell: the five ranges on the low edge, then on the high
+        # one; each dwell's platform and axes broadcast along its row (not gathered per point),
+        # each edge's cosine and sine taken once
+        edges = np.column_stack([lo[rows], hi[rows]])
+        cos_sin = tuple(np.repeat(f(edges), len(ranges), axis=1) for f in (np.cos, np.sin))
+        r = np.broadcast_to(np.concatenate([ranges, ranges]), (n, m))
+        plat = tuple(np.asarray(d[f"platform_{c}_m"], float)[rows][:, None] for c in "xyz")
+        b, h, u = (tuple(np.take(c, rows)[:, None] for c in axis)
+                   for axis in (ctx.boresight, ctx.scan_axis, ctx.antenna_up))
+        ground, _, reached = geolocate.geolocate(plat, r, None, b, h, u, ctx.terrain,
+                                                 radius_m=ctx.radius_m, elevation=False,
+                                                 cos_sin=cos_sin)
+        centre = to_world[rows] + 0.5 * (lo[rows] + hi[rows])
+        rel = (np.arctan2(ground[0] - plat[0], ground[1] - plat[1]) - centre[:, None]
+               + np.pi).ravel()
+        rel = (fastnp.mod(rel, 2.0 * np.pi) - np.pi).reshape(n, m)
         ok = np.asarray(reached, bool).reshape(n, m).all(axis=1)
         first = rel.min(axis=1) - margin[rows]
         span = np.where(ok, rel.max(axis=1) + margin[rows] - first, np.nan)
-        return centre.reshape(n, m)[:, 0] + first, span
+        return centre + first, span
 
     def __call__(self, ctx, detections: Table, looks: Table):
         d = ctx.dwells
