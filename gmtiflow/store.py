@@ -291,16 +291,46 @@ def _stored_blocks(plane: np.ndarray) -> list:
     return out
 
 
-def _constant_planes(values: np.ndarray) -> np.ndarray:
-    """Which byte positions hold the same byte in every value of ``values`` (its constant byte
-    planes: the high bytes of ids, every byte of a constant column); none for an element size
-    with no unsigned integer of that size."""
-    k = values.dtype.itemsize
-    if k not in (1, 2, 4, 8) or not len(values):
+def _constant_planes(values) -> np.ndarray:
+    """Which byte positions hold the same byte in every value of ``values`` (an array, or a
+    list of arrays of one dtype: its constant byte planes, the high bytes of ids, every byte of
+    a constant column); none for an element size with no unsigned integer of that size."""
+    pieces = [p for p in (values if isinstance(values, list) else [values]) if len(p)]
+    k = (values[0] if isinstance(values, list) else values).dtype.itemsize
+    if k not in (1, 2, 4, 8) or not pieces:
         return np.zeros(k, bool)
-    u = values.view(f"u{k}")
-    differ = np.bitwise_or.reduce(u) ^ np.bitwise_and.reduce(u)    # bits not all 0 nor all 1
-    return np.frombuffer(np.asarray(differ, u.dtype).tobytes(), np.uint8) == 0
+    us = [p.view(f"u{k}") for p in pieces]
+    ones = functools.reduce(np.bitwise_or, [np.bitwise_or.reduce(u) for u in us])
+    both = functools.reduce(np.bitwise_and, [np.bitwise_and.reduce(u) for u in us])
+    differ = ones ^ both                                      # bits not all 0 nor all 1
+    return np.frombuffer(np.asarray(differ, us[0].dtype).tobytes(), np.uint8) == 0
+
+
+def _shuffled(pieces: list, varying: np.ndarray, n: int) -> np.ndarray:
+    """Byte planes ``varying`` (byte positions, ascending) of the ``n`` values of ``pieces``
+    (contiguous arrays of one dtype, their rows in order), one plane a row: HDF5's shuffle of
+    the joined values, written plane by plane from each piece (no joined copy).  A single
+    piece whose planes all vary: the plain transpose."""
+    k = pieces[0].dtype.itemsize
+    if len(pieces) == 1:
+        raw = pieces[0].view(np.uint8)
+        if k == 1:
+            return raw.reshape(1, -1)[:len(varying)]
+        if len(varying) == k:
+            return np.ascontiguousarray(raw.reshape(-1, k).T)
+        return raw.reshape(-1, k).T[varying]         # the varying planes only (a copy)
+    planes = np.empty((len(varying), n), np.uint8)
+    every = len(varying) == k
+    at = 0
+    for piece in pieces:
+        rows = piece.view(np.uint8).reshape(-1, k)
+        if every:
+            planes[:, at:at + len(rows)] = rows.T
+        else:
+            for i, j in enumerate(varying.tolist()):
+                planes[i, at:at + len(rows)] = rows[:, j]
+        at += len(rows)
+    return planes
 
 
 _SECTIONS: Dict[tuple, bytes] = {}
@@ -330,10 +360,12 @@ def _adler32_run(adler: int, byte: int, n: int) -> int:
     return (b << 16) | a
 
 
-def _deflated_chunk(values: np.ndarray) -> bytes:
+def _deflated_chunk(values) -> bytes:
     """One HDF5 chunk through the filters of a gmtiflow column, shuffle then deflate: the bytes
     of element position j of every value together (HDF5's shuffle filter), then one zlib
-    stream (HDF5's deflate filter inflates any).
+    stream (HDF5's deflate filter inflates any).  ``values``: the chunk's values, an array or
+    a list of arrays of one dtype (its rows in order: joined by the shuffle itself,
+    :func:`_shuffled`).
 
     Each byte plane is a section of that stream: one that holds a single byte value
     (:func:`_constant_planes`: the high bytes of ids, every plane of a constant column) as a
@@ -349,23 +381,19 @@ def _deflated_chunk(values: np.ndarray) -> bytes:
     about a quarter of the CPU of HDF5's own level-1 deflate, for 1-2 % more bytes
     (docs/tables.md).  zlib releases the GIL while compressing.  A chunk of fewer than
     :data:`_SMALL_BYTES` is shuffled and deflated whole, as HDF5's filters would."""
-    k = values.dtype.itemsize
-    raw = values.view(np.uint8)
-    if raw.nbytes < _SMALL_BYTES:      # one zlib call: the planes' analysis costs more
+    pieces = values if isinstance(values, list) else [values]
+    k = pieces[0].dtype.itemsize
+    pieces = [np.ascontiguousarray(p) for p in pieces if len(p)] or pieces[:1]
+    n = sum(len(p) for p in pieces)
+    if n * k < _SMALL_BYTES:      # one zlib call: the planes' analysis costs more
+        raw = (pieces[0] if len(pieces) == 1 else np.concatenate(pieces)).view(np.uint8)
         return zlib.compress(raw if k == 1 else np.ascontiguousarray(raw.reshape(-1, k).T),
                              _DEFLATE_LEVEL)
-    n = len(raw) // k
-    const = _constant_planes(values)
-    varying = np.flatnonzero(~const)
-    if len(varying) == k:
-        planes = raw.reshape(1, -1) if k == 1 else np.ascontiguousarray(raw.reshape(-1, k).T)
-    elif k == 1:
-        planes = raw.reshape(1, -1)[:0]
-    else:
-        planes = raw.reshape(-1, k).T[varying]       # the varying planes only (a copy)
+    const = _constant_planes(pieces)
+    planes = _shuffled(pieces, np.flatnonzero(~const), n)
     bits, repeated, strings, noise, run_bytes = _plane_samples(planes)
     rows = iter(planes)
-    first = raw[:k].tolist()
+    first = pieces[0].view(np.uint8)[:k].tolist()
     parts = [_ZLIB_HEADER]
     adler = 1
     z_open = None             # the compressor of the open section (not yet flushed)
@@ -433,26 +461,34 @@ class _ChunkDeflater:
         self.pool: Optional[ThreadPoolExecutor] = None     # started with the first big chunk
         self.max_pending = max_pending
         self.pending: deque = deque()
-        self.tails: Dict[str, tuple] = {}      # dataset path -> (id, chunk rows, first row, rows)
+        self.tails: Dict[str, tuple] = {}      # dataset path -> (id, chunk rows, first row,
+        #                                        the rows: a list of arrays)
 
-    def add(self, key: str, dsid, chunk_rows: int, start: int, values: np.ndarray) -> None:
-        """Rows ``values`` of dataset ``dsid`` (path ``key``, chunks of ``chunk_rows``) from row
-        ``start`` (the dataset already has that size)."""
+    def add(self, key: str, dsid, chunk_rows: int, start: int, values) -> None:
+        """Rows ``values`` (an array, or a list of arrays of one dtype: their rows in order,
+        never joined into one copy) of dataset ``dsid`` (path ``key``, chunks of
+        ``chunk_rows``) from row ``start`` (the dataset already has that size)."""
+        pieces = list(values) if isinstance(values, list) else [values]
         tail = self.tails.pop(key, None)
         if tail is not None:
             start = tail[2]
-            values = np.concatenate([tail[3], values])
-        full = (len(values) // chunk_rows) * chunk_rows
-        for i in range(0, full, chunk_rows):
-            self._submit(dsid, start + i, values[i:i + chunk_rows])
-        if full < len(values):
-            self.tails[key] = (dsid, chunk_rows, start + full, values[full:])
+            pieces = tail[3] + pieces
+        total = sum(len(p) for p in pieces)
+        full = (total // chunk_rows) * chunk_rows
+        chunks, rest = _cut(pieces, chunk_rows, full)
+        for i, chunk in enumerate(chunks):
+            self._submit(dsid, start + i * chunk_rows, chunk)
+        if full < total:
+            self.tails[key] = (dsid, chunk_rows, start + full, rest)
         self.write_done()
 
-    def _submit(self, dsid, offset: int, chunk: np.ndarray) -> None:
-        chunk = np.ascontiguousarray(chunk)
-        if self.workers <= 0 or chunk.nbytes < _INLINE_BYTES or self.inline_bytes > 0:
-            self.inline_bytes -= chunk.nbytes
+    def _submit(self, dsid, offset: int, chunk) -> None:
+        """Deflate and write ``chunk`` (an array, or a list of arrays: its rows in order)."""
+        if isinstance(chunk, list):
+            chunk = chunk[0] if len(chunk) == 1 else chunk
+        nbytes = sum(p.nbytes for p in chunk) if isinstance(chunk, list) else chunk.nbytes
+        if self.workers <= 0 or nbytes < _INLINE_BYTES or self.inline_bytes > 0:
+            self.inline_bytes -= nbytes
             dsid.write_direct_chunk((offset,), _deflated_chunk(chunk))
             return
         if self.pool is None:
@@ -470,9 +506,12 @@ class _ChunkDeflater:
 
     def finish(self) -> None:
         """Pad and write every dataset's last, partial chunk; wait for every chunk."""
-        for dsid, chunk_rows, start, values in self.tails.values():
-            chunk = np.zeros(chunk_rows, values.dtype)
-            chunk[:len(values)] = values
+        for dsid, chunk_rows, start, pieces in self.tails.values():
+            chunk = np.zeros(chunk_rows, pieces[0].dtype)
+            at = 0
+            for piece in pieces:
+                chunk[at:at + len(piece)] = piece
+                at += len(piece)
             self._submit(dsid, start, chunk)
         self.tails.clear()
         self.write_done(wait=True)
@@ -486,11 +525,46 @@ class _ChunkDeflater:
         self.pending.clear()
 
 
+def _cut(pieces: list, chunk_rows: int, full: int) -> tuple:
+    """``(chunks, rest)``: the first ``full`` rows (a multiple of ``chunk_rows``) of
+    ``pieces`` (arrays, their rows in order) as chunks of ``chunk_rows`` rows, each a list of
+    views of the pieces, and the list of views of the rows after them."""
+    chunks: list = []
+    rest: list = []
+    current: list = []
+    have = 0
+    for piece in pieces:
+        i = 0
+        while i < len(piece):
+            if len(chunks) * chunk_rows >= full:
+                rest.append(piece[i:])
+                break
+            take = min(len(piece) - i, chunk_rows - have)
+            current.append(piece[i:i + take])
+            have += take
+            i += take
+            if have == chunk_rows:
+                chunks.append(current)
+                current, have = [], 0
+    return chunks, rest
+
+
 def _joined(parts: list, column: str) -> np.ndarray:
     """Column ``column`` of the rows of ``parts`` (tables) in order."""
     if len(parts) == 1:
         return parts[0][column]
     return np.concatenate([p[column] for p in parts])
+
+
+def _column_pieces(parts: list, column: str) -> Optional[list]:
+    """Column ``column`` of each of ``parts`` (tables), as arrays of one dtype (the dtype
+    their join would have), for the deflater to join as it shuffles; None for a text
+    column."""
+    pieces = [np.asarray(p[column]) for p in parts]
+    if any(p.dtype.kind in "UO" for p in pieces):
+        return None
+    dtype = np.result_type(*pieces) if len(pieces) > 1 else pieces[0].dtype
+    return [p.astype(dtype, copy=False) for p in pieces]
 
 
 def _as_storable(col: np.ndarray) -> np.ndarray:
@@ -604,9 +678,10 @@ class RunWriter:
         prefix = group.name.rstrip("/") + "/"
         space = h5s.create_simple((n,), (h5s.UNLIMITED,))     # every column's: n rows
         for column in parts[0]:
-            data = _as_storable(_joined(parts, column))
-            text = data.dtype.kind == "O"
-            dtype = _STR if text else data.dtype
+            pieces = _column_pieces(parts, column)
+            text = pieces is None
+            data = _as_storable(_joined(parts, column)) if text else None
+            dtype = _STR if text else pieces[0].dtype
             if growing or n >= _CHUNK_ROWS:
                 chunk_rows = _CHUNK_ROWS
             elif n:
@@ -621,7 +696,7 @@ class RunWriter:
             if descriptions and column in descriptions:
                 _set_text_attr(dsid, b"description", descriptions[column])
             if n and not text:      # compressed by the deflater (threads), written when ready
-                self._deflater.add(prefix + column, dsid, chunk_rows, 0, data)
+                self._deflater.add(prefix + column, dsid, chunk_rows, 0, pieces)
             elif n:
                 dsid.write(h5s.ALL, h5s.ALL, np.asarray(data, dtype=_STR))
 
@@ -641,13 +716,13 @@ class RunWriter:
             ds = group[column]
             old = ds.shape[0]
             ds.resize((old + rows,))
-            data = _as_storable(_joined(parts, column))
             if ds.compression == "gzip" and ds.chunks is not None and old % ds.chunks[0] == 0 \
                     or ds.name in self._deflater.tails:
                 self._deflater.add(ds.name, ds.id, ds.chunks[0], old,
-                                   data.astype(ds.dtype, copy=False))
+                                   [np.asarray(p[column]).astype(ds.dtype, copy=False)
+                                    for p in parts])
             else:
-                ds[old:] = data
+                ds[old:] = _as_storable(_joined(parts, column))
 
     def commit(self) -> Path:
         """Mark the file complete, close it and rename it into place."""

@@ -263,6 +263,31 @@ def test_each_plane_is_deflated_the_way_that_stores_it_in_fewer_bytes(monkeypatc
     assert chosen["mixed"] < 0.95 * min(sizes["run-length"]["mixed"], sizes["matches"]["mixed"])
 
 
+def test_a_chunk_given_in_pieces_deflates_to_the_bytes_of_its_joined_rows():
+    """The writer hands a chunk of a table given in parts (a sink's block) as pieces, joined
+    by the shuffle itself: the same deflated bytes as the joined column, whatever the cuts,
+    dtypes and constant planes; and the deflater cuts pieces into the chunks of the joined
+    rows."""
+    n = store._CHUNK_ROWS
+    rng = np.random.default_rng(9)
+    columns = [rng.normal(size=n), np.arange(n, dtype=np.int64), rng.random(n) < 0.3,
+               rng.integers(0, 7, n).astype(np.uint8), np.full(n, 2.5),
+               np.repeat(rng.normal(size=n // 8), 8).astype(np.float32), np.arange(600)]
+    for values in columns:
+        for cuts in ([len(values) // 2], [1, 2, 3, len(values) - 5], [0, 0, 17]):
+            pieces = np.split(values, cuts)
+            assert store._deflated_chunk(pieces) == store._deflated_chunk(values)
+            assert store._constant_planes(pieces).tolist() == \
+                store._constant_planes(values).tolist()
+    pieces = [np.arange(0, 5), np.arange(5, 12), np.arange(12, 13), np.arange(13, 30)]
+    chunks, rest = store._cut(pieces, 8, 24)
+    assert [np.concatenate(c).tolist() for c in chunks] == \
+        [list(range(0, 8)), list(range(8, 16)), list(range(16, 24))]
+    assert np.concatenate(rest).tolist() == list(range(24, 30))
+    chunks, rest = store._cut(pieces, 64, 0)
+    assert chunks == [] and np.concatenate(rest).tolist() == list(range(30))
+
+
 def test_planes_of_short_runs_are_deflated_huffman_only(monkeypatch):
     """A plane whose runs are too short to repay Z_RLE's matches (one value for most rows,
     between them values of their own: a σ column with false alarms among targets) is deflated
