@@ -83,7 +83,8 @@ computed; the start speeds follow from them by the step recurrence in v alone (a
 its limits ends at v* whatever its start speed — the speeds are within a factor 2, so
 v + ((v* − v)/Δt)Δt rounds to v* — and a clipped run adds aΔt step by step, a sequential
 ``np.add.accumulate``); every step's kinematics follow, and the positions are the running sum,
-again with ``np.add.accumulate``, of the very terms each step adds, in its order.  A step is
+again with ``np.add.accumulate``, of the very terms each step adds, in its order (less one that
+is ±0 in a tracking step, whose addition changes nothing).  A step is
 *right* when its start speed is the previous step's end speed and the desired speed at its
 start state is the one used, bit for bit; the right steps are taken, up to the first random
 stop or stop point ahead or the profile's end, and for the rest the pass is repeated with the
@@ -662,6 +663,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     # The bound is evaluated at the step's look-ahead point and clamped at T_B once past s_B.
     d_cap_all = 0.9 * inp.max_decel_mps2
     cap_t, cap_s = _speed_caps(inp.seg_offset, inp.seg_start_m, inp.seg_target_mps, d_cap_all)
+    cap_t2 = cap_t ** 2                 # T_B^2 per segment, squared once (the same values)
 
     # Per-profile constants (indexed by profile id).
     rho = np.asarray(inp.noise_rho, float)
@@ -785,9 +787,12 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             # binary search over all segments only for a row that passes more of them)
             key = S + c["pbase"]
             nk = c["nk"]
-            j = np.repeat(c["j0"], W, axis=1)
+            passed = np.zeros(key.shape, np.uint8)      # segment starts passed (0/1 bytes)
+            ge = np.empty(key.shape, bool)
             for q in range(_SEG_AHEAD):
-                j += key >= nk[:, q:q + 1]
+                np.greater_equal(key, nk[:, q:q + 1], out=ge)
+                passed += ge.view(np.uint8)
+            j = c["j0"] + passed
             far = np.flatnonzero((key.max(axis=1) >= nk[:, -1])
                                  | (key.min(axis=1) < c["k0"][:, 0]))
             if far.size:
@@ -796,7 +801,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             target = seg_target[j]
             with np.errstate(invalid="ignore"):
                 ahead = np.maximum(cap_s[j] - (S + V * dt), 0.0)
-            cap = np.sqrt(cap_t[j] ** 2 + 2.0 * c["dcap"] * ahead)
+            cap = np.sqrt(cap_t2[j] + 2.0 * c["dcap"] * ahead)
             noisy = target + x1
             return target, noisy, np.maximum(np.minimum(noisy, cap), 0.0)
 
@@ -829,14 +834,17 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                     & (np.minimum(V, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
                                                                           np.abs(x1)))
                     & (step > 0))
-            terms = (V * dt, 0.5 * a * dt * dt, v_end * (dt - dt),
+            # A step's terms v·τ, ½aτ², v_end·(Δt − τ), bridge; here τ = Δt, so the third is
+            # ±0, and adding ±0 leaves a position as it is (positions are never −0: they
+            # start at +0 and a sum is −0 only if both parts are), so it is left out.
+            terms = (V * dt, 0.5 * a * dt * dt,
                      np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0))
             if todo.size < 64:      # few rows: one running sum along each row
-                x = np.empty((todo.size, 4 * W + 1))
+                x = np.empty((todo.size, 3 * W + 1))
                 x[:, 0] = s0
                 for q, term in enumerate(terms):
-                    x[:, q + 1::4] = term
-                S_full = np.add.accumulate(x, axis=1)[:, ::4]
+                    x[:, q + 1::3] = term
+                S_full = np.add.accumulate(x, axis=1)[:, ::3]
             else:                   # many: the same additions column by column (faster)
                 tt = [np.ascontiguousarray(term.T) for term in terms]
                 st = np.empty((W + 1, todo.size))
@@ -845,7 +853,6 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                     np.add(st[i], tt[0][i], out=st[i + 1])
                     st[i + 1] += tt[1][i]
                     st[i + 1] += tt[2][i]
-                    st[i + 1] += tt[3][i]
                 S_full = st.T
             S, s_end = S_full[:, :-1], S_full[:, 1:]
             # Right: step 0 (its start state is exact) and every step after a right one whose
@@ -1044,7 +1051,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         tr = state == TRACK
         with np.errstate(invalid="ignore"):
             ahead = np.maximum(cap_s[j] - (s + v * dt), 0.0)
-        cap = np.sqrt(cap_t[j] ** 2 + 2.0 * d_cap_all[ids] * ahead)
+        cap = np.sqrt(cap_t2[j] + 2.0 * d_cap_all[ids] * ahead)
         sigma = sigma_all[ids]
         noisy = target + sigma * xi
         v_des = np.maximum(np.minimum(noisy, cap), 0.0)
