@@ -34,7 +34,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
-from typing import Any, Dict, List
+from typing import Any, Dict, List, Optional
 
 import numpy as np
 
@@ -76,7 +76,9 @@ class _ProfileSpec:
     t0: float
     length_m: float
     v0: float
-    seg_target: np.ndarray
+    cruise_mps: float             # the cruise speed (of every segment unless seg_cruise_mps)
+    seg_cruise_mps: Optional[np.ndarray]   # per segment, where speed changes vary it
+    obey_speed_limits: bool
     stops: np.ndarray
     spec: Any
     name: str
@@ -134,24 +136,27 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
                 raise
         r = len(routes)
         routes.append(route)
-        nseg = len(route.edge_id)
-        base = np.full(nseg, float(spec.cruise_speed_mps))
+        cruise = float(spec.cruise_speed_mps)
+        base = None
         if spec.speed_changes:
+            base = np.full(len(route.edge_id), cruise)
             hits = _node_positions(route, roadmap, [sc.at for sc in spec.speed_changes], who)
             changes = sorted((int(h), float(sc.cruise_speed_mps))
                              for hs, sc in zip(hits, spec.speed_changes) for h in hs)
             for node_pos, speed in changes:
                 base[node_pos:] = speed
-        target = base
-        if spec.obey_speed_limits:
-            lim = route.speed_limit_mps
-            target = np.where(np.isfinite(lim), np.minimum(base, lim), base)
         stops = np.zeros(0)
         if spec.stop_points:
             hits = _node_positions(route, roadmap, spec.stop_points, who)
             stops = np.unique(route.s_m[np.concatenate(hits)])
             stops = stops[stops > 0]
-        v0 = float(target[0] if spec.start_speed_mps is None else spec.start_speed_mps)
+        if spec.start_speed_mps is None:    # the first segment's target (_segment_targets)
+            v0 = cruise if base is None else float(base[0])
+            lim0 = float(route.speed_limit_mps[0])
+            if spec.obey_speed_limits and math.isfinite(lim0):
+                v0 = min(v0, lim0)
+        else:
+            v0 = float(spec.start_speed_mps)
         count = int(spec.convoy.count)
         if count > 1:
             gap = (float(spec.convoy.spacing_m) if spec.convoy.spacing_m is not None
@@ -168,7 +173,9 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
         p = len(profiles)
         profiles.append(_ProfileSpec(route=r, t0=float(spec.start_time_s),
                                      length_m=route.length_m + members[-1][1], v0=v0,
-                                     seg_target=target, stops=stops, spec=spec,
+                                     cruise_mps=cruise, seg_cruise_mps=base,
+                                     obey_speed_limits=bool(spec.obey_speed_limits),
+                                     stops=stops, spec=spec,
                                      name=members[0][0]))
         sig = np.asarray([float(x) for x in spec.position_noise_m], dtype=float)
         for name, off in members:
@@ -182,6 +189,24 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
         raise ConfigError(f"vehicles: vehicle name {dup!r} occurs twice (convoy members are "
                           f"named <name>-1, <name>-2, …)")
     return profiles, vehicles, routes
+
+
+def _segment_targets(profiles: List[_ProfileSpec], routes: List[Route]) -> np.ndarray:
+    """The cruise target (m/s) of every segment of every profile, flat in profile order: its
+    cruise speed (after any speed-change points), capped by the road's speed limit where the
+    segment has one and the vehicle obeys limits; the same operation on each element as
+    profile by profile, on all segments at once."""
+    if not profiles:
+        return np.zeros(0)
+    n_seg = np.asarray([len(routes[p.route].edge_id) for p in profiles], np.int64)
+    base = np.repeat(np.asarray([p.cruise_mps for p in profiles], float), n_seg)
+    first = np.cumsum(n_seg) - n_seg
+    for p, a in zip(profiles, first.tolist()):
+        if p.seg_cruise_mps is not None:
+            base[a:a + len(p.seg_cruise_mps)] = p.seg_cruise_mps
+    limit = np.concatenate([routes[p.route].speed_limit_mps for p in profiles]).astype(float)
+    obey = np.repeat(np.asarray([p.obey_speed_limits for p in profiles], bool), n_seg)
+    return np.where(obey & np.isfinite(limit), np.minimum(base, limit), base)
 
 
 def _batch_routes(specs, roadmap: RoadMap) -> List[Any]:
@@ -270,13 +295,12 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
     horizon = np.maximum(np.ceil((float(duration_s) - t0) / dt - 1e-9), 1).astype(np.int64)
     leader = {v.profile: v.name for v in vehicles if v.offset_m == 0.0}
 
-    seg_start, seg_target, seg_off = [], [], [0]
+    seg_start, seg_off = [], [0]
     stop_m, stop_off = [], [0]
     for p in profiles:
         route = routes[p.route]
         seg_start.append(route.s_m[:-1])
-        seg_target.append(p.seg_target)
-        seg_off.append(seg_off[-1] + len(p.seg_target))
+        seg_off.append(seg_off[-1] + len(route.edge_id))
         stop_m.append(p.stops)
         stop_off.append(stop_off[-1] + len(p.stops))
     specs = [p.spec for p in profiles]
@@ -285,7 +309,7 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
         length_m=np.asarray([p.length_m for p in profiles], dtype=float),
         v0_mps=np.asarray([p.v0 for p in profiles], dtype=float),
         seg_start_m=np.concatenate(seg_start) if P else np.zeros(0),
-        seg_target_mps=np.concatenate(seg_target) if P else np.zeros(0),
+        seg_target_mps=_segment_targets(profiles, routes),
         seg_offset=np.asarray(seg_off, dtype=np.int64),
         stop_m=np.concatenate(stop_m) if P else np.zeros(0),
         stop_offset=np.asarray(stop_off, dtype=np.int64),
