@@ -293,14 +293,28 @@ class Profiles:
         g = i + p
         s0 = self.s_flat[g]
         v0 = self.v_flat[g]
-        s1 = self.s_flat[g + 1]
-        v1 = self.v_flat[g + 1]
         a = self.a_flat[i]
         tk = self.tau_flat[i]
         early = u < tk
-        s = np.where(early, s0 + v0 * u + 0.5 * a * u * u, s1 - v1 * (dt - u))
-        v = np.where(early, np.maximum(v0 + a * u, 0.0), v1)
-        acc = np.where(early, a, 0.0)
+        # rows past the in-step instant τ'_k (at rest after a stop within the step): few
+        late = np.flatnonzero(~early) if early.ndim == 1 else None
+        if late is not None and 4 * late.size < early.size:
+            # each row's value is that of its branch below, computed for the rows it picks
+            s = s0 + v0 * u + 0.5 * a * u * u
+            v = np.maximum(v0 + a * u, 0.0)
+            acc = a                          # (a gathered copy of its own)
+            if late.size:
+                g1 = g[late] + 1
+                v1 = self.v_flat[g1]
+                s[late] = self.s_flat[g1] - v1 * (dt - u[late])
+                v[late] = v1
+                acc[late] = 0.0
+        else:
+            s1 = self.s_flat[g + 1]
+            v1 = self.v_flat[g + 1]
+            s = np.where(early, s0 + v0 * u + 0.5 * a * u * u, s1 - v1 * (dt - u))
+            v = np.where(early, np.maximum(v0 + a * u, 0.0), v1)
+            acc = np.where(early, a, 0.0)
         br = self.bridge_flat[i] & early      # at u = Δt the grid value s_{k+1} holds
         nb = np.count_nonzero(br)
         if 2 * nb > br.size:
