@@ -169,8 +169,8 @@ NOISE_BLOCK_STEPS = 128
 #: ``noise(profiles, k0, n) -> (normal, u_stop, u_wait)``, each (n, len(profiles)) (fewer rows
 #: allowed past the last step there is): the noise of local steps k0 .. k0 + n - 1 of the given
 #: profiles (ids ascending), n = the kernel's block length W (:func:`window_length`); each
-#: profile's blocks are asked for in order (k0 = 0, n, 2n, …), one block ahead of the step the
-#: profile is at (so a profile may get one block it does not use), different profiles at
+#: profile's blocks are asked for in order (k0 = 0, n, 2n, …), up to one block ahead of the step
+#: the profile is at (so a profile may get one block it does not use), different profiles at
 #: different k0 in separate calls.
 NoiseSource = Callable[[np.ndarray, int, int], Tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -540,6 +540,25 @@ def window_length(n_profiles: int, n_steps: Optional[int] = None) -> int:
     return w
 
 
+def _slowest_targets(seg_offset, seg_target_mps) -> np.ndarray:
+    """Per profile, the lowest cruise target of its segments (m/s; 0 without segments)."""
+    seg_offset = np.asarray(seg_offset, np.int64)
+    out = np.zeros(len(seg_offset) - 1)
+    has = np.flatnonzero(np.diff(seg_offset) > 0)
+    if has.size:
+        out[has] = np.minimum.reduceat(np.asarray(seg_target_mps, float), seg_offset[has])
+    return out
+
+
+def _ahead_wanted(left_m, block_left_s, slow_mps) -> np.ndarray:
+    """Whether a profile with ``left_m`` to go, ``block_left_s`` of its current noise block
+    left and its route's slowest cruise target ``slow_mps`` should have its next block drawn
+    ahead: unless it would end within this block at 90 % of that speed (it then most likely
+    ends there, and the block drawn ahead would be drawn for nothing).  Only the cost
+    depends on it (a profile without its next block waits for it at the block's end)."""
+    return ~(left_m < 0.9 * block_left_s * slow_mps)
+
+
 def _leading_true(ok: np.ndarray) -> np.ndarray:
     """Per row, the number of leading True values of a 2-D bool array."""
     pad = np.zeros((ok.shape[0], 1), bool)
@@ -706,11 +725,17 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
 
     # Noise of two blocks of W steps per profile: column c holds local step base + c - 1
     # (column 0: the step before, for ξ_{k-1}).  ξ is a function of the draws alone, so it is
-    # computed when a block is drawn (the same sequential recurrence as a step loop).
+    # computed when a block is drawn (the same sequential recurrence as a step loop).  The
+    # second block is drawn ahead only while the profile is not expected to end within its
+    # current one (_ahead_wanted); ``top`` is each profile's last column drawn (W or 2W), and
+    # no part of a round takes a step past it (a profile that gets there waits for the next
+    # round, which draws its next block): the steps do not depend on which blocks are ahead.
     xi_buf = np.zeros((P, 2 * W + 1))
     us_buf = np.ones((P, 2 * W + 1))
     uw_buf = np.full((P, 2 * W + 1), 0.5)
     base = np.zeros(P, np.int64)
+    top = np.full(P, W, np.int64)
+    slow_mps = _slowest_targets(inp.seg_offset, seg_target)
 
     def fill(pids, blocks, col0):
         """Draw block ``blocks[i]`` of profile ``pids[i]`` into columns col0 .. col0 + W - 1."""
@@ -773,6 +798,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                "lseg": last_seg, "pbase": prof_base, "c1": c1, "look_a": look_a_all,
                "length": length_all}
         per = {key: val[ids][:, None] for key, val in per.items()}
+        per["drawn"] = (top[ids] - (kk - base[ids]))[:, None]     # steps with drawn noise
         j0 = np.clip(np.searchsorted(seg_key, s_at[ids] + prof_base[ids], side="right") - 1,
                      first_seg[ids], last_seg[ids])
         ahead_idx = j0[:, None] + 1 + np.arange(_SEG_AHEAD)
@@ -882,6 +908,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                 reach = S + V * dt + c["look_a"] + v_up * v_up / (2.0 * dmx) >= c["nxt"]
                 ev |= reach & (c["nxt"] - S > 0)
             cand = np.minimum(_first_true(ev), _first_true(last0 | (s_end >= c["length"])) + 1)
+            cand = np.minimum(cand, c["drawn"][:, 0])
             m = np.minimum(n_exact, cand)
             fin = (m == cand) | (sweep == MAX_SWEEPS - 1)
             if sweep == 0 and not guess_noise[0]:
@@ -930,7 +957,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         """Profiles at rest with whole steps of their wait left: those steps at once."""
         kk = k_at[ids]
         m = np.minimum(np.minimum(wait_at[ids], horizon[ids] - kk),
-                       np.minimum(W, 2 * W - (kk - base[ids])))     # within the buffer
+                       np.minimum(W, top[ids] - (kk - base[ids])))  # within the noise drawn
         took = ar < m[:, None]
         cols = np.minimum((kk - base[ids] + 1)[:, None] + ar, 2 * W)
         rows = np.broadcast_to(ids[:, None], took.shape)
@@ -969,7 +996,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         e = _first_true(stop[:, :W])                       # the step that comes to rest
         pos = _leading_true(V[:, 1:W] > 0.0)              # steps whose end speed is > 0
         m = np.where(pos >= e, e + 1, pos)                 # steps taken (e = W: none stops)
-        m = np.minimum(m, 2 * W - (kk - base[ids]))        # within the noise buffer
+        m = np.minimum(m, top[ids] - (kk - base[ids]))     # within the noise drawn
         # the steps' kinematics (general(): tau = Δt, or the time to rest in the stop step)
         Vs = V[:, :W]
         ar_ = ar[None, :]
@@ -1132,26 +1159,37 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
 
     bar = bars.stage_counter(K, progress, desc="truth", unit="step", leave=False,
                              mininterval=0.5)
+    def ahead(ids):
+        """Draw the block after the current one of those of profiles ``ids`` that have one
+        within their horizon and are not expected to end within the current block."""
+        ids = ids[(horizon[ids] > base[ids] + W)
+                  & _ahead_wanted(length_all[ids] - s_at[ids],
+                                  (W - (k_at[ids] - base[ids])) * dt, slow_mps[ids])]
+        fill(ids, base[ids] // W + 1, W + 1)
+        top[ids] = 2 * W
+
     act = np.arange(P)
     fill(act, np.zeros(P, np.int64), 1)
-    more = act[horizon > W]
-    fill(more, np.ones(more.size, np.int64), W + 1)
+    ahead(act)
     shown = 0
     while act.size:
-        # slide the noise window of the profiles that entered their second block
+        # slide the noise window of the profiles that entered their second block (drawing
+        # it now where it was not drawn ahead)
         sh = act[k_at[act] - base[act] >= W]
         if sh.size:
             for buf in (xi_buf, us_buf, uw_buf):
                 buf[sh, :W + 1] = buf[sh, W:]
             base[sh] += W
-            need = sh[horizon[sh] > base[sh] + W]
-            fill(need, base[need] // W + 1, W + 1)
+            late = sh[top[sh] == W]
+            fill(late, base[late] // W, 1)
+            top[sh] = W
+            ahead(sh)
         # A round: windows for the tracking profiles, then one step each (general) for the
         # others and for those whose window was cut short (a random stop, a stop point
         # ahead, no fixed point), then the rest of a random stop's braking and whole waits
         # for the profiles now braking or at rest: a stop takes one or two rounds, not one a
         # step.  Any order gives the step loop's result (each profile's steps are its own);
-        # every part stays within the noise buffer (column 2W at most).
+        # every part stays within the noise drawn (column ``top``, 2W at most).
         st = state_at[act]
         took = np.zeros(act.size, np.int64)
         tr = np.flatnonzero(st == TRACK) if windows else np.zeros(0, np.int64)
@@ -1162,11 +1200,12 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         if windows:
             one &= ~((st == STOPPED) & (wait_at[act] > 0))
             one |= (took > 0) & (took < W) & (state_at[act] == TRACK) & ~done[act]
+            one &= k_at[act] - base[act] < top[act]        # its step's noise is drawn
         rest = act[one]
         if rest.size:
             general(rest)
         if windows:
-            live = act[~done[act] & (k_at[act] - base[act] < 2 * W)]
+            live = act[~done[act] & (k_at[act] - base[act] < top[act])]
             br = live[state_at[live] == BRAKE_RANDOM]
             if br.size:
                 brake(br)
