@@ -25,6 +25,10 @@ Each effect is a callable ``(ctx, detections, looks) -> (detections, looks)`` ca
    report geolocated at the folded range as a processor would, flagged ``implausible`` (and its
    ground position NaN) when that range cannot reach the ground or lies beyond the horizon.
 
+The false-alarm effects only add rows: they also give them (``added_rows``), so that
+:func:`apply_effects` (what the sensor stage calls) merges the rows of both into the
+detections at once, the same tables as their merges in turn.
+
 An effect that has nothing to model is not constructed at all (no clutter regions and no FoV
 density, no PRF, merging off), so a plain scene pays nothing for them.
 """
@@ -162,11 +166,18 @@ class NoiseFalseAlarms:
         self.cfg = cfg
         self.seed = seed
 
-    def __call__(self, ctx, detections: Table, looks: Table):
+    def added_rows(self, ctx, next_det_id: int) -> Table:
+        """The chunk's noise false alarms as /detections rows, det ids from ``next_det_id``
+        (in dwell order; empty when there are none)."""
         rows = noise.draw(ctx, self.cfg, self.seed)
+        if len(rows["dwell_id"]):
+            rows["det_id"] = rows["det_id"] + next_det_id
+        return rows
+
+    def __call__(self, ctx, detections: Table, looks: Table):
+        rows = self.added_rows(ctx, _next_det_id(detections))
         if len(rows["dwell_id"]) == 0:
             return detections, looks
-        rows["det_id"] = rows["det_id"] + _next_det_id(detections)
         return append_in_dwell_order(detections, rows, looks)
 
 
@@ -205,6 +216,78 @@ def append_in_dwell_order(detections: Table, rows: Table, looks: Table) -> tuple
         new_ld[has] = pos_d[ld[has]]
         looks["det_id"] = new_ld
     return det, looks
+
+
+def apply_effects(ctx, effects, detections: Table, looks: Table) -> tuple:
+    """``detections, looks = effect(ctx, detections, looks)`` for each of ``effects`` in
+    order: the same tables.  Consecutive effects that only add rows (the false alarms: an
+    ``added_rows(ctx, next_det_id)`` method) add them in one merge into the detections
+    (:func:`_append_all`) instead of one merge each: each merge writes every column of every
+    detection."""
+    effects = list(effects)
+    i = 0
+    while i < len(effects):
+        j = i
+        while j < len(effects) and hasattr(effects[j], "added_rows"):
+            j += 1
+        if j - i >= 2:
+            detections, looks = _append_all(ctx, effects[i:j], detections, looks)
+            i = j
+        else:
+            detections, looks = effects[i](ctx, detections, looks)
+            i += 1
+    return detections, looks
+
+
+def _append_all(ctx, adders, detections: Table, looks: Table) -> tuple:
+    """What the row-adding effects ``adders`` called in turn give, by one merge: the rows of
+    each in dwell order, numbered after the detections and the rows before them, are merged
+    among themselves by dwell (stable: on one dwell an earlier effect's rows first, as the
+    successive merges put them) and then into the detections (:func:`append_in_dwell_order`).
+    Otherwise (detections not numbered 0..n-1 in dwell order, or rows not in dwell order) the
+    effects are called in turn."""
+    d_dw = np.asarray(detections["dwell_id"])
+    n = len(d_dw)
+    if not (_non_decreasing(d_dw) and np.array_equal(detections["det_id"], np.arange(n))):
+        return _in_turn(ctx, adders, detections, looks)
+    merged = None
+    next_det_id = n
+    for adder in adders:
+        rows = adder.added_rows(ctx, next_det_id)
+        m = 0 if rows is None else len(rows["dwell_id"])
+        if m == 0:
+            continue
+        r_dw = np.asarray(rows["dwell_id"])
+        if not (r_dw.dtype == d_dw.dtype and _non_decreasing(r_dw)
+                and np.array_equal(rows["det_id"], np.arange(next_det_id, next_det_id + m))):
+            return _in_turn(ctx, adders, detections, looks)
+        merged = rows if merged is None else _merged_rows(merged, rows, detections, n)
+        next_det_id += m
+    if merged is None:
+        return detections, looks
+    return append_in_dwell_order(detections, merged, looks)
+
+
+def _in_turn(ctx, effects, detections: Table, looks: Table) -> tuple:
+    for effect in effects:
+        detections, looks = effect(ctx, detections, looks)
+    return detections, looks
+
+
+def _merged_rows(first: Table, then: Table, detections: Table, n: int) -> Table:
+    """Rows ``first`` and ``then`` (each in dwell order) merged by dwell, ``first``'s before
+    ``then``'s on one dwell, in the dtypes of ``detections``' columns; det ids n, n+1, ..."""
+    f_dw, t_dw = np.asarray(first["dwell_id"]), np.asarray(then["dwell_id"])
+    pos_f = np.arange(len(f_dw)) + np.searchsorted(t_dw, f_dw, side="left")
+    pos_t = np.arange(len(t_dw)) + np.searchsorted(f_dw, t_dw, side="right")
+    out = {}
+    for name, col in detections.items():
+        merged = np.empty(len(f_dw) + len(t_dw), np.asarray(col).dtype)
+        merged[pos_f] = np.asarray(first[name])
+        merged[pos_t] = np.asarray(then[name])
+        out[name] = merged
+    out["det_id"] = np.arange(n, n + len(f_dw) + len(t_dw), dtype=np.int64)
+    return out
 
 
 def _next_det_id(detections: Table) -> int:
@@ -280,6 +363,14 @@ class FalseAlarms:
         return centre + first, span
 
     def __call__(self, ctx, detections: Table, looks: Table):
+        rows = self.added_rows(ctx, _next_det_id(detections))
+        if rows is None:
+            return detections, looks
+        return append_in_dwell_order(detections, rows, looks)
+
+    def added_rows(self, ctx, next_det_id: int):
+        """The chunk's clutter false alarms as /detections rows in dwell order, det ids from
+        ``next_det_id`` (None when there are none)."""
         d = ctx.dwells
         lo, hi = ctx.dwell_cell_rad(d["dwell_id"])
         cfg = self.cfg
@@ -297,7 +388,7 @@ class FalseAlarms:
                                   fov_sectors=self.footprint_sectors(ctx), pfa=cfg.pfa)
         m = len(fa["dwell_id"])
         if m == 0:
-            return detections, looks
+            return None
         # the false alarms in dwell order (stable: within a dwell as drawn), so that they
         # merge into the dwell-ordered detections without a sort of every row (the rows are
         # computed point by point: the same values in any order)
@@ -307,10 +398,8 @@ class FalseAlarms:
             fa = {k: np.asarray(v)[order] for k, v in fa.items()}
         x, y = fa["x_m"], fa["y_m"]
         z = np.nan_to_num(np.asarray(ctx.terrain.height_at(x, y), float))
-        rows = noise.false_alarm_rows(ctx, cfg, fa["dwell_id"], x, y, z,
-                                      fa["clutter_range_rate_mps"], fa["snr"],
-                                      _next_det_id(detections))
-        return append_in_dwell_order(detections, rows, looks)
+        return noise.false_alarm_rows(ctx, cfg, fa["dwell_id"], x, y, z,
+                                      fa["clutter_range_rate_mps"], fa["snr"], next_det_id)
 
 
 class Ambiguities:

@@ -38,6 +38,7 @@ from gmtiflow import bars
 from gmtiflow.sensor import scan
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.context import ChunkContext, Effect, SensorRun
+from gmtiflow.sensor.effects import apply_effects
 from gmtiflow.sensor.looks import evaluate_block
 from gmtiflow.sensor.poses import chunk_poses, dwell_table
 from gmtiflow.sensor.rcs import RcsModels
@@ -95,8 +96,7 @@ def _simulate_chunk(run: SensorRun, rev_ids, vehicle_ids, effects, block_vehicle
     if effects:
         ctx = ChunkContext(run.cfg, run.seed, run.terrain, run.origin, dwells, poses.b, poses.h,
                            poses.u, run.los_step_m)
-        for effect in effects:
-            detections, looks = effect(ctx, detections, looks)
+        detections, looks = apply_effects(ctx, effects, detections, looks)
     return dwells, detections, looks, n_eval
 
 

@@ -111,6 +111,41 @@ def test_append_in_dwell_order_equals_reindex_of_the_concatenation(n, m, n_dwell
     assert np.array_equal(got_d["x_m"][got_l["det_id"][hit]], det["x_m"][old])
 
 
+class _Adder:
+    """A row-adding effect (like the false alarms): fixed rows, numbered from next_det_id."""
+
+    def __init__(self, rows):
+        self.rows, self.calls = rows, 0
+
+    def added_rows(self, ctx, next_det_id):
+        self.calls += 1
+        m = len(self.rows["dwell_id"])
+        return None if m == 0 else {**self.rows, "det_id": np.arange(next_det_id,
+                                                                     next_det_id + m)}
+
+    def __call__(self, ctx, det, looks):
+        rows = self.added_rows(ctx, effects._next_det_id(det))
+        return (det, looks) if rows is None else effects.append_in_dwell_order(det, rows, looks)
+
+
+@pytest.mark.parametrize("n, ms, n_dwells, unsorted", [
+    (50, (40, 30), 10, False), (50, (40, 0, 25), 400, False), (0, (30, 5), 5, False),
+    (30, (0, 0), 5, False), (1, (1, 1), 1, False), (60, (25, 9), 8, True)])
+def test_row_adding_effects_merged_at_once_equal_their_merges_in_turn(n, ms, n_dwells,
+                                                                      unsorted):
+    """apply_effects merges the rows of consecutive false-alarm effects among themselves and
+    then once into the detections: the tables of calling the effects in turn, bit for bit
+    (on one dwell an earlier effect's rows first); detections out of dwell order: in turn."""
+    g = np.random.default_rng(n * 100 + sum(ms) + n_dwells)
+    det, _, looks = _tables(g, n, 0, n_dwells, unsorted)
+    adders = [_Adder(_tables(g, 0, m, n_dwells)[1]) for m in ms]
+    got_d, got_l = effects.apply_effects(None, adders, det, looks)
+    want_d, want_l = det, looks
+    for adder in adders:
+        want_d, want_l = adder(None, want_d, want_l)
+    _bits_equal({"d": got_d, "l": got_l}, {"d": want_d, "l": want_l})
+
+
 def test_range_and_ground_rate_is_the_antenna_range_and_the_ground_rate_bit_for_bit():
     from gmtiflow.sensor import geometry
     seen = []
