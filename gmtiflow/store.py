@@ -245,18 +245,18 @@ def _plane_samples(planes: np.ndarray):
     m = sample.shape[1]
     bits = np.log2(m) - _XLOGX[counts].reshape(k, 256).sum(axis=1) / m
     runs = sample.reshape(k, _SAMPLE_BLOCKS, _SAMPLE_BYTES)
-    same = runs[:, :, 1:] == runs[:, :, :-1]          # byte i + 1 equal to byte i
-    repeats = np.add.reduce(same.reshape(k, -1), axis=1, dtype=np.intp)
-    repeated = repeats / runs[0, :, 1:].size
+    # flags as 0/1 bytes, counted in uint16 sums (~3x cheaper than bool sums into intp; a
+    # count is at most the sample's 2,048 bytes)
+    same = (runs[:, :, 1:] == runs[:, :, :-1]).view(np.uint8)    # byte i + 1 equal to byte i
+    repeated = same.reshape(k, -1).sum(axis=1, dtype=np.uint16) / runs[0, :, 1:].size
     in_run = same[:, :, 2:] & same[:, :, 1:-1]
     in_run &= same[:, :, :-2]                         # byte i + 3 equal to bytes i .. i + 2
-    run_bytes = np.add.reduce(in_run.reshape(k, -1), axis=1, dtype=np.intp) / \
-        in_run[0].size
+    run_bytes = in_run.reshape(k, -1).sum(axis=1, dtype=np.uint16) / in_run[0].size
     noise = (bits > _NOISE_BITS) & (repeated < 1 / 32)
     mid = runs[:, _SAMPLE_BLOCKS // 2].astype(np.uint32)
     keys = mid[:, :-3] | mid[:, 1:-2] << 8 | mid[:, 2:-1] << 16 | mid[:, 3:] << 24
     keys.sort(axis=1)
-    strings = np.add.reduce(keys[:, 1:] == keys[:, :-1], axis=1, dtype=np.intp) / \
+    strings = (keys[:, 1:] == keys[:, :-1]).view(np.uint8).sum(axis=1, dtype=np.uint16) / \
         (keys.shape[1] - 1)
     return bits, repeated, strings, noise, run_bytes
 
