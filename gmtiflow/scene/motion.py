@@ -110,6 +110,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional, Tuple
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 from gmtiflow import bars
 
@@ -735,6 +736,9 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     uw_buf = np.full((P, 2 * W + 1), 0.5)
     base = np.zeros(P, np.int64)
     top = np.full(P, W, np.int64)
+    # (P, W + 2, W) read-only views: [p, c] = columns c .. c + W - 1 of profile p's buffer,
+    # so a window's noise is one contiguous run per profile (not W gathered elements)
+    xi_win, us_win = (sliding_window_view(b, W, axis=1) for b in (xi_buf, us_buf))
     slow_mps = _slowest_targets(inp.seg_offset, seg_target)
 
     def fill(pids, blocks, col0):
@@ -786,13 +790,13 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         the rows still short.  Returns how many steps each profile took."""
         n = ids.size
         kk = k_at[ids]
-        cols = (kk - base[ids] + 1)[:, None] + ar
+        c0 = kk - base[ids] + 1          # the window's first column (at most W)
         rows = ids[:, None]
         sig_a = sigma_all[ids][:, None]
-        x1_a = sig_a * xi_buf[rows, cols]
-        x0_a = sig_a * xi_buf[rows, cols - 1]
+        x1_a = sig_a * xi_win[ids, c0]
+        x0_a = sig_a * xi_win[ids, c0 - 1]
         step_a = kk[:, None] + ar
-        ev0_a = us_buf[rows, cols] < p_stop_all[ids][:, None]
+        ev0_a = us_win[ids, c0] < p_stop_all[ids][:, None]
         last_a = step_a + 1 >= horizon[ids][:, None]
         per = {"amx": amax_all, "dmx": dmax_all, "dcap": d_cap_all, "fseg": first_seg,
                "lseg": last_seg, "pbase": prof_base, "c1": c1, "look_a": look_a_all,
