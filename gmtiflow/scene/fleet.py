@@ -74,6 +74,13 @@ class Fleet:
             self._seg_inv[starts] = np.concatenate([r.invisible for r in routes])
         route_of_vx = np.repeat(np.arange(len(routes)), np.diff(self._vx_off))
         self._vx_key = self._vx_s + route_of_vx * self._span
+        # Per vehicle, from its route: the key offset (route * span), the first and the last
+        # segment's vertex, the route's length (m); and whether it wanders (has knots).
+        self._veh_key0 = self._route * self._span
+        self._veh_lo = self._vx_off[self._route]
+        self._veh_hi = self._vx_off[self._route + 1] - 2
+        self._veh_len = self._vx_s[self._vx_off[self._route + 1] - 1]
+        self._veh_wanders = self._w_off[1:] > self._w_off[:-1]
         # Road-frame heading per segment (indexed by its first vertex) and the corner blend
         # (half-width, turn) per vertex, for the wander's smoothly turning frame.
         self._seg_psi, self._vx_blend, self._vx_turn = _road_frames(
@@ -163,13 +170,11 @@ class Fleet:
             t_a = t if whole else t[idx]
             p = self._profile[v_ids]
             s_p, speed, acc, mode = self.profiles.evaluate(tau if whole else tau[idx], p)
-            r = self._route[v_ids]
-            length = self._vx_s[self._vx_off[r + 1] - 1]
-            s = np.clip(s_p - self._offset[v_ids], 0.0, length)
+            s = np.clip(s_p - self._offset[v_ids], 0.0, self._veh_len[v_ids])
             # Segment under s; one correction step on each side absorbs rounding of the key.
-            j = np.searchsorted(self._vx_key, s + r * self._span, side="right") - 1
-            lo = self._vx_off[r]
-            hi = self._vx_off[r + 1] - 2
+            j = np.searchsorted(self._vx_key, s + self._veh_key0[v_ids], side="right") - 1
+            lo = self._veh_lo[v_ids]
+            hi = self._veh_hi[v_ids]
             j = np.clip(j, lo, hi)
             j = np.where((s < self._vx_s[j]) & (j > lo), j - 1, j)
             j = np.where((s >= self._vx_s[j + 1]) & (j < hi), j + 1, j)
@@ -187,7 +192,7 @@ class Fleet:
             accel = acc * unit if need_acc else None
             # Wander: a smooth process in continuous time, in a frame that turns smoothly
             # through corners; its rates are added, so velocity = d/dt position exactly.
-            moving = (np.flatnonzero(self._w_off[v_ids + 1] > self._w_off[v_ids])
+            moving = (np.flatnonzero(self._veh_wanders[v_ids])
                       if need_pos or need_vel or need_acc else np.zeros(0, np.int64))
             if moving.size:
                 # every row wanders (the usual case): whole arrays, no gathers or scatters

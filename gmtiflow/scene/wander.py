@@ -71,16 +71,19 @@ def evaluate(time_s, vehicle, knots, offset, t0_s, h_s, knots_t=None):
 
     Computed axis by axis on (3, n) arrays (long inner loops) and returned as (n, 3) views."""
     t = np.asarray(time_s, float)
-    n = np.zeros((3, t.size))
-    nd = np.zeros((3, t.size))
-    ndd = np.zeros((3, t.size))
+    whole = 0 < t.size <= _CHUNK       # one block: its arrays are the results
+    if not whole:
+        n = np.zeros((3, t.size))
+        nd = np.zeros((3, t.size))
+        ndd = np.zeros((3, t.size))
     if knots_t is None:
         knots_t = np.ascontiguousarray(np.asarray(knots, float).T)
     for i0 in range(0, t.size, _CHUNK):
         sl = slice(i0, i0 + _CHUNK)
         v = vehicle[sl]
         h = h_s[v]
-        count = offset[v + 1] - offset[v]
+        first = offset[v]
+        count = offset[v + 1] - first
         u = np.clip((t[sl] - t0_s[v]) / h, 0.0, (count - 4).astype(float) + 1.0 - 1e-12)
         i = np.floor(u).astype(np.int64)
         x = u - i
@@ -89,7 +92,7 @@ def evaluate(time_s, vehicle, knots, offset, t0_s, h_s, knots_t=None):
         q1 = 2.0 * np.sum(b * b1, axis=0)
         q2 = 2.0 * np.sum(b1 * b1 + b * b2, axis=0)
         rq = 1.0 / np.sqrt(q)
-        base = offset[v] + i
+        base = first + i
         num = np.zeros((3, len(v)))
         num1 = np.zeros((3, len(v)))
         num2 = np.zeros((3, len(v)))
@@ -99,10 +102,13 @@ def evaluate(time_s, vehicle, knots, offset, t0_s, h_s, knots_t=None):
             num1 += b1[k] * c
             num2 += b2[k] * c
         r1, r3, r5 = rq, rq ** 3, rq ** 5
-        n[:, sl] = num * r1
-        nd[:, sl] = (num1 * r1 - 0.5 * num * q1 * r3) / h
-        ndd[:, sl] = (num2 * r1 - num1 * q1 * r3 + 0.75 * num * q1 * q1 * r5
-                      - 0.5 * num * q2 * r3) / (h * h)
+        n_b = num * r1
+        nd_b = (num1 * r1 - 0.5 * num * q1 * r3) / h
+        ndd_b = (num2 * r1 - num1 * q1 * r3 + 0.75 * num * q1 * q1 * r5
+                 - 0.5 * num * q2 * r3) / (h * h)
+        if whole:
+            return n_b.T, nd_b.T, ndd_b.T
+        n[:, sl], nd[:, sl], ndd[:, sl] = n_b, nd_b, ndd_b
     return n.T, nd.T, ndd.T
 
 
