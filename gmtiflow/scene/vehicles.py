@@ -248,25 +248,39 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
     min_route_m = spec.min_route_m
     # every two distinct nodes qualify: no distance to compute
     any_pair = min_route_m <= 0 and bool(np.isfinite(xy).all())
-    node_name = roadmap.nodes["name"]
+    node_name = [str(x) for x in np.asarray(roadmap.nodes["name"])[nodes].tolist()]
     st_lo, st_hi = float(spec.start_time_min_s), float(spec.start_time_max_s)
     cs_lo, cs_hi = float(spec.cruise_speed_min_mps), float(spec.cruise_speed_max_mps)
     out = []
     names = [f"{spec.name_prefix}-{i:04d}" for i in range(int(spec.count))]
-    for name, g in zip(names, streams(seed, ("truth", "vehicle"), names, ("spec",))):
-        for _attempt in range(100):
+    gens = streams(seed, ("truth", "vehicle"), names, ("spec",))
+    # Start and end nodes: each vehicle's first draw, checked for all at once; the vehicles
+    # whose pair does not qualify draw again from their own streams, up to 100 draws in all
+    # (each stream's draws, and their order, are those of a vehicle-by-vehicle loop).
+    pair = (np.asarray([g.integers(0, n_nodes, size=2) for g in gens], np.int64)
+            .reshape(len(gens), 2))
+    ok = pair[:, 0] != pair[:, 1]
+    if not any_pair:
+        d = xy[pair[:, 0]] - xy[pair[:, 1]]
+        ok &= np.hypot(d[:, 0], d[:, 1]) >= min_route_m
+    pairs = pair.tolist()
+    for i in np.flatnonzero(~ok).tolist():
+        g = gens[i]
+        for _attempt in range(99):
             a, b = g.integers(0, n_nodes, size=2).tolist()
             if a != b and (any_pair or np.hypot(*(xy[a] - xy[b])) >= min_route_m):
+                pairs[i] = [a, b]
                 break
         else:
-            raise RoadMapError(f"{roadmap.source}: random vehicle {name!r}: no two nodes at least "
-                               f"min_route_m = {spec.min_route_m} m apart were found")
+            raise RoadMapError(f"{roadmap.source}: random vehicle {names[i]!r}: no two nodes at "
+                               f"least min_route_m = {spec.min_route_m} m apart were found")
+    for name, g, (a, b) in zip(names, gens, pairs):
         # type, start time and cruise speed: three uniforms, as random() and two
         # uniform(lo, hi) = lo + (hi - lo) * random() draw them (one call instead of three)
         u_type, u_start, u_cruise = g.random(3).tolist()
         vtype = types[min(max(bisect.bisect_right(cdf, u_type), 0), top)]
         out.append(VehicleSpec(
-            name=name, type=vtype, start=str(node_name[nodes[a]]), end=str(node_name[nodes[b]]),
+            name=name, type=vtype, start=node_name[a], end=node_name[b],
             start_time_s=st_lo + (st_hi - st_lo) * u_start,
             cruise_speed_mps=cs_lo + (cs_hi - cs_lo) * u_cruise,
             speed_noise_mps=spec.speed_noise_mps, speed_noise_corr_s=spec.speed_noise_corr_s,
