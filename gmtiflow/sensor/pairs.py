@@ -70,6 +70,22 @@ def _may_be_active(fleet, time_s, vehicle_id):
     return None if maybe.all() else maybe
 
 
+def _may_be_active_grid(fleet, time_s, vehicle_ids):
+    """:func:`_may_be_active` of every (time, vehicle) pair of the grid of ``time_s`` (the
+    rows) and ``vehicle_ids`` (the columns), raveled row by row, from the per-time pads and
+    per-vehicle windows broadcast (the same comparisons, value by value); None when the fleet
+    has no windows or every pair may be active."""
+    start = getattr(fleet, "start_time_s", None)
+    end = getattr(fleet, "end_time_s", None)
+    if start is None or end is None or not (len(time_s) and len(vehicle_ids)):
+        return None
+    time_s = np.asarray(time_s)
+    pad = 1e-6 * np.maximum(1.0, np.abs(time_s))
+    maybe = ((np.asarray(start)[vehicle_ids] <= (time_s + pad)[:, None])
+             & (np.asarray(end)[vehicle_ids] >= (time_s - pad)[:, None])).ravel()
+    return None if maybe.all() else maybe
+
+
 def _state_at(fleet, time_s, vehicle_id, columns=None) -> Table:
     """``fleet.state_at`` asked only for the rows its activity windows leave open; the others
     are inactive rows (NaN, False, −1), which is what the fleet gives for them.  Only
@@ -132,23 +148,29 @@ def _instant_rows(run: SensorRun, poses: Poses, vehicle_ids):
     n_d = sched.n_dwells
     n_v = len(vehicle_ids)
     ref = np.arange(n_rev) * n_d + n_d // 2
-    t_rep = np.repeat(poses.time_s[ref], n_v)
-    v_rep = np.tile(vehicle_ids, n_rev)
-    maybe = _may_be_active(fleet, t_rep, v_rep)
-    rows = None if maybe is None else np.flatnonzero(maybe)
-    st = (fleet.state_at(t_rep, v_rep, columns=_STATE) if rows is None
-          else fleet.state_at(np.take(t_rep, rows), np.take(v_rep, rows), columns=_STATE))
+    t_ref = poses.time_s[ref]
+    # row r of the (revisit, vehicle) grid: revisit r // n_v, vehicle vehicle_ids[r % n_v]
+    # (gathered for the rows asked about only, not repeated over the whole grid first)
+    maybe = _may_be_active_grid(fleet, t_ref, vehicle_ids)
+    if maybe is None:           # every pair asked: the whole grid, repeated
+        rev = col = None
+        v_rep = np.tile(vehicle_ids, n_rev)
+        st = fleet.state_at(np.repeat(t_ref, n_v), v_rep, columns=_STATE)
+    else:
+        rev, col = np.divmod(np.flatnonzero(maybe), n_v)
+        st = fleet.state_at(np.take(t_ref, rev), np.take(vehicle_ids, col), columns=_STATE)
     active = np.asarray(st["active"], bool)
     if active.all():
         st = {k: np.asarray(st[k]) for k in _STATE}
     else:
         act = np.flatnonzero(active)
         st = {k: np.take(np.asarray(st[k]), act) for k in _STATE}
-        rows = act if rows is None else np.take(rows, act)
-    if rows is None:
+        rev, col = np.divmod(act, n_v) if rev is None else (np.take(rev, act),
+                                                            np.take(col, act))
+    if rev is None:
         d_ref, veh = np.repeat(ref, n_v), v_rep
     else:
-        d_ref, veh = np.take(ref, rows // n_v) if n_v else rows, np.take(v_rep, rows)
+        d_ref, veh = np.take(ref, rev), np.take(vehicle_ids, col)
     xyz = _xyz(st)
     d, _ = geometry.offsets(antenna.take(poses.pos, d_ref), xyz, poses.radius_m,
                             target_frame=False)
