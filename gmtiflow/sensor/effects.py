@@ -108,7 +108,12 @@ class Merging:
             centroid=mcfg.centroid.value)
         if not np.any(res.n_ancestors > 1):
             return detections, looks
-        out = take(detections, res.strongest)
+        # each report's strongest ancestor's row, but for the columns set anew below
+        fresh = {"range_m", "azimuth_rad", "snr_db", "truth_id", "merged"} | \
+            ({"range_rate_mps"} if use_rr else set())
+        strongest = np.asarray(res.strongest, np.intp)
+        out = {name: (None if name in fresh else np.take(np.asarray(col), strongest))
+               for name, col in detections.items()}
         merged = res.n_ancestors > 1
         out["range_m"] = res.range_m
         out["azimuth_rad"] = res.azimuth_rad
