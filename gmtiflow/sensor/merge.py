@@ -238,8 +238,7 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
         raise ValueError("all report arrays must have the same length")
 
     # Per-dwell reference (first report of the dwell) for unwrapping and the cell-size check.
-    _, first, dw_rank = np.unique(dwell_id, return_index=True, return_inverse=True)
-    dw_rank = dw_rank.ravel()
+    first, dw_rank = _dwell_groups(dwell_id)
     ref = first[dw_rank]
     cells = [_per_report(range_cell_m, n, "range_cell_m"), _per_report(azimuth_cell_rad, n, "azimuth_cell_rad")]
     if use_rr:
@@ -304,6 +303,21 @@ def merge_reports(dwell_id, range_m, azimuth_rad, snr, truth_id, range_cell_m, a
 
     return _build(label, dwell_id, range_m, az, azimuth_rad, range_rate_mps if use_rr else None, snr,
                   truth_id, weight, circular_azimuth, passes)
+
+
+def _dwell_groups(dwell_id) -> tuple:
+    """``(first, rank)``: each distinct dwell's first report and each report's dwell rank, as
+    ``np.unique(dwell_id, return_index=True, return_inverse=True)`` gives them; for reports
+    already in dwell order (the sensor's) from where the dwell changes, without a sort."""
+    dwell_id = np.asarray(dwell_id).ravel()
+    if len(dwell_id) < 2 or not bool(np.all(dwell_id[1:] >= dwell_id[:-1])):
+        _, first, rank = np.unique(dwell_id, return_index=True, return_inverse=True)
+        return first, rank.ravel()
+    new = np.empty(len(dwell_id), bool)
+    new[0] = True
+    np.not_equal(dwell_id[1:], dwell_id[:-1], out=new[1:])
+    rank = np.cumsum(new) - 1
+    return np.flatnonzero(new), rank
 
 
 def _near_pairs(pts: np.ndarray, rank: np.ndarray, radius: float):

@@ -380,3 +380,17 @@ def test_strongest_ancestor_is_the_first_of_the_highest_snr_in_input_order():
         assert res.group.tolist() == [0, 0, 0, 1, 1]
         assert res.strongest.tolist() == want
         assert res.truth_id.tolist() == [10 + w for w in want]
+
+
+@pytest.mark.parametrize("n, sort", [(0, True), (1, True), (2, False), (1000, True),
+                                     (1000, False), (30_000, True)])
+def test_dwell_groups_are_np_uniques_first_index_and_inverse(n, sort):
+    """merge_reports' per-dwell grouping: read off where the dwell changes when the reports
+    come in dwell order (the sensor's), np.unique's values either way."""
+    d = np.random.default_rng(n).integers(0, max(1, n // 10), n).astype(np.int64)
+    if sort:
+        d.sort()
+    first, rank = mg._dwell_groups(d)
+    _, first0, rank0 = np.unique(d, return_index=True, return_inverse=True)
+    assert first.dtype == first0.dtype and rank.dtype == rank0.dtype
+    assert np.array_equal(first, first0) and np.array_equal(rank, rank0.ravel())
