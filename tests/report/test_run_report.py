@@ -86,6 +86,7 @@ def test_load_run_reads_and_checks_the_config_once(small_run, monkeypatch):
     expected = yaml.safe_load(store.read_text(small_run, "config"))
     calls = []
     real = store.yaml.load
+    monkeypatch.setattr(store, "_LAST_PARSED", {})    # not parsed earlier in this process
     monkeypatch.setattr(store.yaml, "load",
                         lambda text, Loader: calls.append(1) or real(text, Loader=Loader))
     run = load_run(small_run, lazy=True)
