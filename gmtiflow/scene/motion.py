@@ -818,9 +818,6 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         S_a = s0_a[:, None] + (v0_a * dt)[:, None] * ar
         S_a[:, 0] = s0_a
         V_a = np.repeat(v0_a[:, None], W, axis=1)
-        m_out = np.zeros(n, np.int64)
-        out = {name: np.empty((n, W)) for name in ("a", "raw", "s_end", "v_end")}
-        out["free"] = np.empty((n, W), bool)
         todo = np.arange(n)
         S, V, x0, x1, step, sig, s0, v0 = S_a, V_a, x0_a, x1_a, step_a, sig_a, s0_a, v0_a
         c = per
@@ -881,16 +878,18 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             # A step's terms v·τ, ½aτ², v_end·(Δt − τ), bridge; here τ = Δt, so the third is
             # ±0, and adding ±0 leaves a position as it is (positions are never −0: they
             # start at +0 and a sum is −0 only if both parts are), so it is left out.
-            terms = (V * dt, 0.5 * a * dt * dt,
-                     np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0))
+            bridged = np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0)
             if todo.size < 64:      # few rows: one running sum along each row
                 x = np.empty((todo.size, 3 * W + 1))
                 x[:, 0] = s0
-                for q, term in enumerate(terms):
+                for q, term in enumerate((V * dt, 0.5 * a * dt * dt, bridged)):
                     x[:, q + 1::3] = term
                 S_full = np.add.accumulate(x, axis=1)[:, ::3]
             else:                   # many: the same additions column by column (faster)
-                tt = [np.ascontiguousarray(term.T) for term in terms]
+                # the terms made in (step, row) order (the same operations, no transposing)
+                tt = (np.multiply(V.T, dt, order="C"),
+                      np.multiply((0.5 * a * dt).T, dt, order="C"),
+                      np.ascontiguousarray(bridged.T))
                 st = np.empty((W + 1, todo.size))
                 st[0] = s0
                 for i in range(W):
@@ -919,11 +918,16 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                 tally[0] += fin.size
                 tally[1] += fin.size - int(fin.sum())
                 guess_noise[0] = tally[0] >= 32 and tally[1] > NOISE_GUESS_ABOVE * tally[0]
-            r = todo[fin]
-            m_out[r] = m[fin]
-            for name, val in (("a", a), ("raw", raw), ("s_end", s_end), ("v_end", v_end),
-                              ("free", free)):
-                out[name][r] = val[fin]
+            if sweep == 0:      # every row's first pass as it is (the rows not final yet are
+                # overwritten by the later passes: every row is final in the last)
+                m_out = m
+                out = {"a": a, "raw": raw, "s_end": s_end, "v_end": v_end, "free": free}
+            else:
+                r = todo[fin]
+                m_out[r] = m[fin]
+                for name, val in (("a", a), ("raw", raw), ("s_end", s_end),
+                                  ("v_end", v_end), ("free", free)):
+                    out[name][r] = val[fin]
             if fin.all():
                 break
             # the rows still short: again, with the desired speeds at this pass's states
