@@ -55,10 +55,20 @@ def _basis(x):
     """Uniform cubic B-spline weights (4, n) at fractions x and their first two derivatives."""
     y = 1.0 - x
     x2, x3 = x * x, x * x * x
-    b = np.stack([y * y * y / 6.0, (3.0 * x3 - 6.0 * x2 + 4.0) / 6.0,
-                  (-3.0 * x3 + 3.0 * x2 + 3.0 * x + 1.0) / 6.0, x3 / 6.0])
-    d1 = np.stack([-0.5 * y * y, 1.5 * x2 - 2.0 * x, -1.5 * x2 + x + 0.5, 0.5 * x2])
-    d2 = np.stack([y, 3.0 * x - 2.0, 1.0 - 3.0 * x, x])
+    b, d1, d2 = (np.empty((4,) + np.shape(x)) for _ in range(3))
+    # each row's last operation writes into its row (no stacked copies)
+    np.divide(y * y * y, 6.0, out=b[0])
+    np.divide(3.0 * x3 - 6.0 * x2 + 4.0, 6.0, out=b[1])
+    np.divide(-3.0 * x3 + 3.0 * x2 + 3.0 * x + 1.0, 6.0, out=b[2])
+    np.divide(x3, 6.0, out=b[3])
+    np.multiply(-0.5 * y, y, out=d1[0])
+    np.subtract(1.5 * x2, 2.0 * x, out=d1[1])
+    np.add(-1.5 * x2 + x, 0.5, out=d1[2])
+    np.multiply(0.5, x2, out=d1[3])
+    d2[0] = y
+    np.subtract(3.0 * x, 2.0, out=d2[1])
+    np.subtract(1.0, 3.0 * x, out=d2[2])
+    d2[3] = x
     return b, d1, d2
 
 
@@ -187,7 +197,11 @@ def world_offset(n, nd, ndd, psi, dpsi_ds, d2psi_ds2, speed, accel, sin_cos=None
     aa, ac, au = ndd.T
 
     def world(c_a, c_c, c_u):      # (k, 3), as a view of a (3, k) array (long rows)
-        return np.stack([c_a * sp - c_c * cp, c_a * cp + c_c * sp, c_u]).T
+        out = np.empty((3,) + np.shape(c_a))
+        np.subtract(c_a * sp, c_c * cp, out=out[0])
+        np.add(c_a * cp, c_c * sp, out=out[1])
+        out[2] = c_u
+        return out.T
 
     off = world(na, nc, nu)
     vel = world(va + w * nc, vc - w * na, vu)
