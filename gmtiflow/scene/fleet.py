@@ -116,22 +116,25 @@ class Fleet:
         t, vid = np.broadcast_arrays(np.asarray(time_s, dtype=float),
                                      np.asarray(vehicle_id, dtype=np.int64))
         shape = t.shape
-        t = t.ravel()
-        vid = vid.ravel()
-        n = t.size
-        cols = _columns(columns)
-        if n <= _BLOCK_ROWS:
-            out = self._state_flat(t, vid, cols)
-        else:       # cache-sized blocks of equal size: every row's values are its own
-            size = -(-n // -(-n // _BLOCK_ROWS))
-            parts = [self._state_flat(t[a:a + size], vid[a:a + size], cols)
-                     for a in range(0, n, size)]
-            out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        out = self._blocks(t.ravel(), vid.ravel(), _columns(columns))
         return {k: c.reshape(shape) for k, c in out.items()}
 
-    def _state_flat(self, t, vid, cols=None) -> Table:
+    def _blocks(self, t, vid, cols, tau=None) -> Table:
+        """:meth:`_state_flat` of flat arrays in cache-sized blocks of equal size (every row's
+        values are its own); ``tau``: see there."""
+        n = t.size
+        if n <= _BLOCK_ROWS:
+            return self._state_flat(t, vid, cols, tau)
+        size = -(-n // -(-n // _BLOCK_ROWS))
+        parts = [self._state_flat(t[a:a + size], vid[a:a + size], cols,
+                                  None if tau is None else tau[a:a + size])
+                 for a in range(0, n, size)]
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+    def _state_flat(self, t, vid, cols=None, tau=None) -> Table:
         """:meth:`state_at` of flat (time, vehicle) arrays; ``cols``: the /truth columns asked
-        (a tuple in ``TRUTH_COLUMNS`` order, None: all)."""
+        (a tuple in ``TRUTH_COLUMNS`` order, None: all); ``tau``: the rows' local times when
+        the caller knows every row is active (:meth:`_active`, truth_table), else None."""
         cols = TRUTH_COLUMNS if cols is None else cols
         n = t.size
         if self.n_vehicles == 0:
@@ -139,7 +142,11 @@ class Fleet:
             _put_ids(out, t, vid)
             out["active"] = np.zeros(n, bool)
             return out
-        active, valid, vs, tau = self._active(t, vid)
+        if tau is None:
+            active, valid, vs, tau = self._active(t, vid)
+        else:               # _active's values for rows known to be active
+            active = valid = np.ones(n, bool)
+            vs = vid
         idx = np.flatnonzero(active)
         # every row active (truth_table): no fill values, no gather, no scatter
         whole = idx.size == n and n > 0
@@ -275,12 +282,15 @@ class Fleet:
         # alone (a radix sort when ti fits 16 bits) gives the order of (ti, vid)
         order = np.argsort(ti.astype(np.uint16) if len(times) <= 1 << 16 else ti, kind="stable")
         vid, ti = vid[order], ti[order]
+        t = times[ti]
+        tau = t
         if len(vid):        # the active pairs only (state_at then neither gathers nor scatters)
-            keep = self._active(times[ti], vid)[0]
-            vid, ti = vid[keep], ti[keep]
+            keep, _, _, tau = self._active(t, vid)
+            vid, t, tau = vid[keep], t[keep], tau[keep]
         parts = []
         for a in range(0, len(vid), chunk_rows):
-            st = self.state_at(times[ti[a:a + chunk_rows]], vid[a:a + chunk_rows])
+            sl = slice(a, a + chunk_rows)
+            st = self._blocks(t[sl], vid[sl], None, tau[sl])
             mask = st.pop("active")
             parts.append(st if mask.all() else {k: c[mask] for k, c in st.items()})
         if not parts:
