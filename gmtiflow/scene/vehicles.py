@@ -34,7 +34,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -66,7 +66,7 @@ class _Vehicle:
     route: int
     offset_m: float
     off_road: bool
-    sigma_pos: np.ndarray
+    sigma_pos: Tuple[float, float, float]    # σ along, across, up (m)
     pos_corr_s: float
 
 
@@ -177,7 +177,7 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
                                      obey_speed_limits=bool(spec.obey_speed_limits),
                                      stops=stops, spec=spec,
                                      name=members[0][0]))
-        sig = np.asarray([float(x) for x in spec.position_noise_m], dtype=float)
+        sig = tuple(float(x) for x in spec.position_noise_m)
         for name, off in members:
             vehicles.append(_Vehicle(name=name, type=str(spec.type), convoy_id=convoy_id,
                                      profile=p, route=r, offset_m=off,
@@ -399,8 +399,9 @@ def _draw_wander(vehicles, seed, t0, on, off, horizon_s, dt):
     knots = np.empty((int(knot_off[-1]), 3))
     gens = streams(seed, ("truth", "vehicle"), [vehicles[vi].name for vi in wanders.tolist()],
                    ("wander",))
+    rows = knot_off.tolist()
     for vi, g in zip(wanders.tolist(), gens):      # N(0, 1) in place, scaled by σ below
-        g.standard_normal(out=knots[knot_off[vi]:knot_off[vi + 1]])
+        g.standard_normal(out=knots[rows[vi]:rows[vi + 1]])
     if wanders.size:
         knots *= np.repeat(sigma, n_k, axis=0)
     return knots, knot_off, w_t0, w_h
