@@ -11,6 +11,7 @@ is not one 32-bit word) the streams are made one by one by :func:`gmtiflow.rng.s
 """
 from __future__ import annotations
 
+import functools
 from typing import List, Sequence
 
 import numpy as np
@@ -35,6 +36,11 @@ def _int_words(n: int) -> List[int]:
         out.append(n & _M32)
         n >>= 32
     return out
+
+
+#: rng.name_key of a name, remembered: a fleet asks its streams by the same vehicle names two
+#: or three times (spec, speed profile, wander); typed, so True and 1 stay apart.
+_name_key = functools.lru_cache(maxsize=1 << 16, typed=True)(rng.name_key)
 
 
 class _State(ISeedSequence):
@@ -91,7 +97,7 @@ def streams(seed: int, prefix: Sequence, names: Sequence, suffix: Sequence = ()
     names = list(names)
     if not names:
         return []
-    keys = [rng.name_key(x) for x in names]
+    keys = [_name_key(x) for x in names]
     pre = [rng.name_key(x) for x in prefix]
     post = [rng.name_key(x) for x in suffix]
     run = _int_words(int(seed))
