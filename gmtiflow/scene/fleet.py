@@ -154,7 +154,8 @@ class Fleet:
         _put_ids(out, t, vid)
         out["active"] = active
         if "convoy_id" in out:
-            out["convoy_id"] = np.where(valid, self.vehicles["convoy_id"][vs], -1)
+            out["convoy_id"] = (self.vehicles["convoy_id"][vs] if whole else
+                                np.where(valid, self.vehicles["convoy_id"][vs], -1))
         want = out.__contains__
         need_pos = want("x_m") or want("y_m") or want("z_m")
         need_vel = want("vx_mps") or want("vy_mps") or want("vz_mps")

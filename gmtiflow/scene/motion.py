@@ -340,6 +340,10 @@ class Profiles:
             v.flat[j] += d
             acc.flat[j] += dd / dt
         mode = self.mode_flat[i]
+        if late is not None:    # only rows past τ'_k can be at rest (a gathered copy of its own)
+            rest = late[(v[late] == 0.0) & (mode[late] == MODE_DECEL)]
+            mode[rest] = MODE_STOPPED
+            return s, v, acc, mode.astype(np.uint8, copy=False)
         mode = np.where((v == 0.0) & (mode == MODE_DECEL) & ~early, MODE_STOPPED, mode)
         return s, v, acc, mode.astype(np.uint8)
 
