@@ -360,9 +360,11 @@ def _trip_noise(seed: int, names: List[str]) -> motion.NoiseSource:
             gens.update(zip(pids, streams(seed, ("truth", "vehicle"), [names[p] for p in pids])))
         for c, p in enumerate(pids):
             gens[p].random(out=buf[c])
-        # each used column as its own contiguous array (u + 2^-54, as before)
-        return (ndtri(buf[:, :, 0] + _HALF_ULP).T, (buf[:, :, 1] + _HALF_ULP).T,
-                (buf[:, :, 2] + _HALF_ULP).T)
+        # each used column as its own contiguous array (u + 2^-54, as before); the normals
+        # by inversion in place
+        normal = buf[:, :, 0] + _HALF_ULP
+        ndtri(normal, out=normal)
+        return normal.T, (buf[:, :, 1] + _HALF_ULP).T, (buf[:, :, 2] + _HALF_ULP).T
     return draw
 
 
