@@ -1,12 +1,16 @@
 """Speed vs accuracy of the fidelity presets, measured against ``fidelity=full``.
 
-    python benchmarks/fidelity_tradeoff.py [--out DIR] [--seeds 1 2 3] [-- extra overrides]
+    python benchmarks/fidelity_tradeoff.py [--out DIR] [--seeds 1 2 3]
+        [--variant LABEL=PRESET:K=V,...] [-- extra overrides]
 
 For every preset (fast, standard, full) and seed, the same scene runs in this process and is
 compared with the ``full`` run of the same seed.  What is timed is the simulation: truth, sensor
 with clutter and the run file; the tracker, the metrics, the report and the exports are off
 (``tracker=none metrics.enabled=false report=none export=none``; each has its own benchmark),
-stage cache off.  The presets alternate within each seed (fast, standard, full, fast, ...).
+stage cache off.  The presets alternate within each seed (fast, standard, full, fast, ...);
+``--variant`` adds a row of a preset with overrides of its own (a trade study: e.g.
+``fast-2s5s=fast:fidelity.time_step_s=2.0,fidelity.truth_output_dt_s=5.0``), run in turn
+with the others and compared with ``full`` the same way.
 
 * wall and CPU time of ``pipeline.run`` (mean over seeds, after one warm-up run) and the
   speed-up over ``full`` (ratio of the means);
@@ -64,7 +68,7 @@ class StageTimes(logging.Handler):
             self.seconds[name] = self.seconds.get(name, 0.0) + sec
 
 
-def one_run(preset, seed, out, extra):
+def one_run(preset, seed, out, extra, label=None):
     from gmtiflow import pipeline, store
     cfg = compose(SCENE + FIXED + [f"fidelity={preset}", f"seed={seed}", *extra])
     stages = StageTimes()
@@ -73,7 +77,7 @@ def one_run(preset, seed, out, extra):
     level, logger.level = logger.level, logging.INFO
     try:
         start, cpu0 = time.perf_counter(), time.process_time()
-        path = pipeline.run(cfg, out / f"{preset}_{seed}")
+        path = pipeline.run(cfg, out / f"{label or preset}_{seed}")
         wall = (time.perf_counter() - start, time.process_time() - cpu0)
     finally:
         logger.removeHandler(stages)
@@ -134,6 +138,9 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="outputs/benchmarks/fidelity_tradeoff")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    ap.add_argument("--variant", action="append", default=[], metavar="LABEL=PRESET:K=V,...",
+                    help="one more row: PRESET with these overrides, e.g. "
+                         "fast-2s=fast:fidelity.time_step_s=2.0 (repeatable)")
     ap.add_argument("extra", nargs="*", help="more Hydra overrides for every run")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -142,12 +149,23 @@ def main(argv=None) -> None:
     tuned = allocator.tune()        # as the gmtiflow command runs
     print(f"load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores); "
           f"malloc tuned as by the gmtiflow command: {tuned}")
+    rows_of = {p: (p, []) for p in PRESETS}        # row label -> (preset, its own overrides)
+    for v in args.variant:
+        label, _, spec = v.partition("=")
+        preset, _, overrides = spec.partition(":")
+        if not label or preset not in PRESETS:
+            ap.error(f"--variant {v!r}: expected LABEL=PRESET:K=V,... with PRESET one of "
+                     f"{', '.join(PRESETS)}")
+        rows_of[label] = (preset, [o for o in overrides.split(",") if o])
+    labels = list(rows_of)
     one_run("fast", args.seeds[0], out / "warmup", args.extra)      # imports, caches warm
-    runs = {(p, s): one_run(p, s, out, args.extra) for s in args.seeds for p in PRESETS}
-    quiet = {(p, s): one_run(p, s, out / "noise_off", args.extra + NOISE_OFF)[1]
-             for s in args.seeds for p in PRESETS}
+    runs = {(p, s): one_run(rows_of[p][0], s, out, args.extra + rows_of[p][1], label=p)
+            for s in args.seeds for p in labels}
+    quiet = {(p, s): one_run(rows_of[p][0], s, out / "noise_off",
+                             args.extra + NOISE_OFF + rows_of[p][1], label=p)[1]
+             for s in args.seeds for p in labels}
     rows = []
-    for p in PRESETS:
+    for p in labels:
         walls, cpus, terr, tmax, st, dpd, ddet, qerr, qmax = [], [], [], [], [], [], [], [], []
         ierr, imax = [], []
         for s in args.seeds:
@@ -178,7 +196,7 @@ def main(argv=None) -> None:
                      "pd": mean("pd"), "pd_diff": float(np.mean(dpd)),
                      "nerr_range": mean("nerr_range"), "nerr_az": mean("nerr_az"),
                      "nerr_rr": mean("nerr_rr"), "snr_mean_db": mean("snr_mean_db")})
-    full_wall, full_cpu = rows[-1]["wall_s"], rows[-1]["cpu_s"]
+    full_wall, full_cpu = rows[labels.index("full")]["wall_s"], rows[labels.index("full")]["cpu_s"]
     print(f"scene: {' '.join(SCENE + FIXED + args.extra)}; seeds {args.seeds}")
     head = ("| preset | wall s | CPU s | × full (wall / CPU) | truth err RMS / max (m) | same, noise off | "
             "noise off, interpolated at full's rows | "
@@ -198,16 +216,16 @@ def main(argv=None) -> None:
     # Where the ratio comes from: each stage's wall seconds (the run's log), mean over seeds.
     names = list(dict.fromkeys(n for (p, s), r in runs.items() for n in r[2]))
     stage_s = {p: {n: float(np.mean([runs[(p, s)][2].get(n, 0.0) for s in args.seeds]))
-                   for n in names} for p in PRESETS}
+                   for n in names} for p in labels}
     print("\nstage wall seconds (the run's own stage timings, mean over seeds; a stage "
           "includes writing its tables):")
-    print("| stage | " + " | ".join(PRESETS) + " | full / fast |")
-    print("|---|" + "---|" * (len(PRESETS) + 1))
+    print("| stage | " + " | ".join(labels) + " | full / fast |")
+    print("|---|" + "---|" * (len(labels) + 1))
     for n in names + ["all stages"]:
-        v = ({p: sum(stage_s[p].values()) for p in PRESETS} if n == "all stages"
-             else {p: stage_s[p][n] for p in PRESETS})
+        v = ({p: sum(stage_s[p].values()) for p in labels} if n == "all stages"
+             else {p: stage_s[p][n] for p in labels})
         ratio = f"{v['full'] / v['fast']:.1f}" if v["fast"] >= 0.0005 else "-"
-        print(f"| {n} | " + " | ".join(f"{v[p]:.3f}" for p in PRESETS) + f" | {ratio} |")
+        print(f"| {n} | " + " | ".join(f"{v[p]:.3f}" for p in labels) + f" | {ratio} |")
     for r in rows:
         r["stage_s"] = stage_s[r["preset"]]
     print(f"load after: {os.getloadavg()[0]:.2f}")
