@@ -67,8 +67,10 @@ def group_options():
 NEEDS_A_VALUE = {"platform=trajectory": "platform.path=/data/log.csv",
                  "roadmap=geojson": "roadmap.path=/data/map.geojson",
                  "roadmap=osm": "roadmap.path=/data/map.osm",
-                 "tracker=python": "tracker.target=mypackage.MyTracker"}
-"""Options that need a path or a name (validation checks only that one is given)."""
+                 "tracker=python": "tracker.target=mypackage.MyTracker",
+                 "vehicles=file": f"vehicles.file={CONF / 'vehicles' / 'default.yaml'}"}
+"""Options that need a path or a name (validation checks only that one is given; a vehicles
+file is read when the config is converted: the shipped default group file, as a file)."""
 
 
 @pytest.mark.slow
