@@ -34,11 +34,14 @@ def close_pairs(X: np.ndarray, Y: np.ndarray, c: float, step_x=None, step_y=None
 
     def key(step, cells):
         return ((step - s0) * span[0] + (cells[:, 0] - lo[0])) * span[1] + (cells[:, 1] - lo[1])
+    # Neither sort needs to keep ties in order: each (row, column) pair is found once (the
+    # nine cells are distinct) and _within orders the pairs by their unique (row, column) key,
+    # so the unstable sort (~4x faster on 600k keys) gives the same pairs in the same order.
     ky = key(sy[oky], cy)
-    order = np.argsort(ky, kind="stable")
+    order = np.argsort(ky)
     ky = ky[order]
     kx = key(sx[okx], cx)
-    ox = np.argsort(kx, kind="stable")       # sorted needles: a faster binary search
+    ox = np.argsort(kx)                      # sorted needles: a faster binary search
     kx, xrow = kx[ox], okx[ox]
     rows, cols = [], []
     for dx in (-1, 0, 1):        # the cells (ix + dx, iy - 1 .. iy + 1): one key range
