@@ -198,7 +198,8 @@ class VehiclesGroupConfig(VehiclesConfig):
     """The ``vehicles`` group as Hydra composes it: :class:`VehiclesConfig` plus ``file``.
 
     ``file``: None, or the path of a YAML file holding ``vehicles: [...]`` in the schema of
-    ``vehicles`` above (a vehicles group file works as is; a top-level ``random:`` is refused),
+    ``vehicles`` above (a vehicles group file works as is; a top-level ``random:`` only with
+    ``count: 0``, as conf/vehicles/default.yaml ends),
     relative to the directory the command was launched from.  For a long list (1,000 vehicles):
     Hydra sees only the path, and :mod:`gmtiflow.scene.vehicles_file` reads the file with libyaml
     and the same type checks.  Refused when the group itself lists vehicles (the file's list is

@@ -59,7 +59,8 @@ def _searchsorted_uniform(u, s):
 def _may_be_active(fleet, time_s, vehicle_id):
     """False where the fleet's activity window (``start_time_s``/``end_time_s``, padded as in
     :func:`gmtiflow.sensor.model._on_the_road`) rules the vehicle out at that time; None when
-    the fleet has no windows or every row may be active."""
+    the fleet has no windows or every row may be active.  Element-wise: ``time_s`` (n_rev, 1)
+    against ``vehicle_id`` (1, n_v) gives the (revisit, vehicle) grid."""
     start = getattr(fleet, "start_time_s", None)
     end = getattr(fleet, "end_time_s", None)
     if start is None or end is None or not len(time_s):
@@ -67,22 +68,6 @@ def _may_be_active(fleet, time_s, vehicle_id):
     pad = 1e-6 * np.maximum(1.0, np.abs(time_s))
     maybe = ((np.asarray(start)[vehicle_id] <= time_s + pad)
              & (np.asarray(end)[vehicle_id] >= time_s - pad))
-    return None if maybe.all() else maybe
-
-
-def _may_be_active_grid(fleet, time_s, vehicle_ids):
-    """:func:`_may_be_active` of every (time, vehicle) pair of the grid of ``time_s`` (the
-    rows) and ``vehicle_ids`` (the columns), raveled row by row, from the per-time pads and
-    per-vehicle windows broadcast (the same comparisons, value by value); None when the fleet
-    has no windows or every pair may be active."""
-    start = getattr(fleet, "start_time_s", None)
-    end = getattr(fleet, "end_time_s", None)
-    if start is None or end is None or not (len(time_s) and len(vehicle_ids)):
-        return None
-    time_s = np.asarray(time_s)
-    pad = 1e-6 * np.maximum(1.0, np.abs(time_s))
-    maybe = ((np.asarray(start)[vehicle_ids] <= (time_s + pad)[:, None])
-             & (np.asarray(end)[vehicle_ids] >= (time_s - pad)[:, None])).ravel()
     return None if maybe.all() else maybe
 
 
@@ -151,13 +136,13 @@ def _instant_rows(run: SensorRun, poses: Poses, vehicle_ids):
     t_ref = poses.time_s[ref]
     # row r of the (revisit, vehicle) grid: revisit r // n_v, vehicle vehicle_ids[r % n_v]
     # (gathered for the rows asked about only, not repeated over the whole grid first)
-    maybe = _may_be_active_grid(fleet, t_ref, vehicle_ids)
+    maybe = _may_be_active(fleet, t_ref[:, None], np.asarray(vehicle_ids)[None, :])
     if maybe is None:           # every pair asked: the whole grid, repeated
         rev = col = None
         v_rep = np.tile(vehicle_ids, n_rev)
         st = fleet.state_at(np.repeat(t_ref, n_v), v_rep, columns=_STATE)
     else:
-        rev, col = np.divmod(np.flatnonzero(maybe), n_v)
+        rev, col = np.divmod(np.flatnonzero(maybe.ravel()), n_v)
         st = fleet.state_at(np.take(t_ref, rev), np.take(vehicle_ids, col), columns=_STATE)
     active = np.asarray(st["active"], bool)
     if active.all():
