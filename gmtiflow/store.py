@@ -361,12 +361,15 @@ def _adler32_run(adler: int, byte: int, n: int) -> int:
     return (b << 16) | a
 
 
-def _deflated_chunk(values) -> bytes:
+def _deflated_chunk(values, pad_rows: int = 0) -> bytes:
     """One HDF5 chunk through the filters of a gmtiflow column, shuffle then deflate: the bytes
     of element position j of every value together (HDF5's shuffle filter), then one zlib
     stream (HDF5's deflate filter inflates any).  ``values``: the chunk's values, an array or
     a list of arrays of one dtype (its rows in order: joined by the shuffle itself,
-    :func:`_shuffled`).
+    :func:`_shuffled`); ``pad_rows``: zero values after them (a dataset's last, partial chunk,
+    padded to its full size as HDF5 stores an edge chunk), each plane's zeros a cached
+    section (:func:`_constant_section`) after the plane's bytes, judged and deflated without
+    them.
 
     Each byte plane is a section of that stream: one that holds a single byte value
     (:func:`_constant_planes`: the high bytes of ids, every plane of a constant column) as a
@@ -386,7 +389,7 @@ def _deflated_chunk(values) -> bytes:
     k = pieces[0].dtype.itemsize
     pieces = [np.ascontiguousarray(p) for p in pieces if len(p)] or pieces[:1]
     n = sum(len(p) for p in pieces)
-    if n * k < _SMALL_BYTES:      # one zlib call: the planes' analysis costs more
+    if n * k < _SMALL_BYTES and not pad_rows:    # one zlib call: the analysis costs more
         raw = (pieces[0] if len(pieces) == 1 else np.concatenate(pieces)).view(np.uint8)
         return zlib.compress(raw if k == 1 else np.ascontiguousarray(raw.reshape(-1, k).T),
                              _DEFLATE_LEVEL)
@@ -414,10 +417,16 @@ def _deflated_chunk(values) -> bytes:
                    for noisy, match, pay in zip(noise.tolist(), matched.tolist(),
                                                 runs_pay.tolist())]
         how = iter(how)
+        padding = _constant_section(0, pad_rows) if pad_rows else None
         for j in range(k):
             if const[j]:
-                z, section = None, _constant_section(first[j], n)
-                adler = _adler32_run(adler, first[j], n)
+                z = None
+                if first[j] == 0 and pad_rows:        # the padding too: one section
+                    section = _constant_section(0, n + pad_rows)
+                    adler = _adler32_run(adler, 0, n + pad_rows)
+                else:
+                    section = _constant_section(first[j], n)
+                    adler = _adler32_run(adler, first[j], n)
             else:
                 plane = next(rows)
                 adler = zlib.adler32(plane, adler)
@@ -431,6 +440,12 @@ def _deflated_chunk(values) -> bytes:
             else:
                 parts += _stored_blocks(plane)
             z_open = z
+            if pad_rows and not (const[j] and first[j] == 0):    # this plane's zeros
+                if z_open is not None:
+                    parts.append(z_open.flush(zlib.Z_FULL_FLUSH))
+                    z_open = None
+                parts.append(padding)
+                adler = _adler32_run(adler, 0, pad_rows)
         if z_open is not None:
             parts.append(z_open.flush(zlib.Z_FULL_FLUSH))
     except BaseException:
@@ -483,19 +498,20 @@ class _ChunkDeflater:
             self.tails[key] = (dsid, chunk_rows, start + full, rest)
         self.write_done()
 
-    def _submit(self, dsid, offset: int, chunk) -> None:
-        """Deflate and write ``chunk`` (an array, or a list of arrays: its rows in order)."""
+    def _submit(self, dsid, offset: int, chunk, pad_rows: int = 0) -> None:
+        """Deflate and write ``chunk`` (an array, or a list of arrays: its rows in order),
+        followed by ``pad_rows`` zero values (:func:`_deflated_chunk`)."""
         if isinstance(chunk, list):
             chunk = chunk[0] if len(chunk) == 1 else chunk
         nbytes = sum(p.nbytes for p in chunk) if isinstance(chunk, list) else chunk.nbytes
         if self.workers <= 0 or nbytes < _INLINE_BYTES or self.inline_bytes > 0:
             self.inline_bytes -= nbytes
-            dsid.write_direct_chunk((offset,), _deflated_chunk(chunk))
+            dsid.write_direct_chunk((offset,), _deflated_chunk(chunk, pad_rows))
             return
         if self.pool is None:
             self.pool = ThreadPoolExecutor(max_workers=self.workers,
                                            thread_name_prefix="deflate")
-        self.pending.append((dsid, offset, self.pool.submit(_deflated_chunk, chunk)))
+        self.pending.append((dsid, offset, self.pool.submit(_deflated_chunk, chunk, pad_rows)))
 
     def write_done(self, wait: bool = False) -> None:
         """Write the oldest compressed chunks, in order, until at most ``max_pending`` remain
@@ -506,14 +522,10 @@ class _ChunkDeflater:
             dsid.write_direct_chunk((offset,), future.result())
 
     def finish(self) -> None:
-        """Pad and write every dataset's last, partial chunk; wait for every chunk."""
+        """Write every dataset's last, partial chunk, padded with zeros to its full size;
+        wait for every chunk."""
         for dsid, chunk_rows, start, pieces in self.tails.values():
-            chunk = np.zeros(chunk_rows, pieces[0].dtype)
-            at = 0
-            for piece in pieces:
-                chunk[at:at + len(piece)] = piece
-                at += len(piece)
-            self._submit(dsid, start, chunk)
+            self._submit(dsid, start, pieces, chunk_rows - sum(len(p) for p in pieces))
         self.tails.clear()
         self.write_done(wait=True)
 

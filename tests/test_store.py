@@ -188,6 +188,27 @@ def test_deflated_chunk_is_what_the_hdf5_filters_decode(tmp_path):
             assert np.array_equal(f[name][()], v), name
 
 
+def test_a_padded_last_chunk_inflates_to_its_rows_and_zeros():
+    """A dataset's last, partial chunk is deflated from its rows alone, each plane followed by
+    a cached section of zeros: it inflates to the bytes of the rows padded with zero values
+    (what HDF5 stores for an edge chunk), checksum included, whatever the rows' planes (noise,
+    constant, zero) or pieces; the padding costs no deflate of its own (a chunk of noise and
+    zeros stores the noise, it does not deflate it)."""
+    n = store._CHUNK_ROWS
+    rng = np.random.default_rng(11)
+    for values in (rng.normal(size=20_000), np.arange(3, dtype=np.int64), np.full(700, 2.5),
+                   rng.random(9000) < 0.5, np.zeros(5, np.int64), rng.integers(0, 9, 40_000),
+                   [rng.normal(size=100), rng.normal(size=30_000)]):
+        pieces = values if isinstance(values, list) else [values]
+        joined = np.concatenate(pieces)
+        padded = np.zeros(n, joined.dtype)
+        padded[:len(joined)] = joined
+        raw = zlib.decompress(store._deflated_chunk(values, n - len(joined)))
+        assert raw == zlib.decompress(store._deflated_chunk(padded))
+    noise = rng.integers(0, 2**63, 30_000, dtype=np.uint64)
+    assert len(store._deflated_chunk(noise, n - len(noise))) < noise.nbytes + 1000
+
+
 def test_constant_planes_are_found_and_checksummed_without_their_bytes():
     """Byte planes that hold one byte value (ids' high bytes, constant columns) are sections
     made once; the stream's checksum over them is zlib's (the inflater checks it)."""
