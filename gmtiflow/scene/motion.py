@@ -762,10 +762,12 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         prev = xi_buf[pids, col0 - 1]
         xi[0] = np.where(blocks == 0, normal[0], rh * prev + xi[0])
         # the recurrence, step by step, over the profiles with correlated noise only: with
-        # ρ = 0 a step adds 0·ξ_{k-1} = ±0, which leaves a non-zero finite ξ_k as it is
-        # (normals by inversion of u + 2^-54 are never 0; any 0 takes the full loop)
+        # ρ = 0 a step adds 0·ξ_{k-1} = ±0, which leaves a finite ξ_k other than -0 as it is
+        # (normals by inversion of u + 2^-54 are never 0, those of a profile without speed
+        # noise +0; a -0 or a non-finite value takes the full loop)
         loop = np.flatnonzero(rh != 0.0)
-        if loop.size < pids.size and not np.all(np.isfinite(xi) & (xi != 0.0)):
+        if loop.size < pids.size and not np.all(np.isfinite(xi)
+                                                & ((xi != 0.0) | ~np.signbit(xi))):
             loop = np.arange(pids.size)
         if loop.size:
             part = xi if loop.size == pids.size else xi[:, loop]

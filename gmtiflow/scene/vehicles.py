@@ -319,6 +319,7 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
         stop_off.append(stop_off[-1] + len(p.stops))
     specs = [p.spec for p in profiles]
     arr = lambda f: np.asarray([float(f(s)) for s in specs], dtype=float)  # noqa: E731
+    sigma = arr(lambda s: s.speed_noise_mps)
     inp = motion.ProfileInputs(
         length_m=np.asarray([p.length_m for p in profiles], dtype=float),
         v0_mps=np.asarray([p.v0 for p in profiles], dtype=float),
@@ -329,7 +330,7 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
         stop_offset=np.asarray(stop_off, dtype=np.int64),
         max_accel_mps2=arr(lambda s: s.max_accel_mps2),
         max_decel_mps2=arr(lambda s: s.max_decel_mps2),
-        speed_noise_mps=arr(lambda s: s.speed_noise_mps),
+        speed_noise_mps=sigma,
         noise_rho=np.exp(-dt / np.maximum(arr(lambda s: s.speed_noise_corr_s), 1e-300)),
         p_stop=-np.expm1(-arr(lambda s: s.random_stop_rate_per_s) * dt),
         q_wait=np.minimum(1.0, dt / arr(lambda s: s.mean_wait_s)),
@@ -337,19 +338,21 @@ def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: fl
                                   dtype=np.int64),
         # one step past the scene's end, so the state at its last instant is the one a longer
         # scene has there (the step's start state and acceleration)
-        horizon_steps=horizon + 1, noise=_trip_noise(seed, [leader[p] for p in range(P)]))
+        horizon_steps=horizon + 1,
+        noise=_trip_noise(seed, [leader[p] for p in range(P)], sigma > 0))
     prof = motion.simulate_profiles(inp, dt, progress=progress)
     on, off = _on_off(vehicles, routes, prof)
     wander = _draw_wander(vehicles, seed, t0, on, off, horizon * dt, dt)
     return Fleet(vehicles, routes, prof, wander, t0, horizon * dt, on, off, roadmap)
 
 
-def _trip_noise(seed: int, names: List[str]) -> motion.NoiseSource:
+def _trip_noise(seed: int, names: List[str], noisy: np.ndarray) -> motion.NoiseSource:
     """The speed-profile noise of each profile from its leader's stream ``rng.stream(seed,
     "truth", "vehicle", name)``: per local step k, row k of 6 uniforms (normal by inversion of
     column 0, stop uniform 1, wait uniform 2; 3-5 spare), drawn step-major block by block while
     the trip lasts, so the draws follow the trip and a longer scene extends, never changes,
-    them."""
+    them.  ``noisy`` (per profile): whether it has speed noise; a profile without (σ = 0) gets
+    normals +0 instead of inverting its column 0 (drawn all the same: σξ is 0 either way)."""
     from scipy.special import ndtri   # imported here: scipy.special costs start-up time
     gens: Dict[int, np.random.Generator] = {}
 
@@ -362,8 +365,16 @@ def _trip_noise(seed: int, names: List[str]) -> motion.NoiseSource:
             gens[p].random(out=buf[c])
         # each used column as its own contiguous array (u + 2^-54, as before); the normals
         # by inversion in place
-        normal = buf[:, :, 0] + _HALF_ULP
-        ndtri(normal, out=normal)
+        inv = noisy[profiles]
+        if inv.all():
+            normal = buf[:, :, 0] + _HALF_ULP
+            ndtri(normal, out=normal)
+        else:
+            normal = np.zeros((len(pids), n))
+            rows = np.flatnonzero(inv)
+            if rows.size:
+                part = buf[rows, :, 0] + _HALF_ULP
+                normal[rows] = ndtri(part, out=part)
         return normal.T, (buf[:, :, 1] + _HALF_ULP).T, (buf[:, :, 2] + _HALF_ULP).T
     return draw
 
