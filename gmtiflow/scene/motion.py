@@ -834,14 +834,24 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             # binary search over all segments only for a row that passes more of them)
             key = S + c["pbase"]
             nk = c["nk"]
+            key_max = key.max(axis=1)
             passed = np.zeros(key.shape, np.uint8)      # segment starts passed (0/1 bytes)
             ge = np.empty(key.shape, bool)
             for q in range(_SEG_AHEAD):
-                np.greater_equal(key, nk[:, q:q + 1], out=ge)
-                passed += ge.view(np.uint8)
+                # start q is compared only in the rows that reach it (elsewhere key >= it is
+                # False in every column); the starts ascend, so none reached ends the loop
+                rows_q = ~(nk[:, q] > key_max)
+                n_q = np.count_nonzero(rows_q)
+                if not n_q:
+                    break
+                if 4 * n_q > rows_q.size:
+                    np.greater_equal(key, nk[:, q:q + 1], out=ge)
+                    passed += ge.view(np.uint8)
+                else:
+                    r = np.flatnonzero(rows_q)
+                    passed[r] += (key[r] >= nk[r, q:q + 1]).view(np.uint8)
             j = c["j0"] + passed
-            far = np.flatnonzero((key.max(axis=1) >= nk[:, -1])
-                                 | (key.min(axis=1) < c["k0"][:, 0]))
+            far = np.flatnonzero((key_max >= nk[:, -1]) | (key.min(axis=1) < c["k0"][:, 0]))
             if far.size:
                 j[far] = np.clip(np.searchsorted(seg_key, key[far], side="right") - 1,
                                  c["fseg"][far], c["lseg"][far])
