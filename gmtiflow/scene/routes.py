@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import chain
 from typing import Any, List, Optional, Sequence
 
 import numpy as np
@@ -242,6 +243,62 @@ def shortest_routes(roadmap: RoadMap, starts: Sequence[Any], ends: Sequence[Any]
 def off_road_routes(waypoints: Sequence[Sequence[Sequence[float]]]) -> List[Optional[Route]]:
     """``off_road_route(w)`` of many waypoint lists at once, the same routes; None where it
     would raise or drop coinciding waypoints (the caller asks it for that vehicle)."""
+    stacked = _stacked_waypoints(waypoints)
+    if stacked is not None:
+        xyz, counts = stacked
+        ok = [True] * len(counts)
+    else:
+        xyz, counts, ok = _converted_waypoints(waypoints)
+    if not counts:
+        return [None] * len(ok)
+    offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    seg = _seg_lengths(xyz)
+    zero = seg == 0
+    zero[offset[1:-1] - 1] = False           # the steps from one route to the next
+    n = len(xyz)
+    n_r = len(counts)
+    routes = _routes_from_flat(xyz, offset, np.full(n, -1, dtype=np.int64),
+                               np.full(n - n_r, -1, dtype=np.int64), np.zeros(n - n_r, bool),
+                               np.full(n - n_r, np.nan))
+    if zero.any():                           # coinciding waypoints: those routes one by one
+        bad = set((np.searchsorted(offset, np.flatnonzero(zero), side="right") - 1).tolist())
+        routes = [None if i in bad else r for i, r in enumerate(routes)]
+    it = iter(routes)
+    return [next(it) if g else None for g in ok]
+
+
+def _stacked_waypoints(waypoints) -> Optional[tuple]:
+    """``(xyz, counts)``: the vertices (n, 3) of every waypoint list, end to end, and the
+    length of each, read in bulk (a few C calls for thousands of vehicles), when :func:`
+    off_road_route` accepts every list as it is: at least two waypoints each, every waypoint
+    a list (or tuple) of finite ints and floats, all [x, y] (z = 0) or all [x, y, z].  None
+    otherwise (:func:`_converted_waypoints` then reads them one by one)."""
+    counts = list(map(len, waypoints))
+    if not counts or min(counts) < 2:
+        return None
+    points = list(chain.from_iterable(waypoints))
+    widths = set(map(len, points)) if set(map(type, points)) <= {list, tuple} else None
+    if widths not in ({2}, {3}) or not set(map(type, chain.from_iterable(points))) <= {int,
+                                                                                      float}:
+        return None
+    width = widths.pop()
+    try:
+        values = np.fromiter(chain.from_iterable(points), float, len(points) * width)
+    except OverflowError:                    # an int too large for a float
+        return None
+    if not np.isfinite(values).all():
+        return None
+    if width == 3:
+        return values.reshape(-1, 3), counts
+    xyz = np.zeros((len(points), 3))
+    xyz[:, :2] = values.reshape(-1, 2)
+    return xyz, counts
+
+
+def _converted_waypoints(waypoints) -> tuple:
+    """``(xyz, counts, ok)``: as :func:`_stacked_waypoints`, each waypoint converted as
+    :func:`off_road_route` converts it, for the lists it accepts (``ok``), the others left
+    out."""
     pts, counts, ok = [], [], []
     for w in waypoints:
         vals = []
@@ -262,20 +319,4 @@ def off_road_routes(waypoints: Sequence[Sequence[Sequence[float]]]) -> List[Opti
         if good:
             pts.extend(vals)
             counts.append(len(vals) // 3)
-    if not counts:
-        return [None] * len(ok)
-    xyz = np.asarray(pts, dtype=float).reshape(-1, 3)
-    offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    seg = _seg_lengths(xyz)
-    zero = seg == 0
-    zero[offset[1:-1] - 1] = False           # the steps from one route to the next
-    n = len(xyz)
-    n_r = len(counts)
-    routes = _routes_from_flat(xyz, offset, np.full(n, -1, dtype=np.int64),
-                               np.full(n - n_r, -1, dtype=np.int64), np.zeros(n - n_r, bool),
-                               np.full(n - n_r, np.nan))
-    if zero.any():                           # coinciding waypoints: those routes one by one
-        bad = set((np.searchsorted(offset, np.flatnonzero(zero), side="right") - 1).tolist())
-        routes = [None if i in bad else r for i, r in enumerate(routes)]
-    it = iter(routes)
-    return [next(it) if g else None for g in ok]
+    return np.asarray(pts, dtype=float).reshape(-1, 3), counts, ok

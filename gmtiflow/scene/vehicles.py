@@ -104,6 +104,11 @@ def _node_positions(route: Route, roadmap: RoadMap, refs, who: str) -> List[np.n
     return out
 
 
+_NO_STOPS = np.zeros(0)
+_NO_STOPS.flags.writeable = False
+"""The stops of a profile without stop points (one array, shared: read-only)."""
+
+
 def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
     """Specs -> (list of _ProfileSpec, list of _Vehicle, list of Route)."""
     routes: List[Route] = []
@@ -145,7 +150,7 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
                              for hs, sc in zip(hits, spec.speed_changes) for h in hs)
             for node_pos, speed in changes:
                 base[node_pos:] = speed
-        stops = np.zeros(0)
+        stops = _NO_STOPS
         if spec.stop_points:
             hits = _node_positions(route, roadmap, spec.stop_points, who)
             stops = np.unique(route.s_m[np.concatenate(hits)])
@@ -177,7 +182,7 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
                                      obey_speed_limits=bool(spec.obey_speed_limits),
                                      stops=stops, spec=spec,
                                      name=members[0][0]))
-        sig = tuple(float(x) for x in spec.position_noise_m)
+        sig = tuple(map(float, spec.position_noise_m))
         for name, off in members:
             vehicles.append(_Vehicle(name=name, type=str(spec.type), convoy_id=convoy_id,
                                      profile=p, route=r, offset_m=off,

@@ -1,5 +1,6 @@
 """Routes: Dijkstra picks the shortest path, honours oneway, and reports unreachable goals."""
 import itertools
+import math
 
 import networkx as nx
 import numpy as np
@@ -133,3 +134,31 @@ def test_many_off_road_routes_at_once_are_each_vehicles_own():
             continue
         same_route(r, want)
     assert sum(r is None for r in got) == 5 and got[0] is not None
+
+
+@pytest.mark.parametrize("width", [2, 3])
+def test_waypoint_lists_read_in_bulk_give_each_vehicles_own_route(width):
+    from gmtiflow.scene import routes
+    g = np.random.default_rng(7)
+    ways = [g.uniform(-5e3, 5e3, (int(g.integers(2, 9)), width)).tolist() for _ in range(100)]
+    ways[3] = [[int(v) for v in p] for p in ways[3]]            # ints as floats
+    ways[5] = [tuple(p) for p in ways[5]]
+    ways[7] = [ways[7][0], ways[7][0], *ways[7][1:]]           # coinciding: handed back
+    assert routes._stacked_waypoints(ways) is not None
+    got = routes.off_road_routes(ways)
+    for i, (w, r) in enumerate(zip(ways, got)):
+        if i == 7:
+            assert r is None
+            continue
+        same_route(r, off_road_route(w))
+    assert routes._stacked_waypoints(ways[:4] + [[[0.0, 0.0], [10 ** 400, 1.0]]]) is None
+    for bad in ([[0.0, 0.0], [True, 1.0]], [[0.0, 0.0]],
+                [[0.0, 0.0], [math.inf, 1.0]], [[0.0, 0.0, 0.0][:width], [1.0, 2.0, 3.0, 4.0]]):
+        assert routes._stacked_waypoints(ways[:4] + [bad]) is None     # read one by one
+        got = routes.off_road_routes(ways[:4] + [bad])
+        for w, r in zip(ways[:4], got):
+            same_route(r, off_road_route(w))
+        try:
+            same_route(got[4], off_road_route(bad))                     # a bool is 1.0
+        except RoadMapError:
+            assert got[4] is None
