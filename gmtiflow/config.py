@@ -23,6 +23,7 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
+from omegaconf._utils import is_float, is_int, yaml_is_bool   # loaded with omegaconf
 from omegaconf.errors import OmegaConfBaseException
 
 from gmtiflow import config_yaml
@@ -437,7 +438,6 @@ def _resolves_as_str(text: str) -> bool:
     """A bare ``text`` reads back as the string itself: OmegaConf's dumper does not quote it
     (it quotes what reads as a bool or number) and no implicit resolver of the dumper claims it
     (null, timestamps ...), as ``Resolver.resolve`` decides."""
-    from omegaconf._utils import yaml_is_bool
     if yaml_is_bool(text) or _reads_as_number(text):
         return False
     resolvers = _yaml_dumper().yaml_implicit_resolvers
@@ -456,7 +456,6 @@ def _reads_as_number(text: str) -> bool:
     int, and a float only as inf, infinity or nan (any case, trailing ASCII whitespace)."""
     if text[:1].isalpha() and text.isascii():
         return text.rstrip(" \t\n\v\f\r").lower() in _WORD_NUMBERS
-    from omegaconf._utils import is_float, is_int
     return is_int(text) or is_float(text)
 
 

@@ -45,6 +45,7 @@ def numeric_leaves(obj, prefix: str = "", bound: Optional[float] = None
 
 
 _NOT_NUMERIC = frozenset({str, bool, type(None)})
+_NUMBERS = frozenset({int, float})
 SCALARS = frozenset({int, float, bool, str, type(None)})
 """The exact types of plain leaves: none of them is a container or a dataclass."""
 
@@ -131,7 +132,8 @@ def records_within(items, bound: float) -> bool:
         if kinds <= _NOT_NUMERIC:
             continue
         if kinds <= SCALARS:
-            numbers = [v for v in column if type(v) is int or type(v) is float]
+            numbers = column if kinds <= _NUMBERS else [
+                v for v in column if type(v) is int or type(v) is float]
             if not (-bound <= min(numbers) and max(numbers) <= bound):
                 return False
         elif kinds <= {list, tuple}:

@@ -31,6 +31,8 @@ from enum import Enum
 from itertools import chain
 from typing import Callable, Dict, List, Optional, Tuple
 
+import numpy as np
+
 from gmtiflow.config_tree import field_names, field_values
 
 WIDTH = 80
@@ -95,12 +97,14 @@ def float_text(value: float) -> str:
 def number_texts(numbers: list, kinds: set) -> List[str]:
     """PyYAML's text of each int and float of ``numbers`` (``kinds``: their types).
 
-    Lists of waypoints repeat their values (a lapped route, a convoy's shared corners): each
-    distinct float is written once when there are few of them.  Floats only, and no zero
-    (``0.0 == -0.0`` would share one text): ints equal to floats would share one too."""
+    Lists of waypoints repeat their values (a lapped route, a convoy's shared corners), and a
+    field's values across a vehicle list often are one value: each distinct float is written
+    once when there are few of them.  Floats only (ints equal to floats would share one text),
+    and zeros only when all have one sign (``0.0 == -0.0`` would share one text too)."""
     if kinds == {float} and len(numbers) > 64:
         distinct = dict.fromkeys(numbers)
-        if len(distinct) * 2 <= len(numbers) and 0.0 not in distinct:
+        if len(distinct) * 2 <= len(numbers) and (0.0 not in distinct
+                                                  or _zeros_of_one_sign(numbers)):
             texts = list(map(repr, distinct))
             if "e" in "".join(texts) or "n" in "".join(texts):
                 texts = list(map(float_text, distinct))
@@ -110,6 +114,13 @@ def number_texts(numbers: list, kinds: set) -> List[str]:
     if "e" in joined or "n" in joined:
         texts = [float_text(v) if type(v) is float else repr(v) for v in numbers]
     return texts
+
+
+def _zeros_of_one_sign(numbers: List[float]) -> bool:
+    """The zeros among ``numbers`` (floats) are all +0.0 or all -0.0."""
+    values = np.asarray(numbers, dtype=float)
+    negative = np.signbit(values[values == 0.0])
+    return bool(negative.all() or not negative.any())
 
 
 _SCALARS: Dict[type, Callable[[object], str]] = {
@@ -256,7 +267,8 @@ class _Writer:
         """The text of ``head`` + each value, as :meth:`entry` writes it."""
         kinds = set(map(type, values))
         if kinds == {float}:
-            return [head + " " + text for text in number_texts(list(values), kinds)]
+            head += " "
+            return [head + text for text in number_texts(list(values), kinds)]
         if kinds == {str}:
             column = len(head) + 1
             return [head + " " + self.string(value, column) for value in values]

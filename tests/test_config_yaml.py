@@ -277,6 +277,21 @@ def test_many_repeated_waypoints_are_written_as_pyyaml_writes_them():
         assert fast_text({"k": laps + extra}) == config.pyyaml_text({"k": laps + extra})
 
 
+@pytest.mark.parametrize("zeros", [[0.0] * 100, [-0.0] * 100, [0.0] * 99 + [-0.0],
+                                   [-0.0] + [0.0] * 99])
+def test_many_repeated_zeros_are_written_with_their_sign(zeros):
+    # a field that is zero in every vehicle is written once, unless zeros of both signs
+    values = zeros + [1.5] * 10
+    tree = {"k": values, "rows": [[z, 1.0] for z in values]}
+    assert fast_text(tree) == config.pyyaml_text(tree)
+    tree = VehiclesConfig(vehicles=[VehicleSpec(name=f"v{i}", start_time_s=z,
+                                                off_road=[[z, 1.0], [2.0, z]])
+                                    for i, z in enumerate(values)])
+    text = fast_text(tree)
+    assert text is not None and text == config.pyyaml_text(tree)
+    assert text.count("-0.0") == 3 * sum(math.copysign(1.0, z) < 0 for z in zeros)
+
+
 @pytest.mark.parametrize("text", ["inf", "Infinity", "nAn", "inf ", "nan\t\n", "inf\x1c", "info",
                                   "t0001", "yes", "null", "1e5", "+inf", "x"])
 def test_words_read_as_numbers_as_omegaconf_reads_them(text):
