@@ -23,9 +23,11 @@ Writing speed: every numeric column is compressed by :class:`_ChunkDeflater`, wh
 the datasets' own filters (shuffle, then deflate, :func:`_deflated_chunk`; byte planes that are
 noise go into the deflate stream as stored blocks) on the calling thread for a run's first
 :data:`_INLINE_RUN_BYTES`, then in worker threads while the simulation goes on, and writes the
-finished chunks in order with HDF5's direct chunk write.  The datasets and their attributes are
-made with h5py's low-level API from property lists built once.  The file is the same standard
-gzip + shuffle HDF5 file, with the same values, readable by any HDF5 reader.
+finished chunks in order with HDF5's direct chunk write; the planes of a table's chunks are
+judged together (:func:`_deflated_chunks`).  The datasets and their attributes are made with
+h5py's low-level API from property lists built once, a table's before its chunks are
+written.  The file is the same standard gzip + shuffle HDF5 file, with the same values,
+readable by any HDF5 reader.
 """
 from __future__ import annotations
 
@@ -221,27 +223,50 @@ _SAMPLE_INDEX: Dict[int, np.ndarray] = {}
 _KEY_OFFSETS = np.arange(256, dtype=np.uint16) << 8
 
 
-def _plane_samples(planes: np.ndarray):
-    """``(bits, repeated, strings, noise, runs)`` of ``planes`` (byte planes, one a row), from
-    a sample of :data:`_SAMPLE_BLOCKS` runs of :data:`_SAMPLE_BYTES` bytes spread over each
-    plane: its entropy in bits a byte, the fraction of its bytes equal to the one before, the
-    fraction of the 4-byte strings of its middle run that occur twice or more in that run (what
-    deflate's matches can replace), whether the plane looks like noise: more than
-    :data:`_NOISE_BITS` bits a byte and hardly a byte equal to the one before (the low bytes of
-    measured floats), and the fraction of its bytes equal to the three before (what a
-    run-length match can cover).  All None for planes too short to sample.  Depends on the
-    bytes only (deterministic files)."""
+def _sample(planes: np.ndarray) -> Optional[np.ndarray]:
+    """The sample :func:`_plane_samples` judges ``planes`` (byte planes, one a row) by: of each
+    plane, :data:`_SAMPLE_BLOCKS` runs of :data:`_SAMPLE_BYTES` bytes spread over it, one row
+    of the result; None for planes too short to sample (or none)."""
     k, n = planes.shape
     if k == 0 or n < 4 * _SAMPLE_BLOCKS * _SAMPLE_BYTES:
-        return None, None, None, None, None
+        return None
     index = _SAMPLE_INDEX.get(n)
     if index is None:
         if len(_SAMPLE_INDEX) >= 256:
             _SAMPLE_INDEX.clear()
         starts = np.linspace(0, n - _SAMPLE_BYTES, _SAMPLE_BLOCKS).astype(np.intp)
         index = _SAMPLE_INDEX[n] = (starts[:, None] + np.arange(_SAMPLE_BYTES)).ravel()
-    sample = planes.take(index, axis=1)
-    counts = np.bincount((sample + _KEY_OFFSETS[:k, None]).ravel(), minlength=256 * k)
+    return planes.take(index, axis=1)
+
+
+def _plane_samples(planes: np.ndarray):
+    """``(bits, repeated, strings, noise, runs)`` of ``planes`` (byte planes, one a row), from
+    a sample of :data:`_SAMPLE_BLOCKS` runs of :data:`_SAMPLE_BYTES` bytes spread over each
+    plane (:func:`_sample`): its entropy in bits a byte, the fraction of its bytes equal to the
+    one before, the fraction of the 4-byte strings of its middle run that occur twice or more
+    in that run (what deflate's matches can replace), whether the plane looks like noise: more
+    than :data:`_NOISE_BITS` bits a byte and hardly a byte equal to the one before (the low
+    bytes of measured floats), and the fraction of its bytes equal to the three before (what
+    a run-length match can cover).  All None for planes too short to sample.  Depends on the
+    bytes only (deterministic files)."""
+    sample = _sample(planes)
+    if sample is None:
+        return None, None, None, None, None
+    return _sample_stats(sample)
+
+
+def _key_offsets(k: int) -> np.ndarray:
+    """``256 * i`` for the i-th of ``k`` sample rows: (row, byte) as one bincount key."""
+    if k <= len(_KEY_OFFSETS):
+        return _KEY_OFFSETS[:k, None]
+    return (np.arange(k, dtype=np.uint32) << 8)[:, None]
+
+
+def _sample_stats(sample: np.ndarray):
+    """:func:`_plane_samples`'s figures of each row of ``sample`` (rows of :func:`_sample`,
+    of one plane or of many chunks' planes: every figure is its row's own)."""
+    k = sample.shape[0]
+    counts = np.bincount((sample + _key_offsets(k)).ravel(), minlength=256 * k)
     m = sample.shape[1]
     bits = np.log2(m) - _XLOGX[counts].reshape(k, 256).sum(axis=1) / m
     runs = sample.reshape(k, _SAMPLE_BLOCKS, _SAMPLE_BYTES)
@@ -385,38 +410,82 @@ def _deflated_chunk(values, pad_rows: int = 0) -> bytes:
     about a quarter of the CPU of HDF5's own level-1 deflate, for 1-2 % more bytes
     (docs/tables.md).  zlib releases the GIL while compressing.  A chunk of fewer than
     :data:`_SMALL_BYTES` is shuffled and deflated whole, as HDF5's filters would."""
+    prep = _chunk_planes(values, pad_rows)
+    if isinstance(prep, bytes):
+        return prep
+    return _encoded(prep, _plane_ways(_plane_samples(prep[4]), len(prep[4])), pad_rows)
+
+
+def _deflated_chunks(chunks: list) -> list:
+    """``[_deflated_chunk(values, pad_rows) for values, pad_rows in chunks]``, the same bytes,
+    with the planes of every chunk judged at once (:func:`_sample_stats` over all their
+    samples, :func:`_plane_ways`): a table's columns, each a chunk of a few planes, pay
+    numpy's per-call cost once rather than once a column."""
+    preps = [_chunk_planes(values, pad_rows) for values, pad_rows in chunks]
+    samples = [None if isinstance(prep, bytes) else _sample(prep[4]) for prep in preps]
+    judged = [x for x in samples if x is not None]
+    ways = iter(_plane_ways(_sample_stats(np.concatenate(judged)) if len(judged) > 1 else
+                            _sample_stats(judged[0]), sum(len(x) for x in judged))
+                if judged else [])
+    out = []
+    for prep, sample, (_, pad_rows) in zip(preps, samples, chunks):
+        if isinstance(prep, bytes):
+            out.append(prep)
+            continue
+        n_planes = len(prep[4])
+        way = [next(ways) for _ in range(n_planes)] if sample is not None else \
+            _plane_ways((None,) * 5, n_planes)
+        out.append(_encoded(prep, way, pad_rows))
+    return out
+
+
+_STORED = -1
+"""A plane's way (:func:`_plane_ways`): stored blocks, not deflated."""
+
+
+def _plane_ways(stats, n_planes: int) -> list:
+    """How each of ``n_planes`` planes goes into the stream, from their sample figures
+    ``stats`` (:func:`_plane_samples`; all None: too short to sample, ``Z_RLE``): the zlib
+    strategy of the compressor expected to deflate it smaller, or :data:`_STORED` (noise)."""
+    bits, repeated, strings, noise, run_bytes = stats
+    if noise is None:
+        return [zlib.Z_RLE] * n_planes
+    runs_pay = np.maximum(bits, 1.0) > bits * (1 - run_bytes) + _HUFFMAN_MARGIN_BITS
+    way = np.where(runs_pay, zlib.Z_RLE, zlib.Z_HUFFMAN_ONLY)
+    if _MATCH_STRATEGY is not None:
+        matched = (1 - strings) * _LITERAL_BITS < bits * (1 - repeated)     # bits a byte
+        way = np.where(matched, _MATCH_STRATEGY, way)
+    return np.where(noise, _STORED, way).tolist()
+
+
+def _chunk_planes(values, pad_rows: int):
+    """A chunk's values (as :func:`_deflated_chunk` takes them) as ``(pieces, k, n, const,
+    planes)``: its contiguous pieces, element size, rows, constant planes and the others
+    shuffled (:func:`_shuffled`); or, for a chunk of fewer than :data:`_SMALL_BYTES` without
+    padding, its finished deflate stream (one zlib call: the analysis costs more)."""
     pieces = values if isinstance(values, list) else [values]
     k = pieces[0].dtype.itemsize
     pieces = [np.ascontiguousarray(p) for p in pieces if len(p)] or pieces[:1]
     n = sum(len(p) for p in pieces)
-    if n * k < _SMALL_BYTES and not pad_rows:    # one zlib call: the analysis costs more
+    if n * k < _SMALL_BYTES and not pad_rows:
         raw = (pieces[0] if len(pieces) == 1 else np.concatenate(pieces)).view(np.uint8)
         return zlib.compress(raw if k == 1 else np.ascontiguousarray(raw.reshape(-1, k).T),
                              _DEFLATE_LEVEL)
     const = _constant_planes(pieces)
-    planes = _shuffled(pieces, np.flatnonzero(~const), n)
-    bits, repeated, strings, noise, run_bytes = _plane_samples(planes)
+    return pieces, k, n, const, _shuffled(pieces, np.flatnonzero(~const), n)
+
+
+def _encoded(prep: tuple, ways: list, pad_rows: int) -> bytes:
+    """The deflate stream of a chunk prepared by :func:`_chunk_planes`, its varying planes
+    going in the ``ways`` of :func:`_plane_ways` (:func:`_deflated_chunk`)."""
+    pieces, k, n, const, planes = prep
     rows = iter(planes)
+    how = iter(ways)
     first = pieces[0].view(np.uint8)[:k].tolist()
     parts = [_ZLIB_HEADER]
     adler = 1
     z_open = None             # the compressor of the open section (not yet flushed)
     try:
-        rle = _compressor(zlib.Z_RLE)
-        if noise is None:
-            how = [rle] * len(planes)
-        else:   # per plane: stored (None) or the compressor expected to deflate it smaller
-            huff = _compressor(zlib.Z_HUFFMAN_ONLY)
-            runs_pay = np.maximum(bits, 1.0) > bits * (1 - run_bytes) + _HUFFMAN_MARGIN_BITS
-            if _MATCH_STRATEGY is None:
-                matched = np.zeros(len(planes), bool)
-            else:
-                quick = _compressor(_MATCH_STRATEGY)
-                matched = (1 - strings) * _LITERAL_BITS < bits * (1 - repeated)  # bits a byte
-            how = [None if noisy else quick if match else rle if pay else huff
-                   for noisy, match, pay in zip(noise.tolist(), matched.tolist(),
-                                                runs_pay.tolist())]
-        how = iter(how)
         padding = _constant_section(0, pad_rows) if pad_rows else None
         for j in range(k):
             if const[j]:
@@ -430,7 +499,8 @@ def _deflated_chunk(values, pad_rows: int = 0) -> bytes:
             else:
                 plane = next(rows)
                 adler = zlib.adler32(plane, adler)
-                z = next(how)
+                way = next(how)
+                z = None if way == _STORED else _compressor(way)
             if z_open is not None and z is not z_open:
                 parts.append(z_open.flush(zlib.Z_FULL_FLUSH))
             if z is not None:
@@ -459,16 +529,17 @@ def _deflated_chunk(values, pad_rows: int = 0) -> bytes:
 class _ChunkDeflater:
     """Writes whole chunks of compressed 1-D datasets, compressing them in worker threads.
 
-    Rows are given in order per dataset (:meth:`add`); whole chunks go to the pool at once, the
+    Rows are given in order per dataset (:meth:`add`, or a table's columns at once:
+    :meth:`add_many`); whole chunks go to the pool at once, the
     rest of a chunk waits for more rows (or :meth:`finish`, which pads the last chunk with zeros,
     as HDF5 stores an edge chunk).  Compressed chunks are written on the calling thread, in the
     order they were submitted and at points that do not depend on the threads' timing, so the
     file's layout does not either; at most :attr:`max_pending` chunks wait in memory.  A chunk
     of fewer than :data:`_INLINE_BYTES` is compressed and written at once on the calling thread
     (a thread hand-off costs more than its deflate), and so is every chunk until
-    ``inline_bytes`` have been (a small run: :data:`_INLINE_RUN_BYTES`); which chunks those are
-    depends on their sizes only, so the order of the HDF5 calls still does not depend on the
-    threads.
+    ``inline_bytes`` have been (a small run: :data:`_INLINE_RUN_BYTES`), the chunks of one
+    :meth:`add_many` together (:func:`_deflated_chunks`); which chunks those are depends on their
+    sizes only, so the order of the HDF5 calls still does not depend on the threads.
     """
 
     def __init__(self, workers: int, max_pending: int = 64, inline_bytes: int = 0):
@@ -484,34 +555,51 @@ class _ChunkDeflater:
         """Rows ``values`` (an array, or a list of arrays of one dtype: their rows in order,
         never joined into one copy) of dataset ``dsid`` (path ``key``, chunks of
         ``chunk_rows``) from row ``start`` (the dataset already has that size)."""
-        pieces = list(values) if isinstance(values, list) else [values]
-        tail = self.tails.pop(key, None)
-        if tail is not None:
-            start = tail[2]
-            pieces = tail[3] + pieces
-        total = sum(len(p) for p in pieces)
-        full = (total // chunk_rows) * chunk_rows
-        chunks, rest = _cut(pieces, chunk_rows, full)
-        for i, chunk in enumerate(chunks):
-            self._submit(dsid, start + i * chunk_rows, chunk)
-        if full < total:
-            self.tails[key] = (dsid, chunk_rows, start + full, rest)
+        self.add_many([(key, dsid, chunk_rows, start, values)])
+
+    def add_many(self, columns: list) -> None:
+        """:meth:`add` of each ``(key, dsid, chunk_rows, start, values)`` of ``columns`` (a
+        table's), their whole chunks deflated together (:meth:`_submit_many`)."""
+        jobs = []
+        for key, dsid, chunk_rows, start, values in columns:
+            pieces = list(values) if isinstance(values, list) else [values]
+            tail = self.tails.pop(key, None)
+            if tail is not None:
+                start = tail[2]
+                pieces = tail[3] + pieces
+            total = sum(len(p) for p in pieces)
+            full = (total // chunk_rows) * chunk_rows
+            chunks, rest = _cut(pieces, chunk_rows, full)
+            jobs += [(dsid, start + i * chunk_rows, chunk, 0) for i, chunk in enumerate(chunks)]
+            if full < total:
+                self.tails[key] = (dsid, chunk_rows, start + full, rest)
+        self._submit_many(jobs)
         self.write_done()
 
-    def _submit(self, dsid, offset: int, chunk, pad_rows: int = 0) -> None:
-        """Deflate and write ``chunk`` (an array, or a list of arrays: its rows in order),
-        followed by ``pad_rows`` zero values (:func:`_deflated_chunk`)."""
-        if isinstance(chunk, list):
-            chunk = chunk[0] if len(chunk) == 1 else chunk
-        nbytes = sum(p.nbytes for p in chunk) if isinstance(chunk, list) else chunk.nbytes
-        if self.workers <= 0 or nbytes < _INLINE_BYTES or self.inline_bytes > 0:
-            self.inline_bytes -= nbytes
-            dsid.write_direct_chunk((offset,), _deflated_chunk(chunk, pad_rows))
-            return
-        if self.pool is None:
-            self.pool = ThreadPoolExecutor(max_workers=self.workers,
-                                           thread_name_prefix="deflate")
-        self.pending.append((dsid, offset, self.pool.submit(_deflated_chunk, chunk, pad_rows)))
+    def _submit_many(self, jobs: list) -> None:
+        """Deflate and write each ``(dsid, offset, chunk, pad_rows)`` of ``jobs``: ``chunk``
+        (an array, or a list of arrays: its rows in order) followed by ``pad_rows`` zero
+        values (:func:`_deflated_chunk`).  Which go to the threads depends on their sizes
+        only; the others are deflated together (:func:`_deflated_chunks`) and written at once,
+        in order."""
+        inline = []
+        for dsid, offset, chunk, pad_rows in jobs:
+            if isinstance(chunk, list):
+                chunk = chunk[0] if len(chunk) == 1 else chunk
+            nbytes = sum(p.nbytes for p in chunk) if isinstance(chunk, list) else chunk.nbytes
+            if self.workers <= 0 or nbytes < _INLINE_BYTES or self.inline_bytes > 0:
+                self.inline_bytes -= nbytes
+                inline.append((dsid, offset, chunk, pad_rows))
+                continue
+            if self.pool is None:
+                self.pool = ThreadPoolExecutor(max_workers=self.workers,
+                                               thread_name_prefix="deflate")
+            self.pending.append((dsid, offset,
+                                 self.pool.submit(_deflated_chunk, chunk, pad_rows)))
+        if inline:
+            streams = _deflated_chunks([(chunk, pad) for _, _, chunk, pad in inline])
+            for (dsid, offset, _, _), stream in zip(inline, streams):
+                dsid.write_direct_chunk((offset,), stream)
 
     def write_done(self, wait: bool = False) -> None:
         """Write the oldest compressed chunks, in order, until at most ``max_pending`` remain
@@ -524,8 +612,8 @@ class _ChunkDeflater:
     def finish(self) -> None:
         """Write every dataset's last, partial chunk, padded with zeros to its full size;
         wait for every chunk."""
-        for dsid, chunk_rows, start, pieces in self.tails.values():
-            self._submit(dsid, start, pieces, chunk_rows - sum(len(p) for p in pieces))
+        self._submit_many([(dsid, start, pieces, chunk_rows - sum(len(p) for p in pieces))
+                           for dsid, chunk_rows, start, pieces in self.tails.values()])
         self.tails.clear()
         self.write_done(wait=True)
 
@@ -690,6 +778,7 @@ class RunWriter:
         group = self._file.require_group(name)
         prefix = group.name.rstrip("/") + "/"
         space = h5s.create_simple((n,), (h5s.UNLIMITED,))     # every column's: n rows
+        numeric = []                    # deflated together once every column is made
         for column in parts[0]:
             pieces = _column_pieces(parts, column)
             text = pieces is None
@@ -709,9 +798,10 @@ class RunWriter:
             if descriptions and column in descriptions:
                 _set_text_attr(dsid, b"description", descriptions[column])
             if n and not text:      # compressed by the deflater (threads), written when ready
-                self._deflater.add(prefix + column, dsid, chunk_rows, 0, pieces)
+                numeric.append((prefix + column, dsid, chunk_rows, 0, pieces))
             elif n:
                 dsid.write(h5s.ALL, h5s.ALL, np.asarray(data, dtype=_STR))
+        self._deflater.add_many(numeric)
 
     def append_table(self, name: str, table: "Mapping[str, np.ndarray] | List[Table]") -> None:
         """Append rows to an existing table (for time-chunked streaming), or create it;
@@ -725,17 +815,19 @@ class RunWriter:
             raise ValueError(f"append to /{name}: columns {sorted(columns)} differ from "
                              f"{sorted(group.keys())}")
         parts, rows = self._parts(table)
+        numeric = []                    # deflated together once every column is resized
         for column in parts[0]:
             ds = group[column]
             old = ds.shape[0]
             ds.resize((old + rows,))
             if ds.compression == "gzip" and ds.chunks is not None and old % ds.chunks[0] == 0 \
                     or ds.name in self._deflater.tails:
-                self._deflater.add(ds.name, ds.id, ds.chunks[0], old,
-                                   [np.asarray(p[column]).astype(ds.dtype, copy=False)
-                                    for p in parts])
+                numeric.append((ds.name, ds.id, ds.chunks[0], old,
+                                [np.asarray(p[column]).astype(ds.dtype, copy=False)
+                                 for p in parts]))
             else:
                 ds[old:] = _as_storable(_joined(parts, column))
+        self._deflater.add_many(numeric)
 
     def commit(self) -> Path:
         """Mark the file complete, close it and rename it into place."""

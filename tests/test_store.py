@@ -209,6 +209,25 @@ def test_a_padded_last_chunk_inflates_to_its_rows_and_zeros():
     assert len(store._deflated_chunk(noise, n - len(noise))) < noise.nbytes + 1000
 
 
+def test_chunks_deflated_together_are_the_bytes_of_each_alone():
+    """A table's chunks are judged together (one analysis of all their planes' samples): the
+    same streams as each chunk deflated alone, whatever their element sizes, lengths (too
+    short to sample, under _SMALL_BYTES), padding, pieces and constant planes."""
+    n = store._CHUNK_ROWS
+    rng = np.random.default_rng(12)
+    chunks = [(rng.normal(size=20_000), 0), (np.arange(31_134, dtype=np.int64), 0),
+              (np.full(9000, 2.5), 0), (rng.random(40_000) < 0.2, 0),
+              (np.arange(10, dtype=np.int64), 0), (rng.integers(0, 9, 3000), 0),
+              (_strategy_planes(n), 0), (_mixed_planes(n), 0),
+              ([rng.normal(size=100), rng.normal(size=30_000)], n - 30_100),
+              (np.repeat(rng.normal(size=500), 30).astype(np.float32), 0),
+              (np.zeros(5, np.int64), n - 5), (rng.integers(0, 2**63, 4000, dtype=np.uint64), 0)]
+    alone = [store._deflated_chunk(values, pad) for values, pad in chunks]
+    assert store._deflated_chunks(chunks) == alone
+    assert store._deflated_chunks(chunks[::-1]) == alone[::-1]
+    assert store._deflated_chunks([]) == []
+
+
 def test_constant_planes_are_found_and_checksummed_without_their_bytes():
     """Byte planes that hold one byte value (ids' high bytes, constant columns) are sections
     made once; the stream's checksum over them is zlib's (the inflater checks it)."""
