@@ -268,6 +268,17 @@ def test_a_clean_vehicle_list_is_checked_field_by_field():
     assert not config._reported_records(vehicles, True)      # a dict: walked item by item
 
 
+def test_columns_are_remembered_only_inside_the_block():
+    from gmtiflow.config_tree import record_columns, remembering
+    vehicles = peer_config(5).vehicles.vehicles
+    with remembering():
+        columns = record_columns(vehicles)
+        with remembering():
+            assert record_columns(vehicles) is columns
+        assert record_columns(vehicles) is columns
+    assert record_columns(vehicles) is not columns and record_columns(vehicles) == columns
+
+
 # --- a vehicle list's own problems(): checked column by column, the same answer ------------
 
 def reference_vehicles_problems(vehicles):
