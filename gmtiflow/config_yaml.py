@@ -102,13 +102,14 @@ def number_texts(numbers: list, kinds: set) -> List[str]:
     once when there are few of them.  Floats only (ints equal to floats would share one text),
     and zeros only when all have one sign (``0.0 == -0.0`` would share one text too)."""
     if kinds == {float} and len(numbers) > 64:
-        distinct = dict.fromkeys(numbers)
-        if len(distinct) * 2 <= len(numbers) and (0.0 not in distinct
-                                                  or _zeros_of_one_sign(numbers)):
+        values = np.fromiter(numbers, float, len(numbers))
+        distinct, index = np.unique(values, return_inverse=True)    # NaNs as one: all .nan
+        if len(distinct) * 2 <= len(numbers) and _zeros_of_one_sign(values):
+            distinct = distinct.tolist()
             texts = list(map(repr, distinct))
             if "e" in "".join(texts) or "n" in "".join(texts):
                 texts = list(map(float_text, distinct))
-            return list(map(dict(zip(distinct, texts)).__getitem__, numbers))
+            return np.array(texts, dtype=object)[index.reshape(-1)].tolist()
     texts = list(map(repr, numbers))                   # repr is str for an int
     joined = "".join(texts)
     if "e" in joined or "n" in joined:
@@ -116,9 +117,8 @@ def number_texts(numbers: list, kinds: set) -> List[str]:
     return texts
 
 
-def _zeros_of_one_sign(numbers: List[float]) -> bool:
-    """The zeros among ``numbers`` (floats) are all +0.0 or all -0.0."""
-    values = np.asarray(numbers, dtype=float)
+def _zeros_of_one_sign(values: np.ndarray) -> bool:
+    """The zeros among ``values`` are all +0.0 or all -0.0."""
     negative = np.signbit(values[values == 0.0])
     return bool(negative.all() or not negative.any())
 
