@@ -806,7 +806,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         last_a = step_a + 1 >= horizon[ids][:, None]
         per = {"amx": amax_all, "dmx": dmax_all, "dcap": d_cap_all, "fseg": first_seg,
                "lseg": last_seg, "pbase": prof_base, "c1": c1, "look_a": look_a_all,
-               "length": length_all}
+               "length": length_all, "slow": slow_mps}
         per = {key: val[ids][:, None] for key, val in per.items()}
         per["drawn"] = (top[ids] - (kk - base[ids]))[:, None]     # steps with drawn noise
         j0 = np.clip(np.searchsorted(seg_key, s_at[ids] + prof_base[ids], side="right") - 1,
@@ -856,10 +856,16 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                 j[far] = np.clip(np.searchsorted(seg_key, key[far], side="right") - 1,
                                  c["fseg"][far], c["lseg"][far])
             target = seg_target[j]
+            noisy = target + x1
+            # The braking cap is at least T_B, one of the profile's targets or inf (the square
+            # root of a square rounds back to it, and 2 d ahead >= 0 only adds), so it cannot
+            # bind in rows whose noisy targets are all within the profile's slowest target
+            # (no speed noise, as the Stone Soup peer's targets): then it is not computed.
+            if (noisy.max(axis=1) <= c["slow"][:, 0]).all():
+                return target, noisy, np.maximum(noisy, 0.0)
             with np.errstate(invalid="ignore"):
                 ahead = np.maximum(cap_s[j] - (S + V * dt), 0.0)
             cap = np.sqrt(cap_t2[j] + 2.0 * c["dcap"] * ahead)
-            noisy = target + x1
             return target, noisy, np.maximum(np.minimum(noisy, cap), 0.0)
 
         if guess_noise[0]:
