@@ -483,8 +483,8 @@ def _bridge_exact(x0, x1, kappa, f):
 
 def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.ndarray,
              rec: list) -> Profiles:
-    """The recorded steps as flat profiles: per record (profile ids, local steps, a, tau, label,
-    bridge, s_end, v_end, σξ at the step's end), in any order; each record is scattered into
+    """The recorded steps as flat profiles: per record (profile ids, local steps, a, tau (None:
+    every step lasts Δt), label, bridge, s_end, v_end, σξ at the step's end), in any order; each record is scattered into
     place directly (no concatenated copy of every column first)."""
     ids_all = (np.concatenate([r[0] for r in rec]) if rec else np.zeros(0, np.int64))
     n_p = np.bincount(ids_all, minlength=P).astype(np.int64)
@@ -492,7 +492,7 @@ def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.n
     off = np.concatenate([[0], np.cumsum(n_p)]).astype(np.int64)
     n = int(off[-1])
     a = np.empty(n)
-    tau = np.empty(n)
+    tau = np.full(n, dt)            # the steps of the records without tau (None) last Δt
     mode = np.empty(n, np.uint8)
     bridge = np.empty(n, bool)
     s = np.empty(n + P)
@@ -504,7 +504,9 @@ def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.n
     w[first] = 0.0
     for ids, k, a_r, tau_r, mode_r, bridge_r, s_r, v_r, w_r in rec:
         i = off[ids] + k
-        a[i], tau[i], mode[i], bridge[i] = a_r, tau_r, mode_r, bridge_r
+        a[i], mode[i], bridge[i] = a_r, mode_r, bridge_r
+        if tau_r is not None:
+            tau[i] = tau_r
         g = i + ids + 1
         s[g], v[g], w[g] = s_r, v_r, w_r
     return Profiles(dt_s=dt, n_steps_p=n_p, horizon_steps=horizon, step_offset=off,
@@ -972,7 +974,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             label = np.where(raw > amx, MODE_ACCEL, np.where(raw < -dmx, MODE_DECEL,
                                                               MODE_CRUISE))
             rec.append((np.broadcast_to(rows, took.shape)[took], step_a[took], out["a"][took],
-                        np.full(int(took.sum()), dt), label[took], out["free"][took],
+                        None, label[took], out["free"][took],
                         out["s_end"][took], out["v_end"][took], x1_a[took]))
             moved = m > 0
             r, last = np.flatnonzero(moved), m[moved] - 1
@@ -993,7 +995,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         rows = np.broadcast_to(ids[:, None], took.shape)
         n = int(took.sum())
         sig = np.broadcast_to(sigma_all[ids][:, None], took.shape)
-        rec.append((rows[took], (kk[:, None] + ar)[took], np.zeros(n), np.full(n, dt),
+        rec.append((rows[took], (kk[:, None] + ar)[took], np.zeros(n), None,
                     np.full(n, MODE_STOPPED, np.uint8), np.zeros(n, bool),
                     np.broadcast_to(s_at[ids][:, None], took.shape)[took], np.zeros(n),
                     sig[took] * xi_buf[rows, cols][took]))
