@@ -115,6 +115,10 @@ _STR = h5py.string_dtype("utf-8")
 _DEFLATE_LEVEL = 1
 _INLINE_BYTES = 16 * 1024
 """Chunks smaller than this are deflated on the calling thread (:class:`_ChunkDeflater`)."""
+_BATCH_BYTES = 8 * 2**20
+"""The chunks deflated together on the calling thread (:func:`_deflated_chunks`) hold at most
+this many bytes of values (unless one chunk holds more): their shuffled planes are all in
+memory until the last is encoded, a bounded copy of a table's block."""
 _INLINE_RUN_BYTES = 64 * 2**20
 """A run's first this many bytes of columns are deflated on the calling thread, the rest in
 worker threads (:class:`_ChunkDeflater`): the threads cost CPU of their own (starting them, and
@@ -580,16 +584,21 @@ class _ChunkDeflater:
         """Deflate and write each ``(dsid, offset, chunk, pad_rows)`` of ``jobs``: ``chunk``
         (an array, or a list of arrays: its rows in order) followed by ``pad_rows`` zero
         values (:func:`_deflated_chunk`).  Which go to the threads depends on their sizes
-        only; the others are deflated together (:func:`_deflated_chunks`) and written at once,
-        in order."""
-        inline = []
+        only; the others are deflated together (:func:`_deflated_chunks`, at most
+        :data:`_BATCH_BYTES` of values at a time) and written at once, in order."""
+        inline: list = []
+        inline_bytes = 0
         for dsid, offset, chunk, pad_rows in jobs:
             if isinstance(chunk, list):
                 chunk = chunk[0] if len(chunk) == 1 else chunk
             nbytes = sum(p.nbytes for p in chunk) if isinstance(chunk, list) else chunk.nbytes
             if self.workers <= 0 or nbytes < _INLINE_BYTES or self.inline_bytes > 0:
                 self.inline_bytes -= nbytes
+                if inline and inline_bytes + nbytes > _BATCH_BYTES:
+                    self._write_inline(inline)
+                    inline, inline_bytes = [], 0
                 inline.append((dsid, offset, chunk, pad_rows))
+                inline_bytes += nbytes
                 continue
             if self.pool is None:
                 self.pool = ThreadPoolExecutor(max_workers=self.workers,
@@ -597,9 +606,15 @@ class _ChunkDeflater:
             self.pending.append((dsid, offset,
                                  self.pool.submit(_deflated_chunk, chunk, pad_rows)))
         if inline:
-            streams = _deflated_chunks([(chunk, pad) for _, _, chunk, pad in inline])
-            for (dsid, offset, _, _), stream in zip(inline, streams):
-                dsid.write_direct_chunk((offset,), stream)
+            self._write_inline(inline)
+
+    @staticmethod
+    def _write_inline(jobs: list) -> None:
+        """Deflate ``jobs`` (as :meth:`_submit_many` takes them) together on this thread and
+        write them, in order."""
+        streams = _deflated_chunks([(chunk, pad_rows) for _, _, chunk, pad_rows in jobs])
+        for (dsid, offset, _, _), stream in zip(jobs, streams):
+            dsid.write_direct_chunk((offset,), stream)
 
     def write_done(self, wait: bool = False) -> None:
         """Write the oldest compressed chunks, in order, until at most ``max_pending`` remain
