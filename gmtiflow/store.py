@@ -204,13 +204,16 @@ _HUFFMAN_MARGIN_BITS = 0.5
 """A plane that is neither noise nor for :data:`_MATCH_STRATEGY` is deflated with zlib's
 Huffman-only strategy (``Z_HUFFMAN_ONLY``: no matches, each byte coded by its frequency) when
 what that spends, about (the sample's entropy, at least 1 bit a byte: a Huffman code's
-shortest), is at most what ``Z_RLE`` spends, about (the entropy over the bytes that no
-run-length match covers, those equal to the three before: a match needs three, plus this
+shortest), is at most what ``Z_RLE`` spends, about (over the bytes that no run-length match
+covers, those equal to the three before: a match needs three, their own entropy, plus this
 margin for the matches' own codes).  Short runs (the sensor's σ's and RCS, one value for every
 false alarm between the targets' own) then cost ``Z_RLE`` a match search at every byte, and
 it codes them in more bytes than Huffman-only: on the planes of the fidelity benchmark's
 `fast` and `full` scenes (1,000 vehicles, issue 18) 14-16 % less deflate CPU for as many
-bytes."""
+bytes.  The entropy of the uncovered bytes, not the whole sample's: where one byte dominates,
+the runs are mostly of it and the bytes they leave are spread more evenly, so with the whole
+sample's entropy the detections' σ and RCS planes of the `fast` scene went to ``Z_RLE``, which
+spent twice Huffman-only's CPU on them for ~6 % more bytes."""
 _MEM_LEVEL = 9
 """zlib's ``memLevel`` of the plane compressors (:func:`_compressor`): 9 (256 KiB of buffers
 more than the default 8) lets a deflate block hold 32,768 symbols, so a 64 KiB plane ends
@@ -244,18 +247,20 @@ def _sample(planes: np.ndarray) -> Optional[np.ndarray]:
 
 
 def _plane_samples(planes: np.ndarray):
-    """``(bits, repeated, strings, noise, runs)`` of ``planes`` (byte planes, one a row), from
-    a sample of :data:`_SAMPLE_BLOCKS` runs of :data:`_SAMPLE_BYTES` bytes spread over each
-    plane (:func:`_sample`): its entropy in bits a byte, the fraction of its bytes equal to the
-    one before, the fraction of the 4-byte strings of its middle run that occur twice or more
-    in that run (what deflate's matches can replace), whether the plane looks like noise: more
-    than :data:`_NOISE_BITS` bits a byte and hardly a byte equal to the one before (the low
-    bytes of measured floats), and the fraction of its bytes equal to the three before (what
-    a run-length match can cover).  All None for planes too short to sample.  Depends on the
-    bytes only (deterministic files)."""
+    """``(bits, repeated, strings, noise, runs, literal_bits)`` of ``planes`` (byte planes,
+    one a row), from a sample of :data:`_SAMPLE_BLOCKS` runs of :data:`_SAMPLE_BYTES` bytes
+    spread over each plane (:func:`_sample`): its entropy in bits a byte, the fraction of its
+    bytes equal to the one before, the fraction of the 4-byte strings of its middle run that
+    occur twice or more in that run (what deflate's matches can replace), whether the plane
+    looks like noise: more than :data:`_NOISE_BITS` bits a byte and hardly a byte equal to
+    the one before (the low bytes of measured floats), the fraction of its bytes equal to the
+    three before (what a run-length match can cover), and the entropy of the bytes those
+    leave (``Z_RLE``'s literals: in a plane of one dominant byte the runs are mostly that
+    byte, and what they leave is spread more evenly than the whole plane).  All None for
+    planes too short to sample.  Depends on the bytes only (deterministic files)."""
     sample = _sample(planes)
     if sample is None:
-        return None, None, None, None, None
+        return None, None, None, None, None, None
     return _sample_stats(sample)
 
 
@@ -270,7 +275,8 @@ def _sample_stats(sample: np.ndarray):
     """:func:`_plane_samples`'s figures of each row of ``sample`` (rows of :func:`_sample`,
     of one plane or of many chunks' planes: every figure is its row's own)."""
     k = sample.shape[0]
-    counts = np.bincount((sample + _key_offsets(k)).ravel(), minlength=256 * k)
+    keys = sample + _key_offsets(k)                   # (row, byte) as one bincount key
+    counts = np.bincount(keys.ravel(), minlength=256 * k)
     m = sample.shape[1]
     bits = np.log2(m) - _XLOGX[counts].reshape(k, 256).sum(axis=1) / m
     runs = sample.reshape(k, _SAMPLE_BLOCKS, _SAMPLE_BYTES)
@@ -280,14 +286,20 @@ def _sample_stats(sample: np.ndarray):
     repeated = same.reshape(k, -1).sum(axis=1, dtype=np.uint16) / runs[0, :, 1:].size
     in_run = same[:, :, 2:] & same[:, :, 1:-1]
     in_run &= same[:, :, :-2]                         # byte i + 3 equal to bytes i .. i + 2
-    run_bytes = in_run.reshape(k, -1).sum(axis=1, dtype=np.uint16) / in_run[0].size
+    covered = in_run.reshape(k, -1).sum(axis=1, dtype=np.uint16)
+    run_bytes = covered / in_run[0].size
+    literals = counts - np.bincount(keys.reshape(runs.shape)[:, :, 3:][in_run.view(bool)],
+                                    minlength=256 * k)
+    m_literal = m - covered          # > 0: the first three bytes of a run are never covered
+    literal_bits = np.log2(m_literal) - \
+        _XLOGX[literals].reshape(k, 256).sum(axis=1) / m_literal
     noise = (bits > _NOISE_BITS) & (repeated < 1 / 32)
     mid = runs[:, _SAMPLE_BLOCKS // 2].astype(np.uint32)
     keys = mid[:, :-3] | mid[:, 1:-2] << 8 | mid[:, 2:-1] << 16 | mid[:, 3:] << 24
     keys.sort(axis=1)
     strings = (keys[:, 1:] == keys[:, :-1]).view(np.uint8).sum(axis=1, dtype=np.uint16) / \
         (keys.shape[1] - 1)
-    return bits, repeated, strings, noise, run_bytes
+    return bits, repeated, strings, noise, run_bytes, literal_bits
 
 
 def _noise_planes(planes: np.ndarray) -> np.ndarray:
@@ -438,7 +450,7 @@ def _deflated_chunks(chunks: list) -> list:
             continue
         n_planes = len(prep[4])
         way = [next(ways) for _ in range(n_planes)] if sample is not None else \
-            _plane_ways((None,) * 5, n_planes)
+            _plane_ways((None,) * 6, n_planes)
         out.append(_encoded(prep, way, pad_rows))
     return out
 
@@ -451,10 +463,10 @@ def _plane_ways(stats, n_planes: int) -> list:
     """How each of ``n_planes`` planes goes into the stream, from their sample figures
     ``stats`` (:func:`_plane_samples`; all None: too short to sample, ``Z_RLE``): the zlib
     strategy of the compressor expected to deflate it smaller, or :data:`_STORED` (noise)."""
-    bits, repeated, strings, noise, run_bytes = stats
+    bits, repeated, strings, noise, run_bytes, literal_bits = stats
     if noise is None:
         return [zlib.Z_RLE] * n_planes
-    runs_pay = np.maximum(bits, 1.0) > bits * (1 - run_bytes) + _HUFFMAN_MARGIN_BITS
+    runs_pay = np.maximum(bits, 1.0) > literal_bits * (1 - run_bytes) + _HUFFMAN_MARGIN_BITS
     way = np.where(runs_pay, zlib.Z_RLE, zlib.Z_HUFFMAN_ONLY)
     if _MATCH_STRATEGY is not None:
         matched = (1 - strings) * _LITERAL_BITS < bits * (1 - repeated)     # bits a byte

@@ -351,6 +351,28 @@ def test_planes_of_short_runs_are_deflated_huffman_only(monkeypatch):
     assert back.tobytes() == short.tobytes()
 
 
+def test_a_dominant_value_in_short_runs_is_judged_by_the_bytes_its_runs_leave():
+    """A σ column of a scene with false alarms: one value for the false alarms, in short runs
+    between the targets' own values.  Its runs are mostly of the dominant bytes, so the bytes
+    they leave (Z_RLE's literals) are spread more evenly than the whole plane: judged by their
+    own entropy, its low planes go Huffman-only, which stores them in fewer bytes than Z_RLE;
+    its exponent plane, nearly one byte, stays with Z_RLE."""
+    n = store._CHUNK_ROWS
+    rng = np.random.default_rng(13)
+    lengths = rng.geometric(0.4, n)                 # false alarms, targets, false alarms ...
+    false_alarm = np.repeat(np.arange(len(lengths)) % 2 == 0, lengths)[:n]
+    sigma = np.where(false_alarm, 0.58421364, 0.5 + 0.1 * rng.random(n))
+    planes = np.ascontiguousarray(sigma.view(np.uint8).reshape(-1, 8).T)
+    ways = store._plane_ways(store._plane_samples(planes), 8)
+    assert ways[:6] == [zlib.Z_HUFFMAN_ONLY] * 6 and ways[7] == zlib.Z_RLE
+
+    def size(plane, strategy):
+        z = zlib.compressobj(1, zlib.DEFLATED, -15, 9, strategy)
+        return len(z.compress(plane) + z.flush(zlib.Z_FULL_FLUSH))
+    for plane in planes[:6]:
+        assert size(plane, zlib.Z_HUFFMAN_ONLY) < 0.98 * size(plane, zlib.Z_RLE)
+
+
 def test_without_zlib_ng_the_chunks_are_deflated_by_cpythons_zlib(monkeypatch):
     """zlib-ng is a dependency, but the run file needs only the deflate streams: with
     CPython's zlib every deflated plane is run-length coded, and the values come back."""
