@@ -266,6 +266,9 @@ class _Writer:
     def column(self, head: str, values: tuple, indent: int) -> List[str]:
         """The text of ``head`` + each value, as :meth:`entry` writes it."""
         kinds = set(map(type, values))
+        text = self.shared_text(values, kinds, len(head) + 1)
+        if text is not None:                           # a value every row holds: one text
+            return [head + " " + text] * len(values)
         if kinds == {float}:
             head += " "
             return [head + text for text in number_texts(list(values), kinds)]
@@ -292,6 +295,24 @@ class _Writer:
         finally:
             self.lines = lines
         return out
+
+    def shared_text(self, values: tuple, kinds: set, column: int) -> Optional[str]:
+        """The text, after ``column`` characters, of the one value all ``values`` hold (equal,
+        of one type: a scalar, a string or an empty list), as :meth:`entry` writes it; None for
+        anything else, and for zero floats (``0.0 == -0.0``: their texts differ)."""
+        first = values[0]
+        cls = type(first)
+        if len(kinds) != 1 or not (cls in _SCALARS or cls is str or (cls is list and not first)):
+            return None
+        if values.count(first) != len(values):
+            return None
+        if cls is str:
+            return self.string(first, column)
+        if cls is list:
+            return "[]"
+        if cls is float and first == 0.0:
+            return None
+        return _SCALARS[cls](first)
 
     def list_column(self, values: tuple, indent: int) -> Optional[List[Optional[str]]]:
         """The ``- item`` lines at ``indent`` of each list (None for an empty one), for lists of

@@ -292,6 +292,15 @@ def test_many_repeated_zeros_are_written_with_their_sign(zeros):
     assert text.count("-0.0") == 3 * sum(math.copysign(1.0, z) < 0 for z in zeros)
 
 
+@pytest.mark.parametrize("shared", [1.5, 0.0, -0.0, math.nan, math.inf, 1e16, "car", "no", "",
+                                    "a: b", None, True, False, 0, 7, [], [1.0], {}])
+def test_a_value_every_record_holds_is_written_as_pyyaml_writes_it(shared):
+    for rows in ([shared] * 80, [shared] * 79 + [-0.0], [0.0] + [shared] * 79,
+                 [shared] * 79 + [shared == 0 and not isinstance(shared, bool)]):
+        tree = {"k": [{"a": value, "b": i} for i, value in enumerate(rows)]}
+        assert fast_text(tree) == config.pyyaml_text(tree)
+
+
 @pytest.mark.parametrize("text", ["inf", "Infinity", "nAn", "inf ", "nan\t\n", "inf\x1c", "info",
                                   "t0001", "yes", "null", "1e5", "+inf", "x"])
 def test_words_read_as_numbers_as_omegaconf_reads_them(text):
