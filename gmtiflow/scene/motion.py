@@ -894,15 +894,21 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             raw = (v_des - V) / dt
             a = np.clip(raw, -dmx, amx)
             v_end = np.maximum(V + a * dt, 0.0)
-            free = ((raw <= amx) & (raw >= -dmx) & (v_des == noisy) & (sig > 0)
-                    & (np.abs(V - (target + x0)) <= 1e-9 * np.maximum(V, 1.0))
-                    & (np.minimum(V, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
-                                                                          np.abs(x1)))
-                    & (step > 0))
             # A step's terms v·τ, ½aτ², v_end·(Δt − τ), bridge; here τ = Δt, so the third is
             # ±0, and adding ±0 leaves a position as it is (positions are never −0: they
-            # start at +0 and a sum is −0 only if both parts are), so it is left out.
-            bridged = np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0)
+            # start at +0 and a sum is −0 only if both parts are), so it is left out, as is
+            # the bridge where no row has speed noise (free cruise needs σ > 0: it is +0).
+            noise = bool((sig > 0).any())
+            if noise:
+                free = ((raw <= amx) & (raw >= -dmx) & (v_des == noisy) & (sig > 0)
+                        & (np.abs(V - (target + x0)) <= 1e-9 * np.maximum(V, 1.0))
+                        & (np.minimum(V, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
+                                                                              np.abs(x1)))
+                        & (step > 0))
+                bridged = np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0)
+            else:
+                free = np.zeros(V.shape, bool)
+                bridged = np.zeros(V.shape)
             if todo.size < 64:      # few rows: one running sum along each row
                 x = np.empty((todo.size, 3 * W + 1))
                 x[:, 0] = s0
@@ -913,13 +919,14 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                 # the terms made in (step, row) order (the same operations, no transposing)
                 tt = (np.multiply(V.T, dt, order="C"),
                       np.multiply((0.5 * a * dt).T, dt, order="C"),
-                      np.ascontiguousarray(bridged.T))
+                      np.ascontiguousarray(bridged.T) if noise else None)
                 st = np.empty((W + 1, todo.size))
                 st[0] = s0
                 for i in range(W):
                     np.add(st[i], tt[0][i], out=st[i + 1])
                     st[i + 1] += tt[1][i]
-                    st[i + 1] += tt[2][i]
+                    if noise:
+                        st[i + 1] += tt[2][i]
                 S_full = st.T
             S, s_end = S_full[:, :-1], S_full[:, 1:]
             # Right: step 0 (its start state is exact) and every step after a right one whose
@@ -971,8 +978,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         took = ar < m[:, None]
         if took.any():
             raw, amx, dmx = out["raw"], per["amx"], per["dmx"]
-            label = np.where(raw > amx, MODE_ACCEL, np.where(raw < -dmx, MODE_DECEL,
-                                                              MODE_CRUISE))
+            label = np.where(raw > amx, np.uint8(MODE_ACCEL),
+                             np.where(raw < -dmx, np.uint8(MODE_DECEL), np.uint8(MODE_CRUISE)))
             rec.append((np.broadcast_to(rows, took.shape)[took], step_a[took], out["a"][took],
                         None, label[took], out["free"][took],
                         out["s_end"][took], out["v_end"][took], x1_a[took]))

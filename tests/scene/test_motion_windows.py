@@ -61,6 +61,22 @@ def test_windows_reproduce_the_step_loop_random_fleet(monkeypatch, default_map, 
     assert np.any(a.bridge_flat)
 
 
+@pytest.mark.parametrize("noisy", [0, 3])
+def test_windows_reproduce_the_step_loop_without_speed_noise(monkeypatch, default_map, noisy):
+    """Profiles without speed noise (σ = 0) skip their normals, the braking cap where no
+    noisy target reaches the slowest one and the free-cruise test: 80 of them (the windows'
+    many-rows running sum), alone or with a few noisy ones in the same windows."""
+    quiet = RandomFleetSpec(**{**RANDOM, "count": 80, "speed_noise_mps": 0.0,
+                               "random_stop_rate_per_s": 0.005})
+    specs = [VehicleSpec(name=f"n{i}", start="hw_x-4000", end="g_5_0", speed_noise_mps=0.5,
+                         speed_noise_corr_s=3.0) for i in range(noisy)]
+    a, b = both(monkeypatch, VehiclesConfig(vehicles=specs, random=quiet), default_map,
+                300.0, 1.0)
+    assert_identical(a, b)
+    assert np.any(a.mode_flat == motion.MODE_STOPPED)
+    assert np.any(a.bridge_flat) == (noisy > 0)
+
+
 @pytest.mark.parametrize("dt_s", [1.0, 0.1, 0.7])
 def test_windows_reproduce_the_step_loop_stop_points_convoys(monkeypatch, default_map, dt_s):
     specs = [
