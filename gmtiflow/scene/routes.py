@@ -278,14 +278,16 @@ def _stacked_waypoints(waypoints) -> Optional[tuple]:
         return None
     points = list(chain.from_iterable(waypoints))
     widths = set(map(len, points)) if set(map(type, points)) <= {list, tuple} else None
-    if widths not in ({2}, {3}) or not set(map(type, chain.from_iterable(points))) <= {int,
-                                                                                      float}:
+    if widths not in ({2}, {3}):
         return None
-    width = widths.pop()
+    coordinates = list(chain.from_iterable(points))
+    if not set(map(type, coordinates)) <= {int, float}:
+        return None
     try:
-        values = np.fromiter(chain.from_iterable(points), float, len(points) * width)
+        values = np.fromiter(coordinates, float, len(coordinates))
     except OverflowError:                    # an int too large for a float
         return None
+    width = widths.pop()
     if not np.isfinite(values).all():
         return None
     if width == 3:
