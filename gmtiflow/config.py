@@ -22,7 +22,7 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
-from omegaconf._utils import is_float, is_int, yaml_is_bool   # loaded with omegaconf
+from omegaconf._utils import YAML_BOOL_TYPES, is_float, is_int   # loaded with omegaconf
 from omegaconf.errors import OmegaConfBaseException
 
 from gmtiflow import config_yaml
@@ -439,7 +439,7 @@ def _resolves_as_str(text: str) -> bool:
     """A bare ``text`` reads back as the string itself: OmegaConf's dumper does not quote it
     (it quotes what reads as a bool or number) and no implicit resolver of the dumper claims it
     (null, timestamps ...), as ``Resolver.resolve`` decides."""
-    if yaml_is_bool(text) or _reads_as_number(text):
+    if text in _YAML_BOOLS or _reads_as_number(text):
         return False
     resolvers = _yaml_dumper().yaml_implicit_resolvers
     for tag, regexp in resolvers.get(text[0] if text else "", []) + resolvers.get(None, []):
@@ -447,6 +447,9 @@ def _resolves_as_str(text: str) -> bool:
             return tag == "tag:yaml.org,2002:str"
     return True
 
+
+_YAML_BOOLS = frozenset(YAML_BOOL_TYPES)
+"""OmegaConf's ``yaml_is_bool`` words (its list, as a set: one hash, not 22 comparisons)."""
 
 _WORD_NUMBERS = frozenset({"inf", "infinity", "nan"})
 

@@ -308,6 +308,13 @@ def test_words_read_as_numbers_as_omegaconf_reads_them(text):
     assert config._reads_as_number(text) == (is_int(text) or is_float(text))
 
 
+@given(st.one_of(st.text(alphabet="yYeEsSnNoOtTrRuUfFaAlL ", max_size=6),
+                 st.sampled_from(["yes", "Off", "TRUE", "n", "y ", "nO", "oN"])))
+def test_bool_words_are_omegaconfs(text):
+    from omegaconf._utils import yaml_is_bool
+    assert (text in config._YAML_BOOLS) == yaml_is_bool(text)
+
+
 @given(st.text(alphabet="aAiInNfFtTyY_0.e+- \t\n\x0b\x1c\x85", max_size=10))
 def test_strings_read_as_numbers_as_omegaconf_reads_them(text):
     from omegaconf._utils import is_float, is_int
