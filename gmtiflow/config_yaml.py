@@ -220,11 +220,9 @@ class _Writer:
         table = self.table(items)
         if table is None:
             return False
-        pad = " " * indent
-        cut = indent + 2
-        blocks = self.blocks(*table, indent + 2)
-        self.lines.append(lead + "- " + blocks[0][cut:])
-        self.lines.extend([pad + "- " + block[cut:] for block in blocks[1:]])
+        blocks = self.blocks(*table, indent + 2, item=True)
+        self.lines.append(lead + blocks[0][indent:])
+        self.lines.extend(blocks[1:])
         return True
 
     def table(self, items) -> Optional[Tuple[tuple, list]]:
@@ -256,11 +254,15 @@ class _Writer:
             rows = [tuple(row[i] for i in order) for row in rows]
         return keys, rows
 
-    def blocks(self, keys: tuple, rows: list, indent: int) -> List[str]:
+    def blocks(self, keys: tuple, rows: list, indent: int, item: bool = False) -> List[str]:
         """The ``key: value`` lines of each row at ``indent``, one string per row (lines
-        joined), each written as :meth:`mapping` writes it, column by column."""
+        joined), each written as :meth:`mapping` writes it, column by column; with ``item``,
+        each row's first line as a list item's (``- `` in its last two columns of indent)."""
+        heads = self.key_heads(keys, indent)
+        if item:
+            heads = [heads[0][:indent - 2] + "- " + heads[0][indent:], *heads[1:]]
         columns = [self.column(head, values, indent)
-                   for head, values in zip(self.key_heads(keys, indent), zip(*rows))]
+                   for head, values in zip(heads, zip(*rows))]
         return list(map("\n".join, zip(*columns)))
 
     def column(self, head: str, values: tuple, indent: int) -> List[str]:
