@@ -214,6 +214,14 @@ bytes.  The entropy of the uncovered bytes, not the whole sample's: where one by
 the runs are mostly of it and the bytes they leave are spread more evenly, so with the whole
 sample's entropy the detections' σ and RCS planes of the `fast` scene went to ``Z_RLE``, which
 spent twice Huffman-only's CPU on them for ~6 % more bytes."""
+_HUFFMAN_STORE_BITS = 6.75
+"""A plane bound for Huffman-only (:data:`_HUFFMAN_MARGIN_BITS`) whose sample has at least this
+entropy (bits a byte, of 8) is stored instead: Huffman-only would spend ~2.6 ms a MB on it
+(zlib-ng, this project's machine) to save 10-15 % of its bytes (the top mantissa bytes of
+measured values: the detections' ranges, range rates and angles).  On the chunks of the run
+files of the Stone Soup peer (10 targets) and of the fidelity benchmark's `fast` and `full`
+scenes: ~4 %, ~7 % and ~10 % less deflate CPU for 0.1 %, 0.4 % and 0.5 % more bytes
+(replayed, 23:05 UTC, issue 18)."""
 _MEM_LEVEL = 9
 """zlib's ``memLevel`` of the plane compressors (:func:`_compressor`): 9 (256 KiB of buffers
 more than the default 8) lets a deflate block hold 32,768 symbols, so a 64 KiB plane ends
@@ -421,7 +429,8 @@ def _deflated_chunk(values, pad_rows: int = 0) -> bytes:
     zlib's run-length strategy (``Z_RLE``), or with :data:`_MATCH_STRATEGY` when that deflates
     the plane to fewer bytes, as judged from its sample (:data:`_LITERAL_BITS`), or with
     Huffman-only when its runs are too short to repay ``Z_RLE`` (:data:`_HUFFMAN_MARGIN_BITS`;
-    a plane too short to sample: ``Z_RLE``).  Each thread
+    stored if its entropy leaves Huffman-only little to gain, :data:`_HUFFMAN_STORE_BITS`; a
+    plane too short to sample: ``Z_RLE``).  Each thread
     has one compressor of each (:func:`_compressor`).  On the columns of real runs this takes
     about a quarter of the CPU of HDF5's own level-1 deflate, for 1-2 % more bytes
     (docs/tables.md).  zlib releases the GIL while compressing.  A chunk of fewer than
@@ -462,7 +471,8 @@ _STORED = -1
 def _plane_ways(stats, n_planes: int) -> list:
     """How each of ``n_planes`` planes goes into the stream, from their sample figures
     ``stats`` (:func:`_plane_samples`; all None: too short to sample, ``Z_RLE``): the zlib
-    strategy of the compressor expected to deflate it smaller, or :data:`_STORED` (noise)."""
+    strategy of the compressor expected to deflate it smaller, or :data:`_STORED` (noise, or
+    too little to gain from Huffman-only: :data:`_HUFFMAN_STORE_BITS`)."""
     bits, repeated, strings, noise, run_bytes, literal_bits = stats
     if noise is None:
         return [zlib.Z_RLE] * n_planes
@@ -471,7 +481,9 @@ def _plane_ways(stats, n_planes: int) -> list:
     if _MATCH_STRATEGY is not None:
         matched = (1 - strings) * _LITERAL_BITS < bits * (1 - repeated)     # bits a byte
         way = np.where(matched, _MATCH_STRATEGY, way)
-    return np.where(noise, _STORED, way).tolist()
+    way = np.where(noise | (way == zlib.Z_HUFFMAN_ONLY) & (bits >= _HUFFMAN_STORE_BITS),
+                   _STORED, way)
+    return way.tolist()
 
 
 def _chunk_planes(values, pad_rows: int):
