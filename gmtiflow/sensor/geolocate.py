@@ -16,14 +16,17 @@ surface of height h when that up component is
 
 .. math::  \varepsilon = \operatorname{atan2}(B, A) - \arccos\big(C / \sqrt{A^2 + B^2}\big),
 
-the lower (downward-looking) of the two roots.  The point goes back to map coordinates through
-its central angle from the platform, θ = atan2(|o_horizontal|, R + z_P + o_up): map distance Rθ
-along the azimuth of o's horizontal part.  Over a DEM the ground height is not known beforehand,
-so it is iterated: start at the height under the platform, intersect, read ``terrain.height_at``
-there, repeat until it moves less than ``tol_m``.  A flat terrain takes a single step.  When the
-range is too short to reach the ground (|C| > √(A²+B²)) the closest direction is used and
-``reached`` is False (range-folded reports can do that; the ambiguity stage flags them
-implausible).
+the lower (downward-looking) of the two roots.  Where the cone grazes the surface (C/√(A²+B²)
+→ ±1) the two roots merge, 2 arcsin √(1 − (C/√(A²+B²))²) apart: range and azimuth cannot tell
+them apart there, and the point returned may be the other one (a target 0.44 m away in
+``tests/sensor/test_geolocate.py``'s grazing case).  The point goes back to map coordinates
+through its central angle from the platform, θ = atan2(|o_horizontal|, R + z_P + o_up): map
+distance Rθ along the azimuth of o's horizontal part.  Over a DEM the ground height is not known
+beforehand, so it is iterated: start at the height under the platform, intersect, read
+``terrain.height_at`` there, repeat until it moves less than ``tol_m``.  A flat terrain takes a
+single step.  When the range is too short to reach the ground (|C| > √(A²+B²)) the closest
+direction is used and ``reached`` is False (range-folded reports can do that; the ambiguity
+stage flags them implausible).
 
 Vectors are 3-tuples of arrays (map coordinates, :mod:`gmtiflow.frames`).
 """

@@ -60,28 +60,56 @@ def test_range_too_short_to_reach_the_ground_is_flagged():
 from hypothesis import assume, given, settings, strategies as st  # noqa: E402
 
 
-@settings(max_examples=60, deadline=None)
-@given(heading=st.floats(0, 360), bank=st.floats(-30, 30), pitch=st.floats(-5, 5),
-       mount=st.sampled_from([90.0, -90.0, 60.0, 0.0]), x=st.floats(-20e3, 20e3),
-       y=st.floats(-20e3, 20e3), alt=st.floats(500, 12e3))
-def test_geolocation_inverts_the_antenna_angles_for_any_attitude(heading, bank, pitch, mount, x,
-                                                                  y, alt):
+def check_inversion(heading, bank, pitch, mount, x, y, alt):
+    """Geolocate the target at (x, y, 0) seen from (0, 0, alt) with that attitude (deg) and
+    compare; False (nothing checked) outside GMTI geometry: behind the antenna (|az| above
+    ~78°) or near nadir."""
     plat = (np.array([0.0]), np.array([0.0]), np.array([alt]))
     b, h, u = antenna.antenna_axes(np.radians([heading]), np.radians([pitch]),
                                    np.radians([bank]), math.radians(mount))
     tgt = (np.array([x]), np.array([y]), np.array([0.0]))
     rng_m, los = geometry.line_of_sight(plat, tgt)
     az, el, _, lb = antenna.target_angles(los, b, h, u)
-    # GMTI geometry: in front of the antenna (|az| < ~78°), not near nadir
-    assume(lb[0] > 0.2 and math.hypot(x, y) > 0.3 * alt)
+    if not (lb[0] > 0.2 and math.hypot(x, y) > 0.3 * alt):
+        return False
     p, el_est, reached = geolocate.geolocate(plat, rng_m, az, b, h, u, FlatTerrain())
     assert reached[0]
     assert abs(p[2][0]) < 1e-6 * max(1.0, rng_m[0])
-    assert math.hypot(p[0][0] - plat[0][0], p[1][0] - plat[1][0]) == pytest.approx(
-        math.hypot(x, y), rel=1e-9, abs=1e-3)   # sqrt(1 - r²) is ill-conditioned at nadir
-    assert el_est[0] == pytest.approx(el[0], abs=1e-9)
-    assert p[0][0] == pytest.approx(x, abs=1e-6 * rng_m[0])
-    assert p[1][0] == pytest.approx(y, abs=1e-6 * rng_m[0])
+    # The point found has the measured range and azimuth, whatever the geometry
+    rng_est, los_est = geometry.line_of_sight(plat, p)
+    assert rng_est[0] == pytest.approx(rng_m[0], rel=1e-9)
+    assert antenna.target_angles(los_est, b, h, u)[0][0] == pytest.approx(az[0], abs=1e-9)
+    # The cone of that azimuth meets the ground at two elevations theta0 -/+ arccos(C/rho)
+    # (module doc).  Where it grazes the ground (|C/rho| -> 1) the two points merge: they are
+    # 2 asin(s) apart, s = sqrt(1 - (C/rho)^2), and no inversion of (range, azimuth) can tell
+    # the target from the other, so the tolerances widen by that separation.
+    ca, sa = math.cos(az[0]), math.sin(az[0])
+    rho = rng_m[0] * math.hypot(ca * b[2][0] + sa * h[2][0], u[2][0])
+    radius = geometry.DEFAULT_RADIUS_M
+    c = (-alt * (2.0 * radius + alt) - rng_m[0] ** 2) / (2.0 * (radius + alt))
+    separation_rad = 2.0 * math.asin(math.sqrt(max(0.0, 1.0 - (c / rho) ** 2)))
+    ground_m = math.hypot(p[0][0] - plat[0][0], p[1][0] - plat[1][0])
+    assert ground_m == pytest.approx(   # sqrt(1 - r²) is ill-conditioned at nadir
+        math.hypot(x, y), rel=1e-9, abs=1e-3 + separation_rad * rng_m[0])
+    assert el_est[0] == pytest.approx(el[0], abs=1e-9 + separation_rad)
+    assert p[0][0] == pytest.approx(x, abs=(1e-6 + separation_rad) * rng_m[0])
+    assert p[1][0] == pytest.approx(y, abs=(1e-6 + separation_rad) * rng_m[0])
+    return True
+
+
+@settings(max_examples=60, deadline=None)
+@given(heading=st.floats(0, 360), bank=st.floats(-30, 30), pitch=st.floats(-5, 5),
+       mount=st.sampled_from([90.0, -90.0, 60.0, 0.0]), x=st.floats(-20e3, 20e3),
+       y=st.floats(-20e3, 20e3), alt=st.floats(500, 12e3))
+def test_geolocation_inverts_the_antenna_angles_for_any_attitude(heading, bank, pitch, mount, x,
+                                                                  y, alt):
+    assume(check_inversion(heading, bank, pitch, mount, x, y, alt))
+
+
+def test_geolocation_where_the_azimuth_cone_grazes_the_ground():
+    """Found by hypothesis: 2.6e-5 from grazing, the cone's two ground points 0.44 m apart;
+    the inversion returns one of them, with the measured range and azimuth."""
+    assert check_inversion(30.0, 30.0, 1.0, 90.0, 0.0, 2425.0, 7982.0)
 
 
 def test_world_azimuth_geolocation_on_sloped_terrain_and_too_short_ranges():
