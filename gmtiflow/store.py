@@ -629,6 +629,7 @@ class _ChunkDeflater:
                                                thread_name_prefix="deflate")
             self.pending.append((dsid, offset,
                                  self.pool.submit(_deflated_chunk, chunk, pad_rows)))
+            self.write_done()           # at most max_pending wait, a table's many chunks too
         if inline:
             self._write_inline(inline)
 
