@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from enum import Enum
+from itertools import chain
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
@@ -28,8 +29,7 @@ from omegaconf.errors import OmegaConfBaseException
 from gmtiflow import config_yaml
 from gmtiflow.cache import CacheConfig
 from gmtiflow.config_tree import (SCALARS, field_names, field_values, holds_only_scalars,
-                                  is_empty, joined, kinds_of, numeric_leaves, record_columns,
-                                  remembering)
+                                  is_empty, numeric_leaves, record_columns)
 from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.export import ExportConfig
@@ -344,12 +344,12 @@ def _reported_records(items, reported: bool) -> bool:
         return False
     included = getattr(cls, "problems_include", ())
     for name, column in columns:
-        kinds = kinds_of(column)
+        kinds = set(map(type, column))
         if kinds <= SCALARS:
             continue
         if kinds <= {list, tuple}:
-            items = joined(column)
-            if not (holds_only_scalars(items) or _reported_records(items, name in included)):
+            joined = list(chain.from_iterable(column))
+            if not (holds_only_scalars(joined) or _reported_records(joined, name in included)):
                 return False
         elif len(kinds) != 1 or not _reported_records(column, name in included):
             return False
@@ -378,8 +378,7 @@ def validate(obj: AppConfig, vehicles_file: Optional[str] = None) -> None:
     With ``vehicles_file`` (the vehicles were read from that file), the keys of listed vehicles
     name the file instead: ``vehicles.file <path>: vehicles[12].name``."""
     # A group's problems() may already report its nested items; list each problem once.
-    with remembering():         # the two walks read a long vehicle list's columns once
-        found = list(dict.fromkeys(problems_of(obj) + magnitude_problems(obj)))
+    found = list(dict.fromkeys(problems_of(obj) + magnitude_problems(obj)))
     if found:
         lines = [f"{_file_key(p.key, vehicles_file)}: {p.message}" for p in found]
         raise ConfigError("invalid config: " + "; ".join(lines))

@@ -6,12 +6,9 @@ Key paths are the dotted names a user writes on the command line, with list item
 """
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import functools
 import operator
 import re
-import threading
 from itertools import chain
 from typing import Callable, Dict, Iterator, List, Optional, Set, Tuple
 
@@ -84,54 +81,6 @@ def is_empty(value) -> bool:
     return type(value) in (list, tuple, dict) and not value
 
 
-_memo = threading.local()
-
-
-@contextlib.contextmanager
-def remembering() -> Iterator[None]:
-    """Within this block, :func:`record_columns`, :func:`flat_items`, :func:`kinds_of` and
-    :func:`joined` remember their answer for each list (or tuple) they were given, by identity
-    (the list kept alive with it): for walks over one tree that nothing changes meanwhile
-    (``config.validate``'s problem walk and magnitude walk read a long vehicle list's columns
-    once, not twice).  Per thread; nested blocks share the outer one's answers."""
-    outer = getattr(_memo, "answers", None)
-    if outer is None:
-        _memo.answers = {}
-    try:
-        yield
-    finally:
-        if outer is None:
-            _memo.answers = None
-
-
-def _remembered(fn):
-    """``fn(items)``, remembered inside :func:`remembering`."""
-    @functools.wraps(fn)
-    def remembered(items):
-        answers = getattr(_memo, "answers", None)
-        if answers is None:
-            return fn(items)
-        key = (fn, id(items))
-        hit = answers.get(key)
-        if hit is None or hit[0] is not items:
-            hit = answers[key] = (items, fn(items))
-        return hit[1]
-    return remembered
-
-
-@_remembered
-def kinds_of(values) -> Set[type]:
-    """The exact types of the items of a list (not to be changed: it may be remembered)."""
-    return set(map(type, values))
-
-
-@_remembered
-def joined(lists) -> list:
-    """The items of a list of lists (a column of waypoint lists ...), end to end."""
-    return list(chain.from_iterable(lists))
-
-
-@_remembered
 def flat_items(items) -> Tuple[list, Set[type]]:
     """The items of a list and their exact types, a list of lists (or tuples) flattened one
     level first: bulk checks of scalar lists and waypoint lists without a call per item."""
@@ -159,7 +108,6 @@ def numbers_within(items, bound: float) -> bool:
     return not flat or (-bound <= min(flat) and max(flat) <= bound)
 
 
-@_remembered
 def record_columns(items) -> Optional[List[Tuple[str, tuple]]]:
     """``(field name, its values across the list)`` of two or more dataclasses of one class (a
     vehicle list: walked column by column, not item by item), or None for any other list."""
@@ -180,7 +128,7 @@ def records_within(items, bound: float) -> bool:
     if columns is None:
         return False
     for _, column in columns:
-        kinds = kinds_of(column)
+        kinds = set(map(type, column))
         if kinds <= _NOT_NUMERIC:
             continue
         if kinds <= SCALARS:
@@ -189,7 +137,7 @@ def records_within(items, bound: float) -> bool:
             if not (-bound <= min(numbers) and max(numbers) <= bound):
                 return False
         elif kinds <= {list, tuple}:
-            if not numbers_within(joined(column), bound):
+            if not numbers_within(list(chain.from_iterable(column)), bound):
                 return False
         elif len(kinds) != 1 or not records_within(column, bound):
             return False

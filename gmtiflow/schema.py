@@ -48,53 +48,6 @@ def non_negative(obj: Any, *names: str) -> List[Problem]:
     return out
 
 
-def all_positive(values: List[Any]) -> bool:
-    """:func:`positive` finds no problem in any of ``values`` (a field's values across a long
-    list of specs), checked at once; False also where the bulk check cannot tell
-    (:func:`finite_min`): then check them one by one."""
-    least = finite_min(values, skip_none=True)
-    return least is not None and least > 0
-
-
-def all_non_negative(values: List[Any]) -> bool:
-    """:func:`non_negative` finds no problem in any of ``values``: as :func:`all_positive`."""
-    least = finite_min(values, skip_none=True)
-    return least is not None and least >= 0
-
-
-def finite_min(values: List[Any], skip_none: bool = False) -> Optional[float]:
-    """The least of ``values`` (its Nones left out if ``skip_none``; +inf for no values) when
-    every one is a finite int or float (:func:`_finite_sum`: a few C calls for a long list),
-    None otherwise, for a bool or a subclass (numpy's floats) too, and where the sum cannot
-    tell: None means "check them one by one", not "a problem"."""
-    kinds = set(map(type, values))
-    if skip_none and _NONE in kinds:
-        values = [v for v in values if v is not None]
-        kinds.discard(_NONE)
-    if not values:
-        return math.inf
-    if not kinds <= _PLAIN_NUMBERS or not _finite_sum(values, kinds):
-        return None
-    return min(values)
-
-
-def _finite_sum(values: List[Any], kinds: set) -> bool:
-    """The sum of ``values`` (ints and floats, of types ``kinds``) is finite, which holds only
-    if every value is.  Floats alone by ``sum`` (a NaN or an infinity makes it NaN or
-    infinite; finite floats that overflow give False, a needless "no"); with ints by
-    ``math.fsum``, exact (an int too large for a float raises: False, where ``sum`` of ints
-    could cancel it out)."""
-    try:
-        return math.isfinite(sum(values) if kinds == _FLOAT else math.fsum(values))
-    except (OverflowError, ValueError):
-        return False
-
-
-_NONE = type(None)
-_PLAIN_NUMBERS = frozenset({int, float})
-_FLOAT = {float}
-
-
 def in_range(obj: Any, name: str, lo: float, hi: float, *, lo_open: bool = False,
              hi_open: bool = False) -> List[Problem]:
     """Problems if field ``name`` of ``obj`` is outside [lo, hi] (ends open as asked)."""
@@ -172,21 +125,25 @@ def points_problems(key: str, points: Any, dims=(2, 3), what: str = "[x, y] or [
     Lists of number lists of the right lengths are checked in bulk (a scene may list thousands
     of waypoints); anything else, or any non-finite value, is checked point by point.
     """
-    if finite_rows(points, dims):
+    if _finite_rows(points, dims):
         return []
     return [problem for i, point in enumerate(points)
             for problem in point_problems(f"{key}[{i}]", point, dims, what, geodetic)]
 
 
-def finite_rows(points: Any, dims) -> bool:
+def _finite_rows(points: Any, dims) -> bool:
     """``points`` is a list of lists (or tuples) of ``dims`` finite ints and floats.
 
-    Their sum is finite (:func:`_finite_sum`; False, and the points are checked one by one,
-    where it cannot tell).
+    ``math.fsum`` of finite values is finite (or raises on overflow); one NaN or infinity, or
+    an int too large for a float, makes it NaN, infinite or raise: then the answer is False.
     """
     kinds = set(map(type, points))
     if not kinds or not kinds <= {list, tuple} or not set(map(len, points)) <= set(dims):
         return False
     flat = list(chain.from_iterable(points))
-    kinds = set(map(type, flat))
-    return kinds <= _PLAIN_NUMBERS and _finite_sum(flat, kinds)
+    if not set(map(type, flat)) <= {int, float}:
+        return False
+    try:
+        return math.isfinite(math.fsum(flat))
+    except (OverflowError, ValueError):
+        return False

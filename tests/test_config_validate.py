@@ -20,7 +20,6 @@ from gmtiflow import config, schema
 from gmtiflow.compose import compose, compose_dictconfig
 from gmtiflow.config_tree import get_path, numeric_leaves, set_leaf
 from gmtiflow.errors import ConfigError
-from gmtiflow.scene import vehicles_config
 from gmtiflow.scene.vehicles_config import (ConvoySpec, SpeedChangeSpec, VehicleSpec,
                                              VehiclesConfig)
 
@@ -266,94 +265,6 @@ def test_a_clean_vehicle_list_is_checked_field_by_field():
     assert config._reported_records(vehicles, True)          # reported by VehicleSpec.problems
     vehicles[3].stopovers = [{"lat_deg": 1.0, "lon_deg": 2.0}]
     assert not config._reported_records(vehicles, True)      # a dict: walked item by item
-
-
-def test_columns_are_remembered_only_inside_the_block():
-    from gmtiflow.config_tree import record_columns, remembering
-    vehicles = peer_config(5).vehicles.vehicles
-    with remembering():
-        columns = record_columns(vehicles)
-        with remembering():
-            assert record_columns(vehicles) is columns
-        assert record_columns(vehicles) is columns
-    assert record_columns(vehicles) is not columns and record_columns(vehicles) == columns
-
-
-# --- a vehicle list's own problems(): checked column by column, the same answer ------------
-
-def reference_vehicles_problems(vehicles):
-    """VehiclesConfig.problems() as it was, vehicle by vehicle (random fleet left out)."""
-    out, seen = [], set()
-    for i, spec in enumerate(vehicles):
-        out += schema.prefixed(f"vehicles[{i}]", spec.problems())
-        if spec.name in seen:
-            out.append(schema.Problem(f"vehicles[{i}].name",
-                                      f"vehicle name {spec.name!r} is used twice"))
-        seen.add(spec.name)
-    return out
-
-
-def listed_problems(vehicles):
-    return [p for p in VehiclesConfig(vehicles=vehicles).problems()
-            if not p.key.startswith("random.")]
-
-
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.lists(vehicle_specs, min_size=0, max_size=5))
-def test_a_vehicle_lists_problems_are_those_of_each_vehicle(vehicles):
-    assert (same_result(listed_problems, vehicles)
-            == same_result(reference_vehicles_problems, vehicles))
-
-
-BAD_FIELD_VALUES = [math.nan, math.inf, -1, -0.5, 0, 0.0, -0.0, True, 10 ** 400, -10 ** 400,
-                    None, "3", 1e308]
-CHECKED = {  # every field a problems() looks at: (path below vehicles[i], bad values to try)
-    **{name: BAD_FIELD_VALUES for name in (
-        "start_time_s", "cruise_speed_mps", "start_speed_mps", "speed_noise_mps",
-        "speed_noise_corr_s", "position_noise_corr_s", "max_accel_mps2", "max_decel_mps2",
-        "random_stop_rate_per_s", "mean_wait_s", "max_wait_s")},
-    "name": ["", "???", "t0003", None, 5],
-    "start": [None], "end": [None],
-    "position_noise_m": [[0.0, 0.0], [0.0, 0.0, -1.0], [0.0, math.nan, 0.0], [0, True, 0],
-                         (1.0, 2.0, 3.0), [10 ** 400, -10 ** 400, 1], "abc", None],
-    "off_road": [[[0.0, 0.0]], [[0.0, 0.0], [1.0, math.nan]], [[0.0, 0.0], [1.0]],
-                 [[0.0, 0.0], {"lat_deg": 1.0, "lon_deg": 2.0}], [[0, 0], [10 ** 400, 1]],
-                 [[10 ** 400, 0], [-10 ** 400, 1]], [[1e308, 0.0], [1e308, 1.0]], "ab", []],
-    "stop_points": [["n1"]],
-    "speed_changes": [[SpeedChangeSpec(at="n1")], [SpeedChangeSpec(at=None)],
-                      [SpeedChangeSpec(at="n1", cruise_speed_mps=-1.0)], ["x"]],
-    "convoy": [ConvoySpec(count=3), ConvoySpec(count=3, spacing_m=5.0, spacing_s=1.0), None],
-    "convoy.count": [0, 1001, 2.5, math.nan, True, None, "2", 10 ** 400],
-    "convoy.spacing_m": BAD_FIELD_VALUES, "convoy.spacing_s": BAD_FIELD_VALUES,
-}
-UNCHECKED = {"type", "stopovers", "obey_speed_limits"}
-
-
-def test_every_checked_vehicle_field_is_tried_in_a_long_list():
-    fields = {f.name for f in dataclasses.fields(VehicleSpec)}
-    nested = {f"convoy.{f.name}" for f in dataclasses.fields(ConvoySpec)}
-    assert fields | nested == set(CHECKED) | UNCHECKED    # a new field: add it above
-    cfg = peer_config(12)
-    road = [VehicleSpec(name=f"r{i}", start="n1", end="n2", stop_points=["n3"],
-                        speed_changes=[SpeedChangeSpec(at="n3", cruise_speed_mps=7)],
-                        convoy=ConvoySpec(count=2, spacing_s=1.5)) for i in range(3)]
-    tried = 0
-    for vehicles in (cfg.vehicles.vehicles, road + cfg.vehicles.vehicles):
-        assert listed_problems(vehicles) == [] == reference_vehicles_problems(vehicles)
-        assert vehicles_config._listed_clean(vehicles)        # the bulk checks answer
-        for i in (0, len(vehicles) - 1, 5):
-            for path, values in CHECKED.items():
-                original = get_path(vehicles[i], path)
-                for value in values:
-                    set_leaf(vehicles[i], path, value)
-                    try:
-                        expected = same_result(reference_vehicles_problems, vehicles)
-                        assert same_result(listed_problems, vehicles) == expected, (path, value)
-                    finally:
-                        set_leaf(vehicles[i], path, original)
-                    tried += 1
-        assert listed_problems(vehicles) == []
-    assert tried > 500
 
 
 # --- to_object: missing values listed as before, the walk that finds them only on failure -----

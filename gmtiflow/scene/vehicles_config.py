@@ -6,9 +6,7 @@ The meaning of each field and the driving behaviour they configure: docs/scene.m
 from __future__ import annotations
 
 import math
-import operator
 from dataclasses import dataclass, field
-from itertools import chain
 from typing import Any, Dict, List, Optional
 
 from gmtiflow import schema
@@ -183,96 +181,16 @@ class VehiclesConfig:
     """Fields whose problems :meth:`problems` reports (``config.problems_of``)."""
 
     def problems(self) -> List[schema.Problem]:
-        out = [] if _listed_clean(self.vehicles) else _listed_problems(self.vehicles)
+        out = []
+        seen = set()
+        for i, spec in enumerate(self.vehicles):
+            out += schema.prefixed(f"vehicles[{i}]", spec.problems())
+            if spec.name in seen:
+                out.append(schema.Problem(f"vehicles[{i}].name",
+                                          f"vehicle name {spec.name!r} is used twice"))
+            seen.add(spec.name)
         out += schema.prefixed("random", self.random.problems())
         return out
-
-
-def _listed_problems(specs: List[VehicleSpec]) -> List[schema.Problem]:
-    """The problems of each listed vehicle (:meth:`VehicleSpec.problems`, keyed
-    ``vehicles[i]``), each followed by a name used twice, in the order of the list."""
-    out = []
-    seen = set()
-    for i, spec in enumerate(specs):
-        out += schema.prefixed(f"vehicles[{i}]", spec.problems())
-        if spec.name in seen:
-            out.append(schema.Problem(f"vehicles[{i}].name",
-                                      f"vehicle name {spec.name!r} is used twice"))
-        seen.add(spec.name)
-    return out
-
-
-_NON_NEGATIVE = ("start_time_s", "speed_noise_mps", "speed_noise_corr_s",
-                 "random_stop_rate_per_s", "start_speed_mps", "position_noise_corr_s")
-_POSITIVE = ("cruise_speed_mps", "max_accel_mps2", "max_decel_mps2", "mean_wait_s", "max_wait_s")
-
-
-def _listed_clean(specs: List[VehicleSpec]) -> bool:
-    """:func:`_listed_problems` would find nothing: every check of :meth:`VehicleSpec.problems`
-    (and of its convoy and speed changes) made field by field across the list, a few C calls
-    per field instead of a dozen Python calls per vehicle (a scene may list thousands).  False
-    also where the bulk checks cannot tell (a bool or numpy number, a geodetic waypoint, a
-    subclass, anything that raises): then the vehicles are checked one by one, which gives
-    every message.  tests/test_config_validate.py holds the two to the same answer."""
-    if not specs:
-        return True
-    try:
-        return _columns_clean(specs)
-    except Exception:       # noqa: BLE001 - _listed_problems meets it again, vehicle by vehicle
-        return False
-
-
-def _columns_clean(specs: List[VehicleSpec]) -> bool:
-    """The checks of :func:`_listed_clean` (which catches what they raise)."""
-    if set(map(type, specs)) != {VehicleSpec}:
-        return False
-
-    def column(name: str) -> list:
-        return list(map(operator.attrgetter(name), specs))
-    names = column("name")
-    distinct = set(names)
-    if (set(map(type, names)) != {str} or len(distinct) != len(names)
-            or not distinct.isdisjoint(("", "???"))):
-        return False
-    if not (all(schema.all_non_negative(column(n)) for n in _NON_NEGATIVE)
-            and all(schema.all_positive(column(n)) for n in _POSITIVE)):
-        return False
-    mean, most = column("mean_wait_s"), column("max_wait_s")
-    if None in mean or None in most or not all(map(operator.le, mean, most)):
-        return False
-    noise = column("position_noise_m")
-    if not set(map(type, noise)) <= {list, tuple} or set(map(len, noise)) != {3}:
-        return False
-    least = schema.finite_min(list(chain.from_iterable(noise)))
-    if least is None or least < 0:
-        return False
-    off_road = column("off_road")
-    for spec, waypoints in zip(specs, off_road):
-        if waypoints:
-            if spec.stop_points or spec.speed_changes:
-                return False
-        elif spec.start is None or spec.end is None:
-            return False
-    waypoints = [w for w in off_road if w]
-    if waypoints and (min(map(len, waypoints)) < 2
-                      or not schema.finite_rows(list(chain.from_iterable(waypoints)), (2, 3))):
-        return False
-    convoys = column("convoy")
-    if set(map(type, convoys)) != {ConvoySpec}:
-        return False
-    counts = [c.count for c in convoys]
-    least = schema.finite_min(counts)
-    if least is None or least < 1 or max(counts) > 1000:
-        return False
-    if not (schema.all_positive([c.spacing_m for c in convoys])
-            and schema.all_positive([c.spacing_s for c in convoys])):
-        return False
-    if any(c.count > 1 and (c.spacing_m is None) == (c.spacing_s is None) for c in convoys):
-        return False
-    changes = list(chain.from_iterable(column("speed_changes")))
-    return not changes or (set(map(type, changes)) == {SpeedChangeSpec}
-                           and schema.all_positive([c.cruise_speed_mps for c in changes])
-                           and all(c.at is not None for c in changes))
 
 
 @dataclass
