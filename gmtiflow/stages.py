@@ -29,7 +29,7 @@ from gmtiflow.sensor.model import (DETECTION_COLUMNS, DWELL_COLUMNS, LOOK_COLUMN
 from gmtiflow.sensor.outcome import Outcome
 from gmtiflow.sensor.rcs import RcsModels
 from gmtiflow.store import RunWriter
-from gmtiflow.tables import Table, n_rows
+from gmtiflow.tables import Table, empty_like, n_rows
 
 log = logging.getLogger(__name__)
 
@@ -94,7 +94,7 @@ class TableSink:
             table = {c: np.asarray(table[c]).astype(t, copy=False)
                      for c, t in self.columns.items()}
         if self._first is None:
-            self._first = {c: v[:0] for c, v in table.items()}
+            self._first = empty_like(table)   # not views: they would keep the rows alive
         rows = n_rows(table)
         self.n_rows += rows
         if self.keep:

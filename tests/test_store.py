@@ -427,3 +427,22 @@ def test_a_sink_closed_before_its_first_block_writes_exact_chunks(tmp_path):
         back = store.read_table(path, name)
         for k, v in t.items():
             assert np.array_equal(back[k], v), (name, k)
+
+
+def test_a_sink_keeps_no_rows_it_has_written(tmp_path):
+    """A streamed sink (``keep=False``) lets go of the rows it has written: the first table's
+    zero-row columns it remembers (for an empty table's dtypes) are not views of the rows,
+    which would keep every column of that table alive until the run ends."""
+    import gc
+    import weakref
+    from gmtiflow.stages import TableSink
+    with store.RunWriter(tmp_path / "run.h5", seed=1) as w:
+        sink = TableSink(w, "t")
+        t = table(1000)
+        columns = [weakref.ref(v) for v in t.values()]
+        sink.append(t)
+        del t
+        sink.close()
+        gc.collect()
+        assert all(ref() is None for ref in columns)
+        w.commit()
