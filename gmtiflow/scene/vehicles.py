@@ -54,6 +54,18 @@ __all__ = ["ConvoySpec", "Fleet", "RandomFleetSpec", "SpeedChangeSpec", "TRUTH_C
            "VehicleSpec", "VehiclesConfig", "build_fleet"]
 
 _HALF_ULP = 2.0 ** -54
+_BELOW_ONE = 1.0 - 2.0 ** -53     # the largest float below 1
+
+
+def _normals_by_inversion(u: np.ndarray) -> np.ndarray:
+    """Standard normals from uniforms ``u`` in [0, 1) (``Generator.random``), inverting
+    Φ at u + 2^-54, in (0, 1): 0 is never inverted (-inf), and the one draw that rounds to 1
+    (u = 1 - 2^-53, a chance of 2^-53) is inverted at 1 - 2^-53 (8.3σ), not at 1 (+inf, which
+    made a vehicle's speed noise NaN).  A new array."""
+    from scipy.special import ndtri   # imported here: scipy.special costs start-up time
+    p = u + _HALF_ULP
+    np.minimum(p, _BELOW_ONE, out=p)
+    return ndtri(p, out=p)
 
 
 # --------------------------------------------------------------------------------------------
@@ -358,7 +370,6 @@ def _trip_noise(seed: int, names: List[str], noisy: np.ndarray) -> motion.NoiseS
     the trip lasts, so the draws follow the trip and a longer scene extends, never changes,
     them.  ``noisy`` (per profile): whether it has speed noise; a profile without (σ = 0) gets
     normals +0 instead of inverting its column 0 (drawn all the same: σξ is 0 either way)."""
-    from scipy.special import ndtri   # imported here: scipy.special costs start-up time
     gens: Dict[int, np.random.Generator] = {}
 
     def draw(profiles, k0, n):
@@ -369,17 +380,15 @@ def _trip_noise(seed: int, names: List[str], noisy: np.ndarray) -> motion.NoiseS
         for c, p in enumerate(pids):
             gens[p].random(out=buf[c])
         # each used column as its own contiguous array (u + 2^-54, as before); the normals
-        # by inversion in place
+        # by inversion
         inv = noisy[profiles]
         if inv.all():
-            normal = buf[:, :, 0] + _HALF_ULP
-            ndtri(normal, out=normal)
+            normal = _normals_by_inversion(buf[:, :, 0])
         else:
             normal = np.zeros((len(pids), n))
             rows = np.flatnonzero(inv)
             if rows.size:
-                part = buf[rows, :, 0] + _HALF_ULP
-                normal[rows] = ndtri(part, out=part)
+                normal[rows] = _normals_by_inversion(buf[rows, :, 0])
         return normal.T, (buf[:, :, 1] + _HALF_ULP).T, (buf[:, :, 2] + _HALF_ULP).T
     return draw
 

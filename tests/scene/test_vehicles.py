@@ -598,3 +598,18 @@ def test_random_specs_are_the_documented_draws_of_each_vehicles_own_stream(min_r
         assert vs.cruise_speed_mps == float(g.uniform(7.5, 21.0))
     assert len({v.type for v in got}) == len(types)
     assert (too_close > 0) == (min_route_m > 0)     # the distance did reject pairs
+
+
+def test_speed_noise_normals_are_finite_at_both_ends_of_the_uniforms():
+    """Φ⁻¹ at u + 2^-54: u = 0 is not inverted at 0 (-inf), and the largest uniform, which
+    rounds to 1 with the offset, is inverted at 1 - 2^-53 (8.3σ), not at 1 (+inf: NaN speeds)."""
+    from scipy.special import ndtri
+
+    from gmtiflow.scene.vehicles import _normals_by_inversion
+    u = np.array([0.0, np.nextafter(1.0, 0.0), 0.5])
+    assert u[1] + 2.0 ** -54 == 1.0            # the case: the offset rounds it up to 1
+    z = _normals_by_inversion(u)
+    assert np.all(np.isfinite(z))
+    assert z.tolist() == [ndtri(2.0 ** -54), ndtri(1.0 - 2.0 ** -53), ndtri(0.5)]
+    assert 8.2 < z[1] < 8.4 and z[0] < -8.0
+    assert u.tolist() == [0.0, np.nextafter(1.0, 0.0), 0.5]     # a new array
