@@ -484,8 +484,9 @@ def _bridge_exact(x0, x1, kappa, f):
 def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.ndarray,
              rec: list) -> Profiles:
     """The recorded steps as flat profiles: per record (profile ids, local steps, a, tau (None:
-    every step lasts Δt), label, bridge, s_end, v_end, σξ at the step's end), in any order; each record is scattered into
-    place directly (no concatenated copy of every column first)."""
+    every step lasts Δt), label, bridge, s_end, v_end, σξ at the step's end), in any order;
+    each record is scattered into place directly (no concatenated copy of every column
+    first)."""
     ids_all = (np.concatenate([r[0] for r in rec]) if rec else np.zeros(0, np.int64))
     n_p = np.bincount(ids_all, minlength=P).astype(np.int64)
     del ids_all
