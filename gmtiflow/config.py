@@ -39,7 +39,7 @@ from gmtiflow.scene.platform_config import PlatformConfig
 from gmtiflow.scene.roadmap_config import RoadmapConfig
 from gmtiflow.scene.terrain_config import TerrainConfig
 from gmtiflow.scene.vehicles_config import VehiclesConfig, VehiclesGroupConfig
-from gmtiflow.schema import Problem, positive
+from gmtiflow.schema import MAX_MAGNITUDE, Problem, positive
 from gmtiflow.sensor.clutter import ClutterConfig
 from gmtiflow.sensor.config import SensorConfig
 
@@ -355,11 +355,6 @@ def _reported_records(items, reported: bool) -> bool:
             return False
     return True
 
-
-MAX_MAGNITUDE = 1e12
-"""No numeric setting may exceed this in magnitude in its own unit (1e12 m, s, Hz, W ...):
-such values are typos, and their products overflow float64 deep in the physics.  ``seed`` is
-the one exception (any integer in [0, 2^63))."""
 
 _MAGNITUDE_EXEMPT = {"seed"}
 

@@ -16,6 +16,14 @@ from dataclasses import dataclass
 from typing import Any, List, Optional
 
 
+MAX_MAGNITUDE = 1e12
+"""No numeric setting may exceed this in magnitude in its own unit (1e12 m, s, Hz, W ...):
+such values are typos, and their products overflow float64 deep in the physics
+(:func:`gmtiflow.config.magnitude_problems` reports them; a ``problems`` method that does
+arithmetic on values beyond it leaves them to that).  ``seed`` is the one exception (any
+integer in [0, 2^63))."""
+
+
 @dataclass(frozen=True)
 class Problem:
     """One invalid config value: ``key`` relative to the dataclass, and what was expected."""

@@ -350,3 +350,18 @@ def test_no_schema_field_is_left_out_of_the_conversion():
             kinds = [hints[f.name], *typing.get_args(hints[f.name])]
             todo += [t for t in kinds if isinstance(t, type) and dataclasses.is_dataclass(t)]
     assert len(seen) > 10
+
+
+@pytest.mark.parametrize("leaf", ["platform.waypoints_m[0][0]", "platform.waypoints_m[1][1]"])
+def test_a_platform_waypoint_beyond_the_magnitude_bound_is_one_clear_error(leaf):
+    """The platform's leg and turn checks leave a coordinate beyond MAX_MAGNITUDE to the
+    magnitude check: one message, no numpy overflow warning, no turn message about a path that
+    only the typo made."""
+    import warnings
+    cfg = compose([])
+    set_leaf(cfg, leaf, 1e300)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ConfigError) as info:
+            config.validate(cfg)
+    assert str(info.value) == f"invalid config: {leaf}: must be within ±1e+12, got 1e+300"

@@ -18,7 +18,8 @@ from typing import Any, List, Optional
 import numpy as np
 
 from gmtiflow.scene import flight
-from gmtiflow.schema import Problem, in_range, is_number, point_problems, positive
+from gmtiflow.schema import (MAX_MAGNITUDE, Problem, in_range, is_number, point_problems,
+                             positive)
 
 
 class PlatformKind(str, Enum):
@@ -74,6 +75,8 @@ class PlatformConfig:
         if out:
             return out
         xy = np.asarray(wps, float)[:, :2]
+        if np.abs(xy).max() > MAX_MAGNITUDE:    # config.magnitude_problems names it; legs and
+            return out                          # turns of such a path overflow, or mislead
         legs = np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1)
         for i, length in enumerate(legs):
             if length == 0.0:
