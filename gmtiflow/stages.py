@@ -227,15 +227,17 @@ def _sample_times(cfg: AppConfig) -> np.ndarray:
 
 
 def truth_table(state: RunState):
-    """/truth, appended ``chunk_s`` seconds of scene time at a time."""
+    """/truth, ``chunk_s`` seconds of scene time at a time, appended block by block
+    (:meth:`Fleet.truth_blocks`)."""
     cfg, fleet = state.cfg, state.values["truth"]
     times = _sample_times(cfg)
     sink = state.sink("truth")
     for tt in bars.stage_progress(time_chunks(times, cfg.chunk_s), cfg.progress,
                                   desc="truth table", unit="chunk", leave=False):
-        sink.append(fleet.truth_table(tt))
-    if not len(times):
-        sink.append(fleet.truth_table(times))
+        for block in fleet.truth_blocks(tt):
+            sink.append(block)
+    if not sink.n_rows:         # no vehicle active at any sample: the empty table's columns
+        sink.append(fleet.truth_table(times[:0]))
     sink.close()
     log.info("truth: %d vehicles, %d samples", len(fleet.vehicles["vehicle_id"]), sink.n_rows)
     return sink.table() if sink.keep else None

@@ -7,6 +7,7 @@ evaluates them exactly at any instant (``state_at``, vectorised over (time, vehi
 from __future__ import annotations
 
 import math
+from typing import Iterator
 
 import numpy as np
 
@@ -260,12 +261,27 @@ class Fleet:
                   & np.isfinite(t))
         return active, valid, vs, tau
 
-    def truth_table(self, times_s, chunk_rows: int = 500_000) -> Table:
-        """``/truth`` rows of the active vehicles at ``times_s``, sorted by time then vehicle.
+    def truth_table(self, times_s) -> Table:
+        """``/truth`` rows of the active vehicles at ``times_s``, sorted by time then vehicle:
+        the blocks of :meth:`truth_blocks` joined."""
+        parts = list(self.truth_blocks(times_s))
+        if not parts:
+            st = self.state_at(np.zeros(0), np.zeros(0, np.int64))
+            st.pop("active")
+            return st
+        if len(parts) == 1:
+            return parts[0]
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+    def truth_blocks(self, times_s, block_rows: int = _BLOCK_ROWS) -> Iterator[Table]:
+        """``/truth`` rows of the active vehicles at ``times_s``, sorted by time then vehicle,
+        as consecutive tables of at most ``block_rows`` rows (none for no rows): a caller
+        that streams them (the truth stage) holds one block at a time, not the whole table
+        (the Stone Soup peer's 1,000 targets: 43 MB of fresh memory fewer to fault in).
 
         Only the (time, vehicle) pairs within each vehicle's trip (one sample of margin on each
         side, then the exact ``active`` test) are evaluated, so the cost is the rows written,
-        not vehicles x times."""
+        not vehicles x times; every row's values are its own, whatever the blocks."""
         times = np.sort(np.asarray(times_s, dtype=float).ravel(), kind="stable")
         n = self.n_vehicles
         if n and len(times):
@@ -288,19 +304,12 @@ class Fleet:
         if len(vid):        # the active pairs only (state_at then neither gathers nor scatters)
             keep, _, _, tau = self._active(t, vid)
             vid, t, tau = vid[keep], t[keep], tau[keep]
-        parts = []
-        for a in range(0, len(vid), chunk_rows):
-            sl = slice(a, a + chunk_rows)
-            st = self._blocks(t[sl], vid[sl], None, tau[sl])
+        m = len(vid)
+        size = -(-m // -(-m // block_rows)) if m else 0       # equal blocks, <= block_rows
+        for a in range(0, m, size or 1):
+            st = self._state_flat(t[a:a + size], vid[a:a + size], None, tau[a:a + size])
             mask = st.pop("active")
-            parts.append(st if mask.all() else {k: c[mask] for k, c in st.items()})
-        if not parts:
-            st = self.state_at(np.zeros(0), np.zeros(0, np.int64))
-            st.pop("active")
-            return st
-        if len(parts) == 1:
-            return parts[0]
-        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+            yield st if mask.all() else {k: c[mask] for k, c in st.items()}
 
 
 def _road_frames(routes, xyz, s, off):

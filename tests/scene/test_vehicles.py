@@ -385,7 +385,7 @@ def test_truth_table_columns_and_order(default_map):
 
 
 def test_truth_table_is_state_at_of_the_active_pairs_whatever_the_chunks(default_map):
-    # truth_table evaluates the active (time, vehicle) pairs only, in chunks; every row is
+    # truth_table evaluates the active (time, vehicle) pairs only, in blocks; every row is
     # state_at's for that pair bit for bit, also among inactive rows (its other path)
     cfg = VehiclesConfig(random=RandomFleetSpec(count=12, start_time_max_s=100.0,
                                                 random_stop_rate_per_s=0.02))
@@ -398,7 +398,9 @@ def test_truth_table_is_state_at_of_the_active_pairs_whatever_the_chunks(default
     assert 0 < act.sum() < act.size
     assert list(whole) == list(TRUTH_COLUMNS) and len(whole["time_s"]) == act.sum()
     for chunk in (7, 1000, 10**6):
-        part = fl.truth_table(times, chunk_rows=chunk)
+        blocks = list(fl.truth_blocks(times, block_rows=chunk))
+        assert max(len(b["time_s"]) for b in blocks) <= chunk
+        part = {k: np.concatenate([b[k] for b in blocks]) for k in TRUTH_COLUMNS}
         for k in TRUTH_COLUMNS:
             assert part[k].dtype == grid[k].dtype, k
             assert part[k].tobytes() == grid[k][act].tobytes(), k
