@@ -7,7 +7,7 @@ evaluates them exactly at any instant (``state_at``, vectorised over (time, vehi
 from __future__ import annotations
 
 import math
-from typing import Iterator
+from typing import Iterator, List
 
 import numpy as np
 
@@ -23,6 +23,15 @@ from gmtiflow.tables import Table
 #: 500,000-row requests (2026-11-25); with the gmtiflow command's settings
 #: (:mod:`gmtiflow.allocator`) about the same time, and bounded temporaries either way.
 _BLOCK_ROWS = 16_384
+
+
+def _equal_blocks(n: int, most: int) -> List[slice]:
+    """``n`` rows as consecutive slices of equal size (the last maybe shorter), each at most
+    ``most`` rows, as few as that allows (none for no rows)."""
+    if n <= 0:
+        return []
+    size = -(-n // -(-n // most))
+    return [slice(a, a + size) for a in range(0, n, size)]
 
 
 # --------------------------------------------------------------------------------------------
@@ -126,10 +135,8 @@ class Fleet:
         n = t.size
         if n <= _BLOCK_ROWS:
             return self._state_flat(t, vid, cols, tau)
-        size = -(-n // -(-n // _BLOCK_ROWS))
-        parts = [self._state_flat(t[a:a + size], vid[a:a + size], cols,
-                                  None if tau is None else tau[a:a + size])
-                 for a in range(0, n, size)]
+        parts = [self._state_flat(t[sl], vid[sl], cols, None if tau is None else tau[sl])
+                 for sl in _equal_blocks(n, _BLOCK_ROWS)]
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     def _state_flat(self, t, vid, cols=None, tau=None) -> Table:
@@ -304,10 +311,8 @@ class Fleet:
         if len(vid):        # the active pairs only (state_at then neither gathers nor scatters)
             keep, _, _, tau = self._active(t, vid)
             vid, t, tau = vid[keep], t[keep], tau[keep]
-        m = len(vid)
-        size = -(-m // -(-m // block_rows)) if m else 0       # equal blocks, <= block_rows
-        for a in range(0, m, size or 1):
-            st = self._state_flat(t[a:a + size], vid[a:a + size], None, tau[a:a + size])
+        for sl in _equal_blocks(len(vid), block_rows):
+            st = self._state_flat(t[sl], vid[sl], None, tau[sl])
             mask = st.pop("active")
             yield st if mask.all() else {k: c[mask] for k, c in st.items()}
 
