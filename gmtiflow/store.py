@@ -46,7 +46,7 @@ from typing import Any, Dict, List, Mapping, Optional
 import h5py
 import numpy as np
 import yaml
-from h5py import h5a, h5d, h5p, h5s, h5t
+from h5py import h5a, h5d, h5g, h5p, h5s, h5t
 
 from gmtiflow import __version__
 from gmtiflow.errors import StoreError
@@ -126,15 +126,24 @@ handing the GIL to and fro around every zlib call: ~0.02 s on the 19 MB of the 1
 Soup peer run, on 2 cores; docs/scale.md), which only a run big enough to keep them busy
 repays in wall time."""
 
-# The run file's objects are made with h5py's low-level API: ``Group.create_dataset`` and
-# ``attrs[...] =`` rebuild the same property lists, types and dataspaces for every column
-# (~0.2 ms a dataset, most of a small run's file cost).  These are built once; the objects
-# they make are the ones the high-level calls made (same types, shapes, filters, chunks).
+# The run file's objects are made with h5py's low-level API: ``Group.create_dataset``,
+# ``require_group`` and ``attrs[...] =`` rebuild the same property lists, types and dataspaces
+# for every object (~0.2 ms a dataset, most of a small run's file cost; ~40 µs a group or a
+# root attribute).  These are built once; the objects they make are the ones the high-level
+# calls made (same types, shapes, filters, chunks; the same file, byte for byte).
 _SCALAR_SPACE = h5s.create_simple(())
 _STR_TYPE = h5t.py_create(_STR, logical=True)
 _STR_MEMORY_TYPE = h5t.py_create(_STR)       # Python str objects, converted to _STR_TYPE
 _FILE_TYPES: Dict[np.dtype, Any] = {}
+_MEMORY_TYPES: Dict[np.dtype, Any] = {}
 _DCPLS: Dict[tuple, Any] = {}
+_GCPL = h5p.create(h5p.GROUP_CREATE)         # h5py's create_group: no timestamps
+_GCPL.set_obj_track_times(False)
+_LCPL = h5p.create(h5p.LINK_CREATE)          # h5py's: intermediate groups made, ASCII names
+_LCPL.set_create_intermediate_group(True)
+_LCPL.set_char_encoding(h5t.CSET_ASCII)
+_PLAIN_PATH = re.compile(r"[A-Za-z0-9_.-]+(/[A-Za-z0-9_.-]+)*")
+"""Group paths :func:`_new_group` makes itself (ASCII, relative, no empty or odd parts)."""
 
 
 def _file_type(dtype: np.dtype):
@@ -172,6 +181,48 @@ def _auto_chunk_rows(itemsize: int) -> int:
         return int(guess_chunk((0,), (None,), itemsize)[0])
     except (ImportError, TypeError, ValueError, IndexError):
         return 1024
+
+
+def _new_group(file: h5py.File, name: str) -> tuple:
+    """``(group id, absolute path)`` of group ``name`` (a path relative to the root, missing
+    groups on the way made too), as ``file.require_group(name)`` gives it; made with the
+    property lists h5py's ``create_group`` would build (:data:`_GCPL`, :data:`_LCPL`).  A
+    path that exists already, or an unusual one, is left to h5py."""
+    if _PLAIN_PATH.fullmatch(name):
+        links = file.id.links
+        parts = name.split("/")
+        prefixes = ["/".join(parts[:i + 1]).encode() for i in range(len(parts))]
+        exists = True
+        for prefix in prefixes:         # a missing link on the way: the path is new
+            exists = links.exists(prefix)
+            if not exists:
+                break
+        if not exists:
+            return h5g.create(file.id, prefixes[-1], lcpl=_LCPL, gcpl=_GCPL), "/" + name
+    group = file.require_group(name)
+    return group.id, group.name
+
+
+def _set_root_attr(file: h5py.File, name: str, value) -> None:
+    """Root attribute ``name`` = ``value``, replacing any of that name, as ``file.attrs[name] =
+    value`` sets it (the same HDF5 calls: delete, create, write); a bool, int, float or str
+    with the types built once (:func:`_file_type`), anything else through h5py."""
+    cls = type(value)
+    if cls not in (bool, int, float, str) or cls is int and not -2**63 <= value < 2**63:
+        file.attrs[name] = value
+        return
+    data = np.array(value, dtype=_STR) if cls is str else np.asarray(value)
+    mtype = _STR_MEMORY_TYPE if cls is str else _MEMORY_TYPES.get(data.dtype)
+    if mtype is None:
+        mtype = _MEMORY_TYPES[data.dtype] = h5t.py_create(data.dtype)
+    key = name.encode()
+    if h5a.exists(file.id, key):
+        h5a.delete(file.id, key)
+    attr = h5a.create(file.id, key, _file_type(data.dtype), _SCALAR_SPACE)
+    try:
+        attr.write(data, mtype=mtype)
+    finally:
+        attr.close()
 
 
 def _set_text_attr(oid, name: bytes, value: str) -> None:
@@ -757,13 +808,9 @@ class RunWriter:
         self._deflater = _ChunkDeflater(deflate_workers, inline_bytes=inline)
         try:
             self._file = h5py.File(self.tmp_path, "w", track_order=True)
-            root = self._file.attrs
-            root["layout_version"] = LAYOUT_VERSION
-            root["seed"] = int(seed)
-            root["gmtiflow_version"] = __version__
-            root["complete"] = False
-            for key, value in (attrs or {}).items():
-                root[key] = value
+            self.set_attrs({"layout_version": LAYOUT_VERSION, "seed": int(seed),
+                            "gmtiflow_version": __version__, "complete": False})
+            self.set_attrs(attrs or {})
         except BaseException:       # Ctrl-C or a bad attribute before ``with`` took over
             self._deflater.close()
             if getattr(self, "_file", None) is not None:
@@ -789,7 +836,7 @@ class RunWriter:
     def set_attrs(self, attrs: Mapping) -> None:
         """Set root attributes (the scene's origin and epoch, once the scene is built)."""
         for key, value in attrs.items():
-            self._file.attrs[key] = value
+            _set_root_attr(self._file, key, value)
 
     def _parts(self, table) -> tuple:
         """``(parts, rows)``: ``table`` as a non-empty list of tables with the same columns
@@ -815,8 +862,8 @@ class RunWriter:
         HDF5 chunks get the full size rather than the size of this first block.
         """
         parts, n = self._parts(table)
-        group = self._file.require_group(name)
-        prefix = group.name.rstrip("/") + "/"
+        gid, path = _new_group(self._file, name)
+        prefix = path.rstrip("/") + "/"
         space = h5s.create_simple((n,), (h5s.UNLIMITED,))     # every column's: n rows
         numeric = []                    # deflated together once every column is made
         for column in parts[0]:
@@ -830,7 +877,7 @@ class RunWriter:
                 chunk_rows = n
             else:
                 chunk_rows = _auto_chunk_rows(dtype.itemsize)
-            dsid = h5d.create(group.id, column.encode(), _file_type(dtype), space,
+            dsid = h5d.create(gid, column.encode(), _file_type(dtype), space,
                               dcpl=_dcpl(chunk_rows, not text))
             # attributes first: added to an object whose data is already written they cost
             # HDF5 ~20 % more
@@ -874,7 +921,7 @@ class RunWriter:
         self._deflater.finish()
         self._deflater.close()
         self._check_space(0)
-        self._file.attrs["complete"] = True
+        _set_root_attr(self._file, "complete", True)
         self._file.close()
         os.replace(self.tmp_path, self.path)
         self._committed = True
