@@ -8,6 +8,7 @@ import pytest
 
 from gmtiflow.errors import RoadMapError
 from gmtiflow.scene.roadmap import RoadmapConfig, load_roadmap
+from gmtiflow.scene import routes
 from gmtiflow.scene.routes import off_road_route, shortest_route
 
 from .conftest import batch_routes_match_one_by_one, same_route
@@ -97,10 +98,14 @@ def test_off_road_route():
             off_road_route([[0, 0], bad])
 
 
-def test_many_routes_at_once_are_each_vehicles_own_route(square_map):
+@pytest.mark.parametrize("walk_entries", [None, 150])
+def test_many_routes_at_once_are_each_vehicles_own_route(square_map, monkeypatch, walk_entries):
     """shortest_routes (the random fleet's routes in one go) gives every vehicle the route
     shortest_route gives it, bit for bit, in any order and with repeated pairs; None where
-    shortest_route refuses (same node, unreachable, unknown node) and the others unharmed."""
+    shortest_route refuses (same node, unreachable, unknown node) and the others unharmed;
+    also when the paths are walked a few sources at a time (a large map's groups)."""
+    if walk_entries is not None:
+        monkeypatch.setattr(routes, "_WALK_ENTRIES", walk_entries)
     for rm in (square_map, load_roadmap(RoadmapConfig())):
         names = [str(x) for x in rm.nodes["name"]]
         g = np.random.default_rng(4)
