@@ -31,14 +31,13 @@ Choices (documented in docs/scene.md):
 """
 from __future__ import annotations
 
-import bisect
 import math
 from dataclasses import dataclass
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from gmtiflow import frames
+from gmtiflow import frames, rng
 from gmtiflow.errors import ConfigError, RoadMapError
 from gmtiflow.scene import motion
 from gmtiflow.scene import wander as wander_mod
@@ -268,45 +267,82 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
     node_name = [str(x) for x in np.asarray(roadmap.nodes["name"])[nodes].tolist()]
     st_lo, st_hi = float(spec.start_time_min_s), float(spec.start_time_max_s)
     cs_lo, cs_hi = float(spec.cruise_speed_min_mps), float(spec.cruise_speed_max_mps)
-    out = []
     names = [f"{spec.name_prefix}-{i:04d}" for i in range(int(spec.count))]
-    gens = streams(seed, ("truth", "vehicle"), names, ("spec",))
-    # Start and end nodes: each vehicle's first draw, checked for all at once; the vehicles
-    # whose pair does not qualify draw again from their own streams, up to 100 draws in all
-    # (each stream's draws, and their order, are those of a vehicle-by-vehicle loop).
-    pair = (np.asarray([g.integers(0, n_nodes, size=2) for g in gens], np.int64)
-            .reshape(len(gens), 2))
-    ok = pair[:, 0] != pair[:, 1]
+    # Each vehicle's start and end nodes, then three uniforms (type, start time, cruise speed:
+    # random() and two uniform(lo, hi) = lo + (hi - lo) * random()), from its own stream:
+    # read for all vehicles at once (_spec_draws); a vehicle whose pair does not qualify
+    # draws again from its own stream (_spec_draws_one), as a vehicle-by-vehicle loop would.
+    pair, u, plain = _spec_draws(
+        streams(seed, ("truth", "vehicle"), names, ("spec",)), n_nodes,
+        rng.stream(seed, "truth", "vehicle", names[0], "spec") if names else None)
+    ok = plain & (pair[:, 0] != pair[:, 1])
     if not any_pair:
         d = xy[pair[:, 0]] - xy[pair[:, 1]]
         ok &= np.hypot(d[:, 0], d[:, 1]) >= min_route_m
-    pairs = pair.tolist()
     for i in np.flatnonzero(~ok).tolist():
-        g = gens[i]
-        for _attempt in range(99):
-            a, b = g.integers(0, n_nodes, size=2).tolist()
-            if a != b and (any_pair or np.hypot(*(xy[a] - xy[b])) >= min_route_m):
-                pairs[i] = [a, b]
-                break
-        else:
-            raise RoadMapError(f"{roadmap.source}: random vehicle {names[i]!r}: no two nodes at "
-                               f"least min_route_m = {spec.min_route_m} m apart were found")
-    for name, g, (a, b) in zip(names, gens, pairs):
-        # type, start time and cruise speed: three uniforms, as random() and two
-        # uniform(lo, hi) = lo + (hi - lo) * random() draw them (one call instead of three)
-        u_type, u_start, u_cruise = g.random(3).tolist()
-        vtype = types[min(max(bisect.bisect_right(cdf, u_type), 0), top)]
-        out.append(VehicleSpec(
-            name=name, type=vtype, start=node_name[a], end=node_name[b],
-            start_time_s=st_lo + (st_hi - st_lo) * u_start,
-            cruise_speed_mps=cs_lo + (cs_hi - cs_lo) * u_cruise,
-            speed_noise_mps=spec.speed_noise_mps, speed_noise_corr_s=spec.speed_noise_corr_s,
-            position_noise_m=list(spec.position_noise_m),
-            position_noise_corr_s=spec.position_noise_corr_s,
-            max_accel_mps2=spec.max_accel_mps2, max_decel_mps2=spec.max_decel_mps2,
-            random_stop_rate_per_s=spec.random_stop_rate_per_s, mean_wait_s=spec.mean_wait_s,
-            max_wait_s=spec.max_wait_s))
-    return out
+        pair[i], u[i] = _spec_draws_one(rng.stream(seed, "truth", "vehicle", names[i], "spec"),
+                                        n_nodes, xy, any_pair, min_route_m, roadmap.source,
+                                        names[i])
+    vtype = np.minimum(np.maximum(np.searchsorted(cdf, u[:, 0], side="right"), 0), top)
+    start_s = (st_lo + (st_hi - st_lo) * u[:, 1]).tolist()
+    cruise_mps = (cs_lo + (cs_hi - cs_lo) * u[:, 2]).tolist()
+    return [VehicleSpec(
+        name=name, type=types[k], start=node_name[a], end=node_name[b], start_time_s=t0,
+        cruise_speed_mps=cruise, speed_noise_mps=spec.speed_noise_mps,
+        speed_noise_corr_s=spec.speed_noise_corr_s,
+        position_noise_m=list(spec.position_noise_m),
+        position_noise_corr_s=spec.position_noise_corr_s,
+        max_accel_mps2=spec.max_accel_mps2, max_decel_mps2=spec.max_decel_mps2,
+        random_stop_rate_per_s=spec.random_stop_rate_per_s, mean_wait_s=spec.mean_wait_s,
+        max_wait_s=spec.max_wait_s)
+        for name, k, (a, b), t0, cruise in zip(names, vtype.tolist(), pair.tolist(), start_s,
+                                               cruise_mps)]
+
+
+def _spec_draws(gens: List[np.random.Generator], n_nodes: int,
+                check: Optional[np.random.Generator]):
+    """Per stream of ``gens``: ``integers(0, n_nodes, size=2)`` (a node pair, (N, 2)) then
+    ``random(3)`` ((N, 3)), as those calls draw them, read from each stream's first four raw
+    64-bit words in one call (the calls cost ~8 µs a vehicle, 1,000 random vehicles ~6 ms;
+    one raw read ~1 µs).  With fewer than 2^32 nodes numpy's ``integers`` takes the two
+    32-bit halves of one word, low then high, by Lemire's method: node = (half * n) >> 32,
+    unless (half * n) mod 2^32 falls below (2^32 - n) mod n, which draws again; ``random``
+    is (word >> 11) * 2^-53.  ``plain`` (N,): False where a draw again would be needed (a
+    chance of ~n / 2^32): those vehicles are left to their own calls (_spec_draws_one), as
+    are all when ``check`` (a fresh copy of the first stream) draws differently from this
+    reading (another numpy's integers or random), or its first vehicle draws again."""
+    n = len(gens)
+    pair = np.zeros((n, 2), np.int64)
+    u = np.zeros((n, 3))
+    if not n or n_nodes >= 1 << 32:
+        return pair, u, np.zeros(n, bool)
+    raw = np.empty((n, 4), np.uint64)
+    for i, g in enumerate(gens):
+        raw[i] = g.bit_generator.random_raw(4)
+    halves = np.stack([raw[:, 0] & np.uint64(0xFFFFFFFF), raw[:, 0] >> np.uint64(32)], axis=1)
+    m = halves * np.uint64(n_nodes)                      # < 2^64: no wrap
+    low = m & np.uint64(0xFFFFFFFF)
+    plain = ~(low < np.uint64(((1 << 32) - n_nodes) % n_nodes)).any(axis=1)
+    pair[:] = m >> np.uint64(32)
+    u[:] = (raw[:, 1:] >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+    if check is not None and not (
+            plain[0] and check.integers(0, n_nodes, size=2).tolist() == pair[0].tolist()
+            and check.random(3).tobytes() == u[0].tobytes()):
+        plain[:] = False
+    return pair, u, plain
+
+
+def _spec_draws_one(g: np.random.Generator, n_nodes: int, xy: np.ndarray, any_pair: bool,
+                    min_route_m: float, source: str, name: str):
+    """One random vehicle's node pair and three uniforms from its stream ``g`` (fresh), call by
+    call: pairs drawn until one qualifies (distinct nodes at least ``min_route_m`` apart), up
+    to 100 draws, then ``random(3)``."""
+    for _attempt in range(100):
+        a, b = g.integers(0, n_nodes, size=2).tolist()
+        if a != b and (any_pair or np.hypot(*(xy[a] - xy[b])) >= min_route_m):
+            return (a, b), g.random(3)
+    raise RoadMapError(f"{source}: random vehicle {name!r}: no two nodes at least "
+                       f"min_route_m = {min_route_m} m apart were found")
 
 
 def build_fleet(cfg: VehiclesConfig, roadmap: RoadMap, seed: int, duration_s: float,

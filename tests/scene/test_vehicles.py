@@ -602,6 +602,30 @@ def test_random_specs_are_the_documented_draws_of_each_vehicles_own_stream(min_r
     assert (too_close > 0) == (min_route_m > 0)     # the distance did reject pairs
 
 
+@pytest.mark.parametrize("n_nodes", [2, 59, 1000, 2**31 + 1, 2**32 - 1])
+def test_spec_draws_read_from_raw_words_are_the_calls_draws(n_nodes):
+    """_spec_draws reads integers(0, n, 2) and random(3) of each stream from its first four
+    raw words, bit for bit what the calls draw; the rows where the calls would draw again
+    (Lemire's rejection, likely with 2^31 + 1 nodes) are marked for the calls, and so are all
+    with 2^32 nodes or more, or when the check stream draws differently."""
+    from gmtiflow import rng
+    from gmtiflow.scene.streams import streams
+    from gmtiflow.scene.vehicles import _spec_draws
+    names = [f"v{i}" for i in range(200)]
+    fresh = lambda: [rng.stream(3, "x", n) for n in names]  # noqa: E731
+    pair, u, plain = _spec_draws(streams(3, ("x",), names), n_nodes, None)
+    for g, p, uu, ok in zip(fresh(), pair, u, plain):
+        want = g.integers(0, n_nodes, size=2)
+        if ok:
+            assert p.tolist() == want.tolist()
+            assert uu.tobytes() == g.random(3).tobytes()
+    assert plain.sum() >= 20 and plain.all() == (n_nodes != 2**31 + 1)
+    assert not _spec_draws(fresh(), 2**32, None)[2].any()
+    if n_nodes == 59:           # a check stream that draws otherwise: every vehicle by its calls
+        assert _spec_draws(fresh(), n_nodes, rng.stream(3, "x", "v0"))[2].all()
+        assert not _spec_draws(fresh(), n_nodes, rng.stream(3, "x", "other"))[2].any()
+
+
 def test_speed_noise_normals_are_finite_at_both_ends_of_the_uniforms():
     """Φ⁻¹ at u + 2^-54: u = 0 is not inverted at 0 (-inf), and the largest uniform, which
     rounds to 1 with the offset, is inverted at 1 - 2^-53 (8.3σ), not at 1 (+inf: NaN speeds)."""
