@@ -141,16 +141,28 @@ def line_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M):
     return _unit(o_p)
 
 
+def pair_offsets(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M) -> tuple:
+    """What :func:`lines_of_sight` computes first, for a caller that also wants o_P (the target
+    from the platform, platform frame) before it: ``(o_P, o_T's horizontal part negated, o_T's
+    up component, d²)`` (``_offsets`` with the target frame).  Give it back to
+    :func:`lines_of_sight` as ``offsets``."""
+    return _offsets(platform_xyz, target_xyz, radius_m)
+
+
 def lines_of_sight(platform_xyz, target_xyz, radius_m=DEFAULT_RADIUS_M, *,
-                   ground_d2: bool = False):
+                   ground_d2: bool = False, offsets=None):
     """:func:`line_of_sight` and :func:`target_line_of_sight` from one :func:`offsets`:
     ``(range_m, ℓ in the platform's frame, ℓ_T in the target's frame)``, and with
     ``ground_d2`` the squared map separation Δx² + Δy² (None when flat) as a fourth item.
+    ``offsets``: :func:`pair_offsets` of these points when the caller has it (the points are
+    then not read).
 
     ℓ_T = −o_T/|o_T| is taken from o_T's horizontal part before its negation (``_offsets``):
     (−a)² = a² and (−a)·(−c) = a·c exactly, so the values are those of −o_T·(1/|o_T|) without
     two negations of every pair."""
-    o_p, (hx, hy), t_up, d2 = _offsets(platform_xyz, target_xyz, radius_m)
+    if offsets is None:
+        offsets = _offsets(platform_xyz, target_xyz, radius_m)
+    o_p, (hx, hy), t_up, d2 = offsets
     rng, los = _unit(o_p)
     rng_t = np.sqrt(hx * hx + hy * hy + t_up * t_up)
     inv = 1.0 / np.maximum(rng_t, MIN_RANGE_M)
