@@ -436,7 +436,11 @@ def _resolves_as_str(text: str) -> bool:
     if text in _YAML_BOOLS or _reads_as_number(text):
         return False
     resolvers = _yaml_dumper().yaml_implicit_resolvers
-    for tag, regexp in resolvers.get(text[0] if text else "", []) + resolvers.get(None, []):
+    candidates = resolvers.get(text[:1])        # those for its first character ...
+    anywhere = resolvers.get(None)              # ... and those for any (none, usually)
+    if anywhere:
+        candidates = (candidates or []) + anywhere
+    for tag, regexp in candidates or ():
         if regexp.match(text):
             return tag == "tag:yaml.org,2002:str"
     return True

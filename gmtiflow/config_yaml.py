@@ -411,8 +411,16 @@ class _Writer:
         return cached
 
 
+_WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+"""Words (nearly every key and name of a config): one-line printable ASCII with no space,
+indicator or colon, which libyaml writes bare (:func:`_bare_allowed`) unless a reader would
+take it for something else (``resolves_as_str``)."""
+
+
 def _str_text(value: str, resolves_as_str: Callable[[str], bool]) -> str:
     """A string bare, or single-quoted where a bare one would not read back as itself."""
+    if _WORD.fullmatch(value):
+        return value if resolves_as_str(value) else "'" + value + "'"
     if not _ONE_LINE_ASCII.fullmatch(value):
         raise Unsupported("a string with breaks, tabs or non-ASCII characters")
     if _bare_allowed(value) and resolves_as_str(value):
