@@ -45,7 +45,7 @@ from gmtiflow.scene.fleet import TRUTH_COLUMNS, Fleet
 from gmtiflow.scene.roadmap import RoadMap
 from gmtiflow.scene.routes import (Route, off_road_route, off_road_routes, shortest_route,
                                    shortest_routes)
-from gmtiflow.scene.streams import streams
+from gmtiflow.scene.streams import first_words, streams
 from gmtiflow.scene.vehicles_config import (ConvoySpec, RandomFleetSpec, SpeedChangeSpec,
                                             VehicleSpec, VehiclesConfig)
 
@@ -273,7 +273,7 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
     # read for all vehicles at once (_spec_draws); a vehicle whose pair does not qualify
     # draws again from its own stream (_spec_draws_one), as a vehicle-by-vehicle loop would.
     pair, u, plain = _spec_draws(
-        streams(seed, ("truth", "vehicle"), names, ("spec",)), n_nodes,
+        first_words(seed, ("truth", "vehicle"), names, ("spec",), 4), n_nodes,
         rng.stream(seed, "truth", "vehicle", names[0], "spec") if names else None)
     ok = plain & (pair[:, 0] != pair[:, 1])
     if not any_pair:
@@ -299,26 +299,23 @@ def _random_specs(spec: RandomFleetSpec, roadmap: RoadMap, seed: int) -> List[Ve
                                                cruise_mps)]
 
 
-def _spec_draws(gens: List[np.random.Generator], n_nodes: int,
-                check: Optional[np.random.Generator]):
-    """Per stream of ``gens``: ``integers(0, n_nodes, size=2)`` (a node pair, (N, 2)) then
-    ``random(3)`` ((N, 3)), as those calls draw them, read from each stream's first four raw
-    64-bit words in one call (the calls cost ~8 µs a vehicle, 1,000 random vehicles ~6 ms;
-    one raw read ~1 µs).  With fewer than 2^32 nodes numpy's ``integers`` takes the two
-    32-bit halves of one word, low then high, by Lemire's method: node = (half * n) >> 32,
-    unless (half * n) mod 2^32 falls below (2^32 - n) mod n, which draws again; ``random``
-    is (word >> 11) * 2^-53.  ``plain`` (N,): False where a draw again would be needed (a
-    chance of ~n / 2^32): those vehicles are left to their own calls (_spec_draws_one), as
-    are all when ``check`` (a fresh copy of the first stream) draws differently from this
-    reading (another numpy's integers or random), or its first vehicle draws again."""
-    n = len(gens)
+def _spec_draws(raw: np.ndarray, n_nodes: int, check: Optional[np.random.Generator]):
+    """Per stream, from its first four raw 64-bit words ``raw`` (N, 4)
+    (:func:`~gmtiflow.scene.streams.first_words`): ``integers(0, n_nodes, size=2)`` (a node
+    pair, (N, 2)) then ``random(3)`` ((N, 3)), as those calls draw them (the calls and a
+    generator cost ~10 µs a vehicle, 1,000 random vehicles ~8 ms).  With fewer than 2^32
+    nodes numpy's ``integers`` takes the two 32-bit halves of one word, low then high, by
+    Lemire's method: node = (half * n) >> 32, unless (half * n) mod 2^32 falls below
+    (2^32 - n) mod n, which draws again; ``random`` is (word >> 11) * 2^-53.  ``plain``
+    (N,): False where a draw again would be needed (a chance of ~n / 2^32): those vehicles
+    are left to their own calls (_spec_draws_one), as are all when ``check`` (a fresh copy of
+    the first stream) draws differently from this reading (another numpy's integers or
+    random), or its first vehicle draws again."""
+    n = len(raw)
     pair = np.zeros((n, 2), np.int64)
     u = np.zeros((n, 3))
     if not n or n_nodes >= 1 << 32:
         return pair, u, np.zeros(n, bool)
-    raw = np.empty((n, 4), np.uint64)
-    for i, g in enumerate(gens):
-        raw[i] = g.bit_generator.random_raw(4)
     halves = np.stack([raw[:, 0] & np.uint64(0xFFFFFFFF), raw[:, 0] >> np.uint64(32)], axis=1)
     m = halves * np.uint64(n_nodes)                      # < 2^64: no wrap
     low = m & np.uint64(0xFFFFFFFF)

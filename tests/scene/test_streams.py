@@ -44,3 +44,30 @@ def test_batched_streams_build_one_seed_sequence_per_batch(monkeypatch):
     monkeypatch.setattr(rng, "stream", lambda *a: calls.append(a) or real(*a))
     gens = st.streams(9, ("truth", "vehicle"), [f"v{i}" for i in range(10)])
     assert len(calls) == 1 and len(gens) == 10
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2**32 - 1, 2**70 + 3])
+def test_first_words_are_each_streams_raw_outputs(seed):
+    """first_words (PCG64 stepped on all streams at once) gives each rng.stream's first raw
+    64-bit outputs, bit for bit; made one by one for names it cannot batch."""
+    names = [f"random-{i:04d}" for i in range(300)] + ["car-1", 3, 0, "é"]
+    for n_words in (1, 4, 7):
+        got = st.first_words(seed, ("truth", "vehicle"), names, ("spec",), n_words)
+        assert got.shape == (len(names), n_words) and got.dtype == np.uint64
+        for name, row in zip(names, got):
+            ref = rng.stream(seed, "truth", "vehicle", name, "spec").bit_generator
+            assert row.tobytes() == ref.random_raw(n_words).tobytes()
+    for names in ([2**40, "a"], ["only"], []):
+        got = st.first_words(seed, ("truth",), names)
+        assert got.tolist() == [rng.stream(seed, "truth", n).bit_generator.random_raw(4).tolist()
+                                for n in names]
+
+
+def test_first_words_fall_back_when_the_step_differs(monkeypatch):
+    # another PCG64 multiplier (as if numpy's differed): the first stream's check fails, and
+    # every stream's words come from its own generator
+    monkeypatch.setattr(st, "_PCG_MULT", (st._PCG_MULT[0], st._PCG_MULT[1] ^ np.uint64(2)))
+    names = ["a", "b", "c"]
+    got = st.first_words(5, ("truth",), names)
+    assert got.tolist() == [rng.stream(5, "truth", n).bit_generator.random_raw(4).tolist()
+                            for n in names]

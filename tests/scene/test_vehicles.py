@@ -609,21 +609,22 @@ def test_spec_draws_read_from_raw_words_are_the_calls_draws(n_nodes):
     (Lemire's rejection, likely with 2^31 + 1 nodes) are marked for the calls, and so are all
     with 2^32 nodes or more, or when the check stream draws differently."""
     from gmtiflow import rng
-    from gmtiflow.scene.streams import streams
+    from gmtiflow.scene.streams import first_words
     from gmtiflow.scene.vehicles import _spec_draws
     names = [f"v{i}" for i in range(200)]
+    raw = first_words(3, ("x",), names)
     fresh = lambda: [rng.stream(3, "x", n) for n in names]  # noqa: E731
-    pair, u, plain = _spec_draws(streams(3, ("x",), names), n_nodes, None)
+    pair, u, plain = _spec_draws(raw, n_nodes, None)
     for g, p, uu, ok in zip(fresh(), pair, u, plain):
         want = g.integers(0, n_nodes, size=2)
         if ok:
             assert p.tolist() == want.tolist()
             assert uu.tobytes() == g.random(3).tobytes()
     assert plain.sum() >= 20 and plain.all() == (n_nodes != 2**31 + 1)
-    assert not _spec_draws(fresh(), 2**32, None)[2].any()
+    assert not _spec_draws(raw, 2**32, None)[2].any()
     if n_nodes == 59:           # a check stream that draws otherwise: every vehicle by its calls
-        assert _spec_draws(fresh(), n_nodes, rng.stream(3, "x", "v0"))[2].all()
-        assert not _spec_draws(fresh(), n_nodes, rng.stream(3, "x", "other"))[2].any()
+        assert _spec_draws(raw, n_nodes, rng.stream(3, "x", "v0"))[2].all()
+        assert not _spec_draws(raw, n_nodes, rng.stream(3, "x", "other"))[2].any()
 
 
 def test_speed_noise_normals_are_finite_at_both_ends_of_the_uniforms():
