@@ -567,6 +567,39 @@ def _ahead_wanted(left_m, block_left_s, slow_mps) -> np.ndarray:
     return ~(left_m < 0.9 * block_left_s * slow_mps)
 
 
+def _recurrence(x: np.ndarray, rho: np.ndarray) -> None:
+    """x[r] = ρ·x[r - 1] + x[r] for r = 1 .. in order, in place on a (W, n) array: one
+    multiply and one add per row, into row views made once and with ``out`` passed
+    positionally (the per-call overhead is most of the cost for a few hundred columns:
+    2.6x faster than indexing rows and ``out=`` keywords in the loop, 2026-11-28)."""
+    mul, add = np.multiply, np.add
+    tmp = np.empty(x.shape[1])
+    rows = list(x)
+    prev = rows[0]
+    for row in rows[1:]:
+        mul(rho, prev, tmp)
+        add(tmp, row, row)
+        prev = row
+
+
+def _running_sums(st: np.ndarray, terms) -> None:
+    """st[i + 1] = ((st[i] + terms[0][i]) + terms[1][i]) (+ terms[2][i]) for i = 0 .. W - 1,
+    in place on a (W + 1, n) array (two or three terms, (W, n) each): the additions in that
+    order, over row views made once, ``out`` passed positionally (as :func:`_recurrence`;
+    the 1,000-vehicle fast fleet's windows 4.1 -> 2.2 ms)."""
+    add = np.add
+    rows = list(st)
+    if len(terms) == 3:
+        for prev, row, a, b, c in zip(rows[:-1], rows[1:], *terms):
+            add(prev, a, row)
+            add(row, b, row)
+            add(row, c, row)
+        return
+    for prev, row, a, b in zip(rows[:-1], rows[1:], *terms):
+        add(prev, a, row)
+        add(row, b, row)
+
+
 def _leading_true(ok: np.ndarray) -> np.ndarray:
     """Per row, the number of leading True values of a 2-D bool array."""
     pad = np.zeros((ok.shape[0], 1), bool)
@@ -775,10 +808,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         if loop.size:
             part = xi if loop.size == pids.size else xi[:, loop]
             rl = rh[loop]
-            tmp = np.empty(loop.size)
-            for r in range(1, W):
-                np.multiply(rl, part[r - 1], out=tmp)
-                np.add(tmp, part[r], out=part[r])
+            _recurrence(part, rl)
             if part is not xi:
                 xi[:, loop] = part
         xi_buf[pids, col0:col0 + W] = xi.T
@@ -923,11 +953,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                       np.ascontiguousarray(bridged.T) if noise else None)
                 st = np.empty((W + 1, todo.size))
                 st[0] = s0
-                for i in range(W):
-                    np.add(st[i], tt[0][i], out=st[i + 1])
-                    st[i + 1] += tt[1][i]
-                    if noise:
-                        st[i + 1] += tt[2][i]
+                _running_sums(st, tt if noise else tt[:2])
                 S_full = st.T
             S, s_end = S_full[:, :-1], S_full[:, 1:]
             # Right: step 0 (its start state is exact) and every step after a right one whose
