@@ -833,7 +833,9 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         rows = ids[:, None]
         sig_a = sigma_all[ids][:, None]
         x1_a = sig_a * xi_win[ids, c0]
-        x0_a = sig_a * xi_win[ids, c0 - 1]
+        x0_a = np.empty_like(x1_a)          # σξ a step earlier: x1_a shifted by one column
+        x0_a[:, 0] = sig_a[:, 0] * xi_buf[ids, c0 - 1]
+        x0_a[:, 1:] = x1_a[:, :-1]
         step_a = kk[:, None] + ar
         ev0_a = us_win[ids, c0] < p_stop_all[ids][:, None]
         last_a = step_a + 1 >= horizon[ids][:, None]
@@ -954,7 +956,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                 st = np.empty((W + 1, todo.size))
                 st[0] = s0
                 _running_sums(st, tt if noise else tt[:2])
-                S_full = st.T
+                S_full = np.ascontiguousarray(st.T)     # rows: compress and search it fast
             S, s_end = S_full[:, :-1], S_full[:, 1:]
             # Right: step 0 (its start state is exact) and every step after a right one whose
             # start speed is the previous step's end and whose desired speed at its start
