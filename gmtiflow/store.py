@@ -221,8 +221,11 @@ def _set_root_attr(file: h5py.File, name: str, value) -> None:
     attr = h5a.create(file.id, key, _file_type(data.dtype), _SCALAR_SPACE)
     try:
         attr.write(data, mtype=mtype)
-    finally:
+    except BaseException:       # (text that is not UTF-8): no empty attribute left, as h5py
         attr.close()
+        h5a.delete(file.id, key)
+        raise
+    attr.close()
 
 
 def _set_text_attr(oid, name: bytes, value: str) -> None:

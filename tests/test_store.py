@@ -252,6 +252,21 @@ def test_constant_planes_are_found_and_checksummed_without_their_bytes():
     assert raw == np.ascontiguousarray(small.view(np.uint8).reshape(-1, 8).T).tobytes()
 
 
+def test_a_root_attribute_that_cannot_be_written_is_not_left_behind(tmp_path):
+    """Root attributes are written with h5py's low-level calls; one whose value cannot be
+    stored (text that is not UTF-8) raises as ``attrs[...] =`` does and leaves no empty
+    attribute of that name."""
+    with h5py.File(tmp_path / "a.h5", "w", track_order=True) as f:
+        for set_attr in (lambda: f.attrs.__setitem__("x", "\udc80"),
+                         lambda: store._set_root_attr(f, "x", "\udc80")):
+            with pytest.raises(UnicodeEncodeError):
+                set_attr()
+            assert "x" not in f.attrs
+        store._set_root_attr(f, "x", "m")
+        store._set_root_attr(f, "x", True)             # replaced, as attrs[...] = replaces
+        assert f.attrs["x"].dtype == bool and bool(f.attrs["x"])
+
+
 def test_noise_planes_are_stored_and_the_rest_deflated():
     """Byte planes that are noise (random low bytes of measured values) cost deflate's time for
     nothing, so they go into the stream as stored blocks; planes with any structure are still
