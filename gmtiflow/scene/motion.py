@@ -235,9 +235,9 @@ class Profiles:
     s_flat: np.ndarray
     v_flat: np.ndarray
     a_flat: np.ndarray
-    tau_flat: np.ndarray
+    tau_flat: np.ndarray       # (Δt as one read-only value where no step stops inside)
     mode_flat: np.ndarray
-    noise_flat: np.ndarray     # σξ_k at the grid points
+    noise_flat: np.ndarray     # σξ_k at the grid points (+0, read-only, if none is bridged)
     bridge_flat: np.ndarray    # bool per step
     kappa: np.ndarray          # (P,)
     _dense: dict = field(default_factory=dict, repr=False)
@@ -486,30 +486,39 @@ def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.n
     """The recorded steps as flat profiles: per record (profile ids, local steps, a, tau (None:
     every step lasts Δt), label, bridge, s_end, v_end, σξ at the step's end), in any order;
     each record is scattered into place directly (no concatenated copy of every column
-    first)."""
+    first).  Where no step stops within itself (every tau Δt) ``tau_flat`` is Δt as one
+    read-only value, and where no step carries the speed bridge (no speed noise, as the Stone
+    Soup peer's targets) ``noise_flat`` is +0 likewise (it is read for bridged steps only):
+    each 8 bytes a step of the fleet's memory fewer (the peer's 10 targets: 1.4 MB)."""
     ids_all = (np.concatenate([r[0] for r in rec]) if rec else np.zeros(0, np.int64))
     n_p = np.bincount(ids_all, minlength=P).astype(np.int64)
     del ids_all
     off = np.concatenate([[0], np.cumsum(n_p)]).astype(np.int64)
     n = int(off[-1])
+    timed = any(r[3] is not None and bool((r[3] != dt).any()) for r in rec)
+    bridged = any(bool(np.any(r[5])) for r in rec)
     a = np.empty(n)
-    tau = np.full(n, dt)            # the steps of the records without tau (None) last Δt
+    # the steps of the records without tau (None) last Δt
+    tau = np.full(n, dt) if timed else np.broadcast_to(np.float64(dt), (n,))
     mode = np.empty(n, np.uint8)
     bridge = np.empty(n, bool)
     s = np.empty(n + P)
     v = np.empty(n + P)
-    w = np.empty(n + P)
+    w = np.empty(n + P) if bridged else np.broadcast_to(np.float64(0.0), (n + P,))
     first = off[:-1] + np.arange(P)
     s[first] = 0.0
     v[first] = v0
-    w[first] = 0.0
+    if bridged:
+        w[first] = 0.0
     for ids, k, a_r, tau_r, mode_r, bridge_r, s_r, v_r, w_r in rec:
         i = off[ids] + k
         a[i], mode[i], bridge[i] = a_r, mode_r, bridge_r
-        if tau_r is not None:
+        if tau_r is not None and timed:
             tau[i] = tau_r
         g = i + ids + 1
-        s[g], v[g], w[g] = s_r, v_r, w_r
+        s[g], v[g] = s_r, v_r
+        if bridged:
+            w[g] = w_r
     return Profiles(dt_s=dt, n_steps_p=n_p, horizon_steps=horizon, step_offset=off,
                     s_flat=s, v_flat=v, a_flat=a, tau_flat=tau, mode_flat=mode, noise_flat=w,
                     bridge_flat=bridge, kappa=kappa)
