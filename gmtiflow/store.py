@@ -239,7 +239,8 @@ def _set_text_attr(oid, name: bytes, value: str) -> None:
 
 
 _SMALL_BYTES = 4096
-"""Chunks smaller than this are deflated in one zlib call (:func:`_deflated_chunk`)."""
+"""Chunks smaller than this are shuffled and deflated whole, as one section
+(:func:`_small_stream`)."""
 _NOISE_BITS = 7.7
 """A byte plane whose sample has more entropy than this (bits a byte, of 8; a sample of
 uniformly random bytes has ~7.91) is stored, not deflated: deflate would spend ~7 ms a MB on it
@@ -488,7 +489,7 @@ def _deflated_chunk(values, pad_rows: int = 0) -> bytes:
     has one compressor of each (:func:`_compressor`).  On the columns of real runs this takes
     about a quarter of the CPU of HDF5's own level-1 deflate, for 1-2 % more bytes
     (docs/tables.md).  zlib releases the GIL while compressing.  A chunk of fewer than
-    :data:`_SMALL_BYTES` is shuffled and deflated whole, as HDF5's filters would."""
+    :data:`_SMALL_BYTES` is shuffled and deflated whole (:func:`_small_stream`)."""
     prep = _chunk_planes(values, pad_rows)
     if isinstance(prep, bytes):
         return prep
@@ -551,10 +552,26 @@ def _chunk_planes(values, pad_rows: int):
     n = sum(len(p) for p in pieces)
     if n * k < _SMALL_BYTES and not pad_rows:
         raw = (pieces[0] if len(pieces) == 1 else np.concatenate(pieces)).view(np.uint8)
-        return zlib.compress(raw if k == 1 else np.ascontiguousarray(raw.reshape(-1, k).T),
-                             _DEFLATE_LEVEL)
+        return _small_stream(raw if k == 1 else np.ascontiguousarray(raw.reshape(-1, k).T))
     const = _constant_planes(pieces)
     return pieces, k, n, const, _shuffled(pieces, np.flatnonzero(~const), n)
+
+
+def _small_stream(data: np.ndarray) -> bytes:
+    """The zlib stream of ``data`` (a small chunk's shuffled bytes) as one section of this
+    thread's level-1 compressor (:func:`_compressor`, ``Z_DEFAULT_STRATEGY``), ended by a
+    full flush, then an empty final block and the checksum: ~10 bytes more than
+    ``zlib.compress`` gives, which makes a new compressor (~350 KB) every call; after the
+    1 MB conversion buffers of HDF5's text writes are freed (the heap trimmed), each of those
+    touched fresh pages again (the 10-target peer run at 18 scans: ~240 of its ~280 page
+    faults a run in the writer, 01:27 UTC)."""
+    z = _compressor(zlib.Z_DEFAULT_STRATEGY)
+    try:
+        body = z.compress(data) + z.flush(zlib.Z_FULL_FLUSH)
+    except BaseException:       # stopped mid-section (Ctrl-C): not reused
+        delattr(_local, f"z{zlib.Z_DEFAULT_STRATEGY}")
+        raise
+    return b"".join((_ZLIB_HEADER, body, _LAST_BLOCK, zlib.adler32(data).to_bytes(4, "big")))
 
 
 def _encoded(prep: tuple, ways: list, pad_rows: int) -> bytes:

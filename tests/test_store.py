@@ -247,7 +247,7 @@ def test_constant_planes_are_found_and_checksummed_without_their_bytes():
         k = values.dtype.itemsize
         back = np.frombuffer(raw, np.uint8).reshape(k, n).T.copy().view(values.dtype).ravel()
         assert back.tobytes() == values.tobytes()
-    small = np.arange(10, dtype=np.int64)          # under _SMALL_BYTES: one zlib call
+    small = np.arange(10, dtype=np.int64)          # under _SMALL_BYTES: one section
     raw = zlib.decompress(store._deflated_chunk(small))
     assert raw == np.ascontiguousarray(small.view(np.uint8).reshape(-1, 8).T).tobytes()
 
