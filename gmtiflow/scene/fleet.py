@@ -216,7 +216,8 @@ class Fleet:
                 sub = (lambda a: a) if every else (lambda a: a[moving])  # noqa: E731
                 m_ids = sub(v_ids)
                 n, nd, ndd = wander_mod.evaluate(sub(t_a), m_ids, None, self._w_off,
-                                                 self._w_t0, self._w_h, knots_t=self._w_knots_t)
+                                                 self._w_t0, self._w_h, knots_t=self._w_knots_t,
+                                                 second=need_acc)
                 jm = sub(j)
                 psi_j = self._seg_psi[jm]
                 psi, dpsi, d2psi = wander_mod.corner_heading(

@@ -51,11 +51,12 @@ def n_knots(t0_s, end_s, h_s) -> np.ndarray:
     return np.ceil(span - 1e-9).astype(np.int64) + 4
 
 
-def _basis(x):
-    """Uniform cubic B-spline weights (4, n) at fractions x and their first two derivatives."""
+def _basis(x, second: bool = True):
+    """Uniform cubic B-spline weights (4, n) at fractions x and their first two derivatives
+    (the second None unless ``second``)."""
     y = 1.0 - x
     x2, x3 = x * x, x * x * x
-    b, d1, d2 = (np.empty((4,) + np.shape(x)) for _ in range(3))
+    b, d1 = (np.empty((4,) + np.shape(x)) for _ in range(2))
     # each row's last operation writes into its row (no stacked copies)
     np.divide(y * y * y, 6.0, out=b[0])
     np.divide(3.0 * x3 - 6.0 * x2 + 4.0, 6.0, out=b[1])
@@ -65,6 +66,9 @@ def _basis(x):
     np.subtract(1.5 * x2, 2.0 * x, out=d1[1])
     np.add(-1.5 * x2 + x, 0.5, out=d1[2])
     np.multiply(0.5, x2, out=d1[3])
+    if not second:
+        return b, d1, None
+    d2 = np.empty((4,) + np.shape(x))
     d2[0] = y
     np.subtract(3.0 * x, 2.0, out=d2[1])
     np.subtract(1.0, 3.0 * x, out=d2[2])
@@ -72,12 +76,12 @@ def _basis(x):
     return b, d1, d2
 
 
-def evaluate(time_s, vehicle, knots, offset, t0_s, h_s, knots_t=None):
+def evaluate(time_s, vehicle, knots, offset, t0_s, h_s, knots_t=None, second: bool = True):
     """Offsets n, rates ṅ and accelerations n̈, each (n, 3), of vehicles ``vehicle`` (n,) at
     ``time_s`` (n,): ``knots`` (K, 3) all vehicles' knot values, ``offset`` (N + 1,) each
     vehicle's first knot row, ``t0_s`` and ``h_s`` (N,) its time origin and knot spacing;
     ``knots_t``: the knots as a contiguous (3, K) array instead (kept by the caller across
-    calls).
+    calls); ``second`` False: n̈ is None, its work skipped (n and ṅ are the same values).
 
     Computed axis by axis on (3, n) arrays (long inner loops) and returned as (n, 3) views."""
     t = np.asarray(time_s, float)
@@ -85,7 +89,7 @@ def evaluate(time_s, vehicle, knots, offset, t0_s, h_s, knots_t=None):
     if not whole:
         n = np.zeros((3, t.size))
         nd = np.zeros((3, t.size))
-        ndd = np.zeros((3, t.size))
+        ndd = np.zeros((3, t.size)) if second else None
     if knots_t is None:
         knots_t = np.ascontiguousarray(np.asarray(knots, float).T)
     for i0 in range(0, t.size, _CHUNK):
@@ -97,29 +101,34 @@ def evaluate(time_s, vehicle, knots, offset, t0_s, h_s, knots_t=None):
         u = np.clip((t[sl] - t0_s[v]) / h, 0.0, (count - 4).astype(float) + 1.0 - 1e-12)
         i = np.floor(u).astype(np.int64)
         x = u - i
-        b, b1, b2 = _basis(x)
+        b, b1, b2 = _basis(x, second)
         q = np.sum(b * b, axis=0)
         q1 = 2.0 * np.sum(b * b1, axis=0)
-        q2 = 2.0 * np.sum(b1 * b1 + b * b2, axis=0)
         rq = 1.0 / np.sqrt(q)
         base = first + i
         num = np.zeros((3, len(v)))
         num1 = np.zeros((3, len(v)))
-        num2 = np.zeros((3, len(v)))
+        num2 = np.zeros((3, len(v))) if second else None
         for k in range(4):
             c = np.take(knots_t, base + k, axis=1)     # (4x faster than [:, base + k])
             num += b[k] * c
             num1 += b1[k] * c
-            num2 += b2[k] * c
-        r1, r3, r5 = rq, rq ** 3, rq ** 5
+            if second:
+                num2 += b2[k] * c
+        r1, r3 = rq, rq ** 3
         n_b = num * r1
         nd_b = (num1 * r1 - 0.5 * num * q1 * r3) / h
-        ndd_b = (num2 * r1 - num1 * q1 * r3 + 0.75 * num * q1 * q1 * r5
-                 - 0.5 * num * q2 * r3) / (h * h)
+        ndd_b = None
+        if second:
+            q2 = 2.0 * np.sum(b1 * b1 + b * b2, axis=0)
+            ndd_b = (num2 * r1 - num1 * q1 * r3 + 0.75 * num * q1 * q1 * rq ** 5
+                     - 0.5 * num * q2 * r3) / (h * h)
         if whole:
-            return n_b.T, nd_b.T, ndd_b.T
-        n[:, sl], nd[:, sl], ndd[:, sl] = n_b, nd_b, ndd_b
-    return n.T, nd.T, ndd.T
+            return n_b.T, nd_b.T, None if ndd_b is None else ndd_b.T
+        n[:, sl], nd[:, sl] = n_b, nd_b
+        if second:
+            ndd[:, sl] = ndd_b
+    return n.T, nd.T, None if ndd is None else ndd.T
 
 
 def segment_headings(xyz_m: np.ndarray) -> np.ndarray:
@@ -183,7 +192,8 @@ def corner_heading(s, s_j, s_j1, psi_j, b_j, turn_j, b_j1, turn_j1):
 def world_offset(n, nd, ndd, psi, dpsi_ds, d2psi_ds2, speed, accel, sin_cos=None):
     """Offset, velocity and acceleration (each (k, 3), ENU) of the wander in a frame turning
     with heading ψ(s(t)): along A = (sin ψ, cos ψ, 0), across C = (−cos ψ, sin ψ, 0) (left), up.
-    ``sin_cos``: (sin ψ, cos ψ) when the caller has them (else computed from ``psi``).
+    ``sin_cos``: (sin ψ, cos ψ) when the caller has them (else computed from ``psi``);
+    ``ndd`` None: no acceleration (None; ``d2psi_ds2`` and ``accel`` are not read).
 
     With ω = ψ'·v and ω' = ψ''·v² + ψ'·a (A' = −ωC, C' = ωA):
     velocity (ṅ_a + ω n_c) A + (ṅ_c − ω n_a) C + ṅ_u U;
@@ -191,10 +201,8 @@ def world_offset(n, nd, ndd, psi, dpsi_ds, d2psi_ds2, speed, accel, sin_cos=None
     """
     sp, cp = (np.sin(psi), np.cos(psi)) if sin_cos is None else sin_cos
     w = dpsi_ds * speed
-    wd = d2psi_ds2 * speed * speed + dpsi_ds * accel
     na, nc, nu = n.T
     va, vc, vu = nd.T
-    aa, ac, au = ndd.T
 
     def world(c_a, c_c, c_u):      # (k, 3), as a view of a (3, k) array (long rows)
         out = np.empty((3,) + np.shape(c_a))
@@ -205,6 +213,10 @@ def world_offset(n, nd, ndd, psi, dpsi_ds, d2psi_ds2, speed, accel, sin_cos=None
 
     off = world(na, nc, nu)
     vel = world(va + w * nc, vc - w * na, vu)
+    if ndd is None:
+        return off, vel, None
+    wd = d2psi_ds2 * speed * speed + dpsi_ds * accel
+    aa, ac, au = ndd.T
     acc = world(aa + wd * nc + 2.0 * w * vc - w * w * na,
                 ac - wd * na - 2.0 * w * va - w * w * nc, au)
     return off, vel, acc

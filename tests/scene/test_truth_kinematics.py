@@ -332,3 +332,31 @@ def test_bridge_with_per_profile_constants_is_the_bridge():
     got = _bridge(x0, x1, kappa_p[p], f, tuple(c[p] for c in _bridge_constants(kappa_p)))
     for w, o in zip(want, got):
         assert np.isfinite(w).all() and w.tobytes() == o.tobytes()
+
+
+@pytest.mark.parametrize("chunk", [None, 300])
+def test_wander_without_accelerations_is_the_same_offset_and_rate(monkeypatch, chunk):
+    """wander.evaluate(second=False) (the sensor reads no accelerations) and world_offset
+    without n̈ give the offset and rate of the full calls bit for bit, no acceleration (in one
+    block and in several)."""
+    from gmtiflow.scene import wander
+    if chunk is not None:
+        monkeypatch.setattr(wander, "_CHUNK", chunk)
+    g = np.random.default_rng(3)
+    offset = np.array([0, 30, 75, 80])
+    knots = g.standard_normal((80, 3))
+    t0, h = np.array([0.0, 12.5, 40.0]), np.array([5.0, 1.0, 2.5])
+    veh = g.integers(0, 3, 2000)
+    t = t0[veh] + g.uniform(0.0, 30.0, 2000)
+    full = wander.evaluate(t, veh, knots, offset, t0, h)
+    part = wander.evaluate(t, veh, knots, offset, t0, h, second=False)
+    assert part[2] is None
+    for a, b in zip(full[:2], part[:2]):
+        assert a.tobytes() == b.tobytes()
+    psi, d1, d2 = (g.uniform(-1, 1, 2000) for _ in range(3))
+    speed, accel = g.uniform(0, 20, 2000), g.uniform(-2, 2, 2000)
+    w_full = wander.world_offset(*full, psi, d1, d2, speed, accel)
+    w_part = wander.world_offset(*part, psi, d1, d2, speed, accel)
+    assert w_part[2] is None
+    for a, b in zip(w_full[:2], w_part[:2]):
+        assert a.tobytes() == b.tobytes()
