@@ -2,8 +2,9 @@
 are public (``formats.atomic_path``) and used by gmtiflow's own writers too."""
 from __future__ import annotations
 
+import errno
+import itertools
 import os
-import tempfile
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
@@ -14,39 +15,61 @@ import numpy as np
 from .errors import FormatError, where
 
 
+_TEMPORARY_NUMBERS = itertools.count()
+_CREATE_NEW = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | \
+    getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_BINARY", 0)
+
+
+def _new_temporary(path: Path, suffix: str) -> tuple:
+    """``(fd, tmp)``: a new file ``.<name>.<pid>.<n><suffix>`` beside ``path``, open for
+    writing.  Made with ``O_EXCL`` (never another's file, never through a symlink) and mode
+    0666 minus the umask, as ``open()`` gives (not ``mkstemp``'s 0600, and no chmod after)."""
+    for _ in range(1000):
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.{next(_TEMPORARY_NUMBERS)}{suffix}")
+        try:
+            return os.open(tmp, _CREATE_NEW, 0o666), tmp
+        except FileExistsError:       # a temporary a killed process of this pid left
+            continue
+    raise FileExistsError(errno.EEXIST, "no free temporary name beside", str(path))
+
+
 @contextmanager
 def atomic_path(dest, suffix: str = ".partial") -> Iterator[Path]:
     """A temporary path beside ``dest`` that becomes ``dest`` only if the block completes.
 
-    ``with atomic_path("out.pdf") as tmp: write(tmp)``: the temporary (``.out.pdf.<random>.partial``
-    in the same directory, so the final rename is atomic on POSIX) is renamed over ``dest``
-    when the block ends normally and deleted when it raises, so a path never holds a partial
-    file that looks complete.  The file gets the mode ``open()`` would give (0666 minus the
-    umask), not ``mkstemp``'s 0600.  ``suffix`` ends the temporary's name, for writers that
-    pick the format from the extension (``".partial.gif"``).
+    ``with atomic_path("out.pdf") as tmp: write(tmp)``: the temporary (``.out.pdf.<pid>.<n>.partial``
+    in the same directory, so the final rename is atomic on POSIX; :func:`_new_temporary`) is
+    renamed over ``dest`` when the block ends normally and deleted when it raises, so a path
+    never holds a partial file that looks complete.  ``suffix`` ends the temporary's name, for
+    writers that pick the format from the extension (``".partial.gif"``).
     """
     path = Path(dest)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
+    fd, tmp = _new_temporary(path, suffix)
     os.close(fd)
-    tmp = Path(name)
     try:
         yield tmp
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
 
 
 def write_atomic(dest, data: bytes) -> None:
-    """Write ``data`` to a path (through :func:`atomic_path`) or to a binary file object."""
+    """Write ``data`` to a path (never partly, as :func:`atomic_path` does, written through
+    the temporary's own descriptor: one open) or to a binary file object."""
     if hasattr(dest, "write"):
         dest.write(data)
         return
-    with atomic_path(dest) as tmp:
-        tmp.write_bytes(data)
+    path = Path(dest)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = _new_temporary(path, ".partial")
+    try:
+        with open(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def write_chunks(dest, chunks) -> None:

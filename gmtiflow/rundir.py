@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import errno
 import glob
-import itertools
 import json
 import logging
 import os
@@ -188,38 +187,8 @@ def read_manifest(out_dir: Path) -> List[str]:
 
 
 def write_manifest(out_dir: Path, doc: dict) -> None:
-    """Write the manifest ``doc`` into ``out_dir`` (which exists: the run claimed it)
-    atomically (:func:`_write_atomic`)."""
-    _write_atomic(Path(out_dir) / MANIFEST, (json.dumps(doc, indent=1) + "\n").encode())
-
-
-_TEMPORARY_NUMBERS = itertools.count()
-_CREATE_NEW = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | \
-    getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_BINARY", 0)
-
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    """``data`` into ``path``, never partly: written into a new temporary beside it
-    (``.<name>.<pid>.<n>.partial``, a writer's temporary to :func:`temporaries`; made with
-    ``O_EXCL``, so never another's file or a symlink, and the mode ``open()`` gives), renamed
-    over it, deleted if anything fails.  What ``formats.write_atomic`` does, in one open and
-    no chmod: ~0.07 ms less a manifest (two a run)."""
-    for _ in range(1000):
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.{next(_TEMPORARY_NUMBERS)}.partial")
-        try:
-            fd = os.open(tmp, _CREATE_NEW, 0o666)
-            break
-        except FileExistsError:       # a temporary a killed process of this pid left
-            continue
-    else:
-        raise FileExistsError(errno.EEXIST, "no free temporary name", str(path))
-    try:
-        with open(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    from gmtiflow.formats import write_atomic   # the writers: not on every start-up
+    write_atomic(Path(out_dir) / MANIFEST, (json.dumps(doc, indent=1) + "\n").encode())
 
 
 def prepare(out_dir: os.PathLike, planned: List[str], seed: int) -> List[Path]:
