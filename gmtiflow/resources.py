@@ -34,9 +34,12 @@ def available_memory_bytes() -> int:
 
 
 def _meminfo() -> dict:
+    """``/proc/meminfo``'s figures in bytes (empty where it cannot be read).  Read as UTF-8
+    (it is ASCII): that codec is loaded at start-up, where ``ascii`` would be imported by a
+    run's first call (~0.4 ms)."""
     out = {}
     try:
-        with open("/proc/meminfo", encoding="ascii") as f:
+        with open("/proc/meminfo", encoding="utf-8") as f:
             for line in f:
                 parts = line.split()
                 if len(parts) >= 2 and parts[1].isdigit():

@@ -208,3 +208,26 @@ def test_ctrl_c_is_one_line_exit_130_and_outputs_marked_incomplete(tmp_path):
     assert rest.strip().splitlines()[-1].startswith("gmtiflow: interrupted"), err
     assert json.loads((out / pipeline.MANIFEST).read_text())["complete"] is False
     assert not (out / "run.h5").exists() and not list(out.glob(".run.h5.*"))
+
+
+def test_temporaries_are_what_the_writers_glob_patterns_match(tmp_path):
+    """rundir.temporaries lists the directory once for every name; it finds exactly the files
+    glob's ``.<name>.*.partial*`` and ``<name>.*.part`` find (sorted, in that order),
+    names with glob's special characters included."""
+    import glob
+
+    names = ["run.h5", "det.csv", "a[1].xml", "x*y.json", "run"]
+    files = [".run.h5.123.0.partial", ".run.h5.9.partial.gif", ".run.h5.partial",
+             ".run.h5..partial", "run.h5.tmp.part", "run.h5.part", "run.h5..part",
+             ".det.csv.7.partial", "det.csv.1.part", "det.csv.1.part.x", ".a[1].xml.3.partial",
+             "a[1].xml.2.part", ".x*y.json.1.partial", ".xzy.json.1.partial", "x*y.json.z.part",
+             ".run.5.partial", "run.h5", "other.part", ".run.h5.5.Partial"]
+    for f in files:
+        (tmp_path / f).write_bytes(b"")
+    entries = sorted(p.name for p in tmp_path.iterdir())
+    for name in names:
+        want = sorted(tmp_path.glob(f".{glob.escape(name)}.*.partial*")) + \
+            sorted(tmp_path.glob(f"{glob.escape(name)}.*.part"))
+        assert rundir.temporaries(tmp_path, name) == want, name
+        assert rundir.temporaries(tmp_path, name, entries) == want, name
+    assert rundir.temporaries(tmp_path / "missing", "run.h5") == []
