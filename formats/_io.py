@@ -34,6 +34,21 @@ def _new_temporary(path: Path, suffix: str) -> tuple:
 
 
 @contextmanager
+def _replacing(dest, suffix: str) -> Iterator[tuple]:
+    """``(fd, tmp)``: a new temporary beside ``dest`` (:func:`_new_temporary`, its descriptor
+    open for writing: the caller closes it), renamed over ``dest`` when the block ends
+    normally and deleted when it raises."""
+    path = Path(dest)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = _new_temporary(path, suffix)
+    try:
+        yield fd, tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+@contextmanager
 def atomic_path(dest, suffix: str = ".partial") -> Iterator[Path]:
     """A temporary path beside ``dest`` that becomes ``dest`` only if the block completes.
 
@@ -43,15 +58,9 @@ def atomic_path(dest, suffix: str = ".partial") -> Iterator[Path]:
     never holds a partial file that looks complete.  ``suffix`` ends the temporary's name, for
     writers that pick the format from the extension (``".partial.gif"``).
     """
-    path = Path(dest)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = _new_temporary(path, suffix)
-    os.close(fd)
-    try:
+    with _replacing(dest, suffix) as (fd, tmp):
+        os.close(fd)
         yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def write_atomic(dest, data: bytes) -> None:
@@ -60,16 +69,8 @@ def write_atomic(dest, data: bytes) -> None:
     if hasattr(dest, "write"):
         dest.write(data)
         return
-    path = Path(dest)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = _new_temporary(path, ".partial")
-    try:
-        with open(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with _replacing(dest, ".partial") as (fd, _), open(fd, "wb") as f:
+        f.write(data)
 
 
 def write_chunks(dest, chunks) -> None:
