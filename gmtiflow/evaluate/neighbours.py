@@ -15,18 +15,16 @@ def close_pairs(X: np.ndarray, Y: np.ndarray, c: float, step_x=None, step_y=None
     Candidates from a grid of ``c``-sized cells (per step): every pair closer than ``c`` lies in
     one of the 3 × 3 cells around the row's own, found by binary search in the columns' sorted
     cell keys (no tree; linear in the rows and candidates); then the exact distance test."""
-    m, n = len(X), len(Y)
     empty = np.zeros(0, np.int64)
-    sx = np.zeros(m, np.int64) if step_x is None else np.asarray(step_x, np.int64)
-    sy = np.zeros(n, np.int64) if step_y is None else np.asarray(step_y, np.int64)
-    okx = np.flatnonzero(np.isfinite(X).all(axis=1))
-    oky = np.flatnonzero(np.isfinite(Y).all(axis=1))
+    sx = np.zeros(len(X), np.int64) if step_x is None else np.asarray(step_x, np.int64)
+    sy = np.zeros(len(Y), np.int64) if step_y is None else np.asarray(step_y, np.int64)
+    okx, oky = _finite_rows(X), _finite_rows(Y)
     if not len(okx) or not len(oky):
         return empty, empty, np.zeros(0)
-    cx = np.floor(X[okx] / c).astype(np.int64)
-    cy = np.floor(Y[oky] / c).astype(np.int64)
-    lo = np.minimum(cx.min(axis=0), cy.min(axis=0)) - 1
-    span = np.maximum(cx.max(axis=0), cy.max(axis=0)) - lo + 2
+    cx = np.floor(_rows(X, okx) / c).astype(np.int64)
+    cy = np.floor(_rows(Y, oky) / c).astype(np.int64)
+    lo = np.minimum(_column_min(cx), _column_min(cy)) - 1
+    span = np.maximum(_column_max(cx), _column_max(cy)) - lo + 2
     s0 = min(int(sx[okx].min()), int(sy[oky].min()))
     n_steps = max(int(sx[okx].max()), int(sy[oky].max())) - s0 + 1
     if n_steps * int(span[0]) * int(span[1]) >= 2 ** 62:     # cell keys would overflow
@@ -35,27 +33,34 @@ def close_pairs(X: np.ndarray, Y: np.ndarray, c: float, step_x=None, step_y=None
     def key(step, cells):
         return ((step - s0) * span[0] + (cells[:, 0] - lo[0])) * span[1] + (cells[:, 1] - lo[1])
     # Neither sort needs to keep ties in order: each (row, column) pair is found once (the
-    # nine cells are distinct) and _within orders the pairs by their unique (row, column) key,
+    # nine cells are distinct) and _by_row orders the pairs by their unique (row, column) key,
     # so the unstable sort (~4x faster on 600k keys) gives the same pairs in the same order.
     ky = key(sy[oky], cy)
     order = np.argsort(ky)
-    ky = ky[order]
+    ky, ycol = ky[order], oky[order]
     kx = key(sx[okx], cx)
     ox = np.argsort(kx)                      # sorted needles: a faster binary search
     kx, xrow = kx[ox], okx[ox]
-    rows, cols = [], []
+    # The points in cell-key order: the candidates' coordinates are then gathered from nearby
+    # addresses.  (np.take: ~10x faster than X[rows] on (n, 2) arrays.)
+    Xs, Ys = np.take(X, xrow, axis=0), np.take(Y, ycol, axis=0)
+    rows, cols, dists = [], [], []
     for dx in (-1, 0, 1):        # the cells (ix + dx, iy - 1 .. iy + 1): one key range
         first = np.searchsorted(ky, kx + (dx * span[1] - 1), side="left")
         count = np.searchsorted(ky, kx + (dx * span[1] + 1), side="right") - first
         total = int(count.sum())
         if not total:
             continue
-        start = np.repeat(first - (np.cumsum(count) - count), count)
-        rows.append(np.repeat(xrow, count))
-        cols.append(oky[order[np.arange(total) + start]])
+        p = np.repeat(np.arange(len(kx)), count)                            # in Xs
+        q = np.arange(total) + np.repeat(first - (np.cumsum(count) - count), count)  # in Ys
+        D = _distance(np.take(Xs, p, axis=0) - np.take(Ys, q, axis=0))
+        inside = np.flatnonzero(D < c)
+        rows.append(xrow[p[inside]])
+        cols.append(ycol[q[inside]])
+        dists.append(D[inside])
     if not rows:
         return empty, empty, np.zeros(0)
-    return _within(X, Y, np.concatenate(rows), np.concatenate(cols), c)
+    return _by_row(np.concatenate(rows), np.concatenate(cols), np.concatenate(dists), len(Y))
 
 
 def close_pairs_tree(X, Y, c, sx, sy):
@@ -68,15 +73,43 @@ def close_pairs_tree(X, Y, c, sx, sy):
     ia, ib = np.flatnonzero(fin_a), np.flatnonzero(fin_b)
     found = cKDTree(A[ia]).sparse_distance_matrix(cKDTree(B[ib]), c * (1.0 + 1e-9),
                                                   output_type="ndarray")
-    return _within(X, Y, ia[found["i"].astype(np.int64)], ib[found["j"].astype(np.int64)], c)
-
-
-def _within(X, Y, r, k, c):
-    """The candidate pairs ``(r, k)`` closer than ``c``, sorted by row then column, and their
-    distances (the exact test both candidate searches end with)."""
-    o = np.argsort(r * max(len(Y), 1) + k)
-    r, k = r[o], k[o]
-    diff = X[r] - Y[k]
-    D = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+    r, k = ia[found["i"].astype(np.int64)], ib[found["j"].astype(np.int64)]
+    D = _distance(X[r] - Y[k])
     inside = D < c
-    return r[inside], k[inside], D[inside]
+    return _by_row(r[inside], k[inside], D[inside], len(Y))
+
+
+def _distance(diff: np.ndarray) -> np.ndarray:
+    """Row lengths ``sqrt(Σ diff²)`` of an (n, d) array of differences (the one formula both
+    candidate searches use, so their distances agree bit for bit)."""
+    return np.sqrt(np.einsum("ij,ij->i", diff, diff))
+
+
+def _by_row(r, k, D, n_cols: int):
+    """The pairs ``(r, k)`` and their distances sorted by row then column (every pair once)."""
+    o = np.argsort(r * max(n_cols, 1) + k)
+    return r[o], k[o], D[o]
+
+
+def _finite_rows(X: np.ndarray) -> np.ndarray:
+    """Indices of the rows of X whose coordinates are all finite (column by column: a
+    reduction along rows of 2 is ~15x slower in numpy)."""
+    fin = np.isfinite(X[:, 0])
+    for j in range(1, X.shape[1]):
+        fin &= np.isfinite(X[:, j])
+    return np.flatnonzero(fin)
+
+
+def _rows(X: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``X[rows]``, without the copy when ``rows`` is every row in order."""
+    return X if len(rows) == len(X) else X[rows]
+
+
+def _column_min(a: np.ndarray) -> np.ndarray:
+    """Per-column minimum of an (n, d) array, column by column (as :func:`_finite_rows`)."""
+    return np.array([a[:, j].min() for j in range(a.shape[1])])
+
+
+def _column_max(a: np.ndarray) -> np.ndarray:
+    """Per-column maximum of an (n, d) array, column by column."""
+    return np.array([a[:, j].max() for j in range(a.shape[1])])
