@@ -25,7 +25,7 @@ from typing import Dict, Mapping
 import numpy as np
 from gmtiflow.evaluate.assignment import sparse_gated_assignment
 from gmtiflow.evaluate.identity import unique_pairs
-from gmtiflow.evaluate.neighbours import close_pairs
+from gmtiflow.evaluate.neighbours import step_pairs
 
 
 def _matched_distance(truth_at, tracks_at, assigned: np.ndarray) -> np.ndarray:
@@ -46,16 +46,16 @@ def _matched_distance(truth_at, tracks_at, assigned: np.ndarray) -> np.ndarray:
 
 
 def idtp(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
-         gate_m: float) -> int:
-    """IDTP: co-occurrences within the gate under the best one-to-one truth↔track matching."""
+         gate_m: float, pairs=None) -> int:
+    """IDTP: co-occurrences within the gate under the best one-to-one truth↔track matching.
+
+    ``pairs``: :func:`~gmtiflow.evaluate.neighbours.step_pairs` at ``gate_m`` when the caller
+    has them already (the search is then not repeated)."""
     n_t, n_k = len(truth_at["step"]), len(tracks_at["step"])
     if not n_t or not n_k:
         return 0
-    g = float(gate_m)
-    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1).astype(float)
-    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1).astype(float)
     # the pairs of one step closer than g (the distances a k-d tree over (x, y, step·4g) gives)
-    r, c, _ = close_pairs(X, Y, g, truth_at["step"], tracks_at["step"])
+    r, c, _ = step_pairs(truth_at, tracks_at, float(gate_m)) if pairs is None else pairs
     if not len(r):
         return 0
     vid = np.asarray(truth_at["vehicle_id"], np.int64)[r]
@@ -72,15 +72,17 @@ def idtp(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray]
 
 
 def clear_mot(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
-              assigned: np.ndarray, switches: int, gate_m: float) -> Dict[str, float]:
-    """MOTA, MOTP (m), IDF1, IDP, IDR and the counts they come from (see the module docstring)."""
+              assigned: np.ndarray, switches: int, gate_m: float,
+              pairs=None) -> Dict[str, float]:
+    """MOTA, MOTP (m), IDF1, IDP, IDR and the counts they come from (see the module docstring).
+    ``pairs``: as :func:`idtp` takes them."""
     gt = len(truth_at["step"])
     n_hyp = len(tracks_at["step"])
     assigned = np.asarray(assigned, np.int64)
     matches = int(np.sum(assigned >= 0))
     fn, fp = gt - matches, n_hyp - matches
     d = _matched_distance(truth_at, tracks_at, assigned)
-    tp_id = idtp(truth_at, tracks_at, gate_m)
+    tp_id = idtp(truth_at, tracks_at, gate_m, pairs)
     nan = float("nan")
     return {
         "mota": 1.0 - (fn + fp + switches) / gt if gt else nan,

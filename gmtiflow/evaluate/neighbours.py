@@ -63,6 +63,15 @@ def close_pairs(X: np.ndarray, Y: np.ndarray, c: float, step_x=None, step_y=None
     return _by_row(np.concatenate(rows), np.concatenate(cols), np.concatenate(dists), len(Y))
 
 
+def step_pairs(truth_at, tracks_at, c: float):
+    """:func:`close_pairs` of the truth rows and track rows of one grid step (the tables of
+    :mod:`gmtiflow.evaluate.align`: step, x_m, y_m): ``(truth row, track row, distance)`` of
+    every pair closer than ``c``, sorted by truth row then track row."""
+    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1).astype(float)
+    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1).astype(float)
+    return close_pairs(X, Y, c, truth_at["step"], tracks_at["step"])
+
+
 def close_pairs_tree(X, Y, c, sx, sy):
     """:func:`close_pairs` from a k-d tree (the step lifted into a third coordinate 4c apart),
     for coordinates too far apart for integer cell keys."""

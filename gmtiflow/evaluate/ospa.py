@@ -117,7 +117,7 @@ def _result(m: int, n: int, rows, cols, loc: float, capped_sum: float, cp: float
 
 
 def series(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
-           grid: np.ndarray, c: float, p: float) -> Table:
+           grid: np.ndarray, c: float, p: float, pairs=None) -> Table:
     """OSPA/GOSPA at every grid step from the outputs of :mod:`gmtiflow.evaluate.align`.
 
     Columns: time_s, ospa_m, gospa_m, gospa_localisation, gospa_missed, gospa_false (the
@@ -127,6 +127,8 @@ def series(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarra
     its objects; the steps above :data:`DENSE_PAIRS` pairs are solved together (one k-d tree
     search and one :func:`~gmtiflow.evaluate.assignment.sparse_gated_assignment` for all of
     them: their components never span two steps), with the same pairs and sums.
+    ``pairs``: :func:`~gmtiflow.evaluate.neighbours.step_pairs` at ``c`` when the caller has
+    them already (those of the big steps are the pairs the search would find).
     """
     from gmtiflow.evaluate.assignment import sparse_gated_assignment
     n = len(grid)
@@ -145,10 +147,14 @@ def series(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarra
     if big.any():
         in_x = np.repeat(big, n_truth)
         in_y = np.repeat(big, n_tracks)
-        xi, yi = np.flatnonzero(in_x), np.flatnonzero(in_y)
-        r, k, D = close_pairs(X[xi], Y[yi], c, np.asarray(truth_at["step"])[xi],
-                               np.asarray(tracks_at["step"])[yi])
-        r, k = xi[r], yi[k]                 # global rows, still sorted by (row, column)
+        if pairs is None:
+            xi, yi = np.flatnonzero(in_x), np.flatnonzero(in_y)
+            r, k, D = close_pairs(X[xi], Y[yi], c, np.asarray(truth_at["step"])[xi],
+                                   np.asarray(tracks_at["step"])[yi])
+            r, k = xi[r], yi[k]             # global rows, still sorted by (row, column)
+        else:
+            keep = in_x[pairs[0]]           # the pairs of the big steps
+            r, k, D = (a[keep] for a in pairs)
         C = D ** p
         rows, cols = sparse_gated_assignment(r, k, C, cp)
         ny = max(len(Y), 1)

@@ -28,7 +28,8 @@ from typing import Dict, List, Mapping, Optional, Tuple
 import numpy as np
 
 from gmtiflow import frames
-from gmtiflow.evaluate import align, clearmot, events as events_mod, identity, ospa
+from gmtiflow.evaluate import (align, clearmot, events as events_mod, identity,
+                               neighbours, ospa)
 from gmtiflow.evaluate.config import MetricsConfig
 from gmtiflow.evaluate.track_errors import track_errors
 from gmtiflow.evaluate.tracks import validate_tracks
@@ -102,7 +103,10 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
         truth_at, tracks_at = gate_slow_truth(truth_at, tracks_at, cfg.min_truth_speed_mps,
                                               cfg.cutoff_m)
 
-    ospa_tab = ospa.series(truth_at, tracks_at, grid, cfg.cutoff_m, cfg.order_p)
+    # OSPA's cut-off and the identity gate are one distance by default: one pair search
+    pairs = (neighbours.step_pairs(truth_at, tracks_at, float(cfg.cutoff_m))
+             if float(cfg.cutoff_m) == float(cfg.assoc_gate_m) else None)
+    ospa_tab = ospa.series(truth_at, tracks_at, grid, cfg.cutoff_m, cfg.order_p, pairs)
     assigned = identity.associate(truth_at, tracks_at, len(grid), cfg.assoc_gate_m)
     idm = identity.identity_metrics(truth_at, assigned, grid)
     assoc = identity.association_table(truth_at, assigned, grid)
@@ -131,7 +135,8 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
     else:
         convoy_of = {}
     convoys = identity.convoy_confusions(assoc["vehicle_id"], assoc["track_id"], convoy_of)
-    mot = clearmot.clear_mot(truth_at, tracks_at, assigned, idm["switches"], cfg.assoc_gate_m)
+    mot = clearmot.clear_mot(truth_at, tracks_at, assigned, idm["switches"], cfg.assoc_gate_m,
+                             pairs)
 
     values = {
         "n_truths": len(np.unique(truth_at["vehicle_id"])),

@@ -214,6 +214,16 @@ def test_ospa_series_solved_together_is_step_by_step(monkeypatch):
                          ("localisation", "gospa_localisation"), ("missed", "gospa_missed"),
                          ("false", "gospa_false"), ("n_assigned", "n_assigned")):
             assert got[col][s] == one[key], (s, key)
+    # the pairs searched once for all steps (evaluate() shares them with IDF1): the same series
+    from gmtiflow.evaluate import clearmot, neighbours
+    pairs = neighbours.step_pairs(truth_at, tracks_at, 200.0)
+    shared = ospa.series(truth_at, tracks_at, np.arange(float(n_steps)), 200.0, 2.0, pairs)
+    for col in got:
+        assert np.array_equal(shared[col], got[col]), col
+    tracks_at["track_id"] = np.arange(len(tracks_at["step"])) % 50
+    truth_at["vehicle_id"] = np.arange(len(truth_at["step"])) % 40
+    assert clearmot.idtp(truth_at, tracks_at, 200.0, pairs) == clearmot.idtp(truth_at, tracks_at,
+                                                                            200.0) > 0
 
 
 def test_small_and_vectorised_assignment_paths_agree(monkeypatch):
