@@ -142,6 +142,9 @@ _GCPL.set_obj_track_times(False)
 _LCPL = h5p.create(h5p.LINK_CREATE)          # h5py's: intermediate groups made, ASCII names
 _LCPL.set_create_intermediate_group(True)
 _LCPL.set_char_encoding(h5t.CSET_ASCII)
+_TEXT_DCPL = h5p.create(h5p.DATASET_CREATE)  # h5py's create_dataset of a scalar: no
+_TEXT_DCPL.set_obj_track_times(False)        # timestamps, attribute order not tracked
+_TEXT_DCPL.set_attr_creation_order(0)
 _PLAIN_PATH = re.compile(r"[A-Za-z0-9_.-]+(/[A-Za-z0-9_.-]+)*")
 """Group paths :func:`_new_group` makes itself (ASCII, relative, no empty or odd parts)."""
 
@@ -228,12 +231,28 @@ def _set_root_attr(file: h5py.File, name: str, value) -> None:
     attr.close()
 
 
+_TEXT_VALUES: Dict[str, np.ndarray] = {}
+"""The arrays :func:`_set_text_attr` writes, by text: a run's 137 columns have a dozen distinct
+units, each array made once (read-only: HDF5 converts from it)."""
+
+
+def _text_value(value: str) -> np.ndarray:
+    """``value`` as the scalar array of Python strings h5py writes a text attribute from."""
+    data = _TEXT_VALUES.get(value)
+    if data is None:
+        if len(_TEXT_VALUES) >= 1024:       # (descriptions: any text; units: a few)
+            _TEXT_VALUES.clear()
+        data = _TEXT_VALUES[value] = np.array(value, dtype=_STR)
+        data.flags.writeable = False
+    return data
+
+
 def _set_text_attr(oid, name: bytes, value: str) -> None:
     """Attribute ``name`` = ``value``, a scalar UTF-8 string (as ``attrs[name] = value``), of an
     object that has none of that name (a column just created)."""
     attr = h5a.create(oid, name, _STR_TYPE, _SCALAR_SPACE)
     try:
-        attr.write(np.array(value, dtype=_STR), mtype=_STR_MEMORY_TYPE)
+        attr.write(_text_value(value), mtype=_STR_MEMORY_TYPE)
     finally:
         attr.close()
 
@@ -502,6 +521,8 @@ def _deflated_chunks(chunks: list) -> list:
     samples, :func:`_plane_ways`): a table's columns, each a chunk of a few planes, pay
     numpy's per-call cost once rather than once a column."""
     preps = [_chunk_planes(values, pad_rows) for values, pad_rows in chunks]
+    if all(type(prep) is bytes for prep in preps):     # small chunks: each a finished stream
+        return preps
     samples = [None if isinstance(prep, bytes) else _sample(prep[4]) for prep in preps]
     judged = [x for x in samples if x is not None]
     ways = iter(_plane_ways(_sample_stats(np.concatenate(judged)) if len(judged) > 1 else
@@ -663,6 +684,9 @@ class _ChunkDeflater:
         for key, dsid, chunk_rows, start, values in columns:
             pieces = list(values) if isinstance(values, list) else [values]
             tail = self.tails.pop(key, None)
+            if tail is None and len(pieces) == 1 and len(pieces[0]) == chunk_rows:
+                jobs.append((dsid, start, pieces, 0))      # one whole chunk (_cut's)
+                continue
             if tail is not None:
                 start = tail[2]
                 pieces = tail[3] + pieces
@@ -772,6 +796,9 @@ def _column_pieces(parts: list, column: str) -> Optional[list]:
     """Column ``column`` of each of ``parts`` (tables), as arrays of one dtype (the dtype
     their join would have), for the deflater to join as it shuffles; None for a text
     column."""
+    if len(parts) == 1:                 # (a table written at once: one piece)
+        col = np.asarray(parts[0][column])
+        return None if col.dtype.kind in "UO" else [col]
     pieces = [np.asarray(p[column]) for p in parts]
     if any(p.dtype.kind in "UO" for p in pieces):
         return None
@@ -868,8 +895,15 @@ class RunWriter:
         return parts, rows
 
     def write_text(self, name: str, text: str) -> None:
-        """A scalar UTF-8 string dataset (e.g. ``/config``)."""
-        self._file.create_dataset(name, data=text, dtype=_STR, track_times=False)
+        """A scalar UTF-8 string dataset (e.g. ``/config``), as ``create_dataset(name,
+        data=text, dtype=_STR, track_times=False)`` makes it, from the property list and types
+        built once (:data:`_TEXT_DCPL`); a path with groups in it is left to h5py."""
+        if "/" in name or not _PLAIN_PATH.fullmatch(name):
+            self._file.create_dataset(name, data=text, dtype=_STR, track_times=False)
+            return
+        dsid = h5d.create(self._file.id, name.encode(), _STR_TYPE, _SCALAR_SPACE,
+                          dcpl=_TEXT_DCPL)
+        dsid.write(h5s.ALL, h5s.ALL, np.array(text, dtype=_STR), mtype=_STR_MEMORY_TYPE)
 
     def write_table(self, name: str, table: "Mapping[str, np.ndarray] | List[Table]",
                     descriptions: Optional[Dict[str, str]] = None, *,

@@ -7,6 +7,7 @@ The column sets of each table are listed in ``docs/tables.md``.
 """
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Dict, Mapping
 
 import numpy as np
@@ -21,8 +22,10 @@ _UNIT_SUFFIXES = (
 )
 
 
+@lru_cache(maxsize=4096)
 def unit_of(column: str) -> str:
-    """Unit of a column from its name suffix ('' when dimensionless or an id/flag)."""
+    """Unit of a column from its name suffix ('' when dimensionless or an id/flag); remembered
+    per name (the store asks once per column written or checked)."""
     for suffix, unit in _UNIT_SUFFIXES:
         if column.endswith(suffix):
             return unit

@@ -461,3 +461,26 @@ def test_a_sink_keeps_no_rows_it_has_written(tmp_path):
         gc.collect()
         assert all(ref() is None for ref in columns)
         w.commit()
+
+
+def test_a_text_dataset_is_the_one_h5pys_create_dataset_makes(tmp_path):
+    """``write_text`` makes /config with h5py's low-level calls: the same type, shape, layout,
+    creation properties and value as ``create_dataset(data=text, dtype=str)``; a path with
+    groups in it goes through h5py."""
+    text = "seed: 3\nname: é\n"
+    with h5py.File(tmp_path / "hl.h5", "w", track_order=True) as f:
+        f.create_dataset("config", data=text, dtype=store._STR, track_times=False)
+    with store.RunWriter(tmp_path / "ll.h5", seed=3) as w:
+        w.write_text("config", text)
+        w.write_text("notes/config", text)
+        w.commit()
+    with h5py.File(tmp_path / "hl.h5") as a, h5py.File(tmp_path / "ll.h5") as b:
+        for ds in (b["config"], b["notes/config"]):
+            assert ds.id.get_type() == a["config"].id.get_type()
+            assert ds.shape == a["config"].shape == ()
+            assert ds[()] == a["config"][()] == text.encode()
+            mine, theirs = ds.id.get_create_plist(), a["config"].id.get_create_plist()
+            assert mine.get_layout() == theirs.get_layout()
+            assert mine.get_obj_track_times() == theirs.get_obj_track_times()
+            assert mine.get_attr_creation_order() == theirs.get_attr_creation_order()
+            assert mine.equal(theirs)
