@@ -88,11 +88,9 @@ def associate(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.nda
         d2 = (X[a + r, 0] - Y[c + k, 0]) ** 2 + (X[a + r, 1] - Y[c + k, 1]) ** 2
         inside = d2 < g2
         r, k, d2 = r[inside], k[inside], d2[inside]
-        o = np.lexsort((k, r, d2))
-        r, k = r[o], k[o]
-        _, win = np.unique(k, return_index=True)
-        out[a + r[win]] = ids[k[win]]
-        free_r[r[win]] = free_k[k[win]] = False
+        r, k = _closest_claims(r, k, d2, d - c)
+        out[a + r] = ids[k]
+        free_r[r] = free_k[k] = False
         # Pass 2: optimal assignment of the rest.
         rr, kk = np.flatnonzero(free_r), np.flatnonzero(free_k)
         if len(rr) and len(kk):
@@ -101,6 +99,18 @@ def associate(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.nda
         got = np.flatnonzero(out[a:b] >= 0)
         last[vpos[a + got]] = out[a + got]
     return out
+
+
+def _closest_claims(r: np.ndarray, k: np.ndarray, d2: np.ndarray, n_tracks: int):
+    """The claims ``(truth r[i], track k[i])`` that win their track: the closest claim of each
+    track (ties: the lower truth row, as sorting (d2, row, col) tuples does).  Without two
+    claims on one track (the usual step) every claim wins, and the sort is skipped."""
+    if len(k) < 2 or np.bincount(k, minlength=n_tracks).max() < 2:
+        return r, k
+    o = np.lexsort((k, r, d2))
+    r, k = r[o], k[o]
+    _, win = np.unique(k, return_index=True)
+    return r[win], k[win]
 
 
 def _pass2(X: np.ndarray, Y: np.ndarray, g2: float):

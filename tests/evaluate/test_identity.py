@@ -144,3 +144,19 @@ def test_kept_track_leaving_the_gate_hands_over_once():
     assert list(sw["time_s"]) == [4.0]
     assert (sw["from_track_id"][0], sw["to_track_id"][0]) == (1, 2)
     assert summary_value(out, "fragmentations") == 0
+
+
+def test_closest_claims_keep_the_nearest_truth_of_each_track():
+    # pass 1's conflicts: the closest claim of each track wins (ties: the lower truth row), with
+    # or without conflicts (the conflict-free step skips the sort)
+    from gmtiflow.evaluate.identity import _closest_claims
+    rng = np.random.default_rng(3)
+    for n_tracks in (1, 3, 40, 100):
+        r = rng.permutation(60)[:30]
+        k = rng.integers(0, n_tracks, 30) if n_tracks < 100 else rng.permutation(100)[:30]
+        d2 = rng.integers(0, 4, 30).astype(float)            # ties on purpose
+        want = {}
+        for dd, rr, kk in sorted(zip(d2.tolist(), r.tolist(), k.tolist())):
+            want.setdefault(kk, rr)
+        got_r, got_k = _closest_claims(r, k, d2, n_tracks)
+        assert sorted(zip(got_k.tolist(), got_r.tolist())) == sorted(want.items())
