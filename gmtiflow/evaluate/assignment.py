@@ -58,15 +58,31 @@ _SMALL_GRAPH = 256
 _BUFFERED = 1024
 
 
+def dense_ids(a: np.ndarray):
+    """``np.unique(a, return_inverse=True)`` of integers, without the sort when ``a`` is sorted
+    (as the pair searches return rows) or spans at most 4 values per element (a bitmap)."""
+    a = np.asarray(a, np.int64)
+    if len(a) < 2:
+        return np.unique(a, return_inverse=True)
+    step = a[1:] != a[:-1]
+    if not (a[1:] < a[:-1]).any():                     # sorted: runs of equal values
+        new = np.empty(len(a), bool)
+        new[0], new[1:] = True, step
+        return a[new], np.cumsum(new) - 1
+    lo, hi = int(a.min()), int(a.max())
+    if hi - lo >= 4 * len(a):
+        return np.unique(a, return_inverse=True)
+    present = np.zeros(hi - lo + 1, bool)
+    present[a - lo] = True
+    return np.flatnonzero(present) + lo, (np.cumsum(present) - 1)[a - lo]
+
+
 def _components(r_idx: np.ndarray, c_idx: np.ndarray, nr: int, nc: int):
     """Component label (0, 1, ...) of every row node (first ``nr``) and column node (next
-    ``nc``) of the bipartite graph with edges ``(r_idx[i], c_idx[i])``."""
+    ``nc``) of the bipartite graph with edges ``(r_idx[i], c_idx[i])``; every node has an
+    edge.  The numbering of the components is arbitrary (callers only group by it)."""
     if len(r_idx) > _SMALL_GRAPH:
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
-        graph = coo_matrix((np.ones(len(r_idx)), (r_idx, nr + c_idx)),
-                           shape=(nr + nc, nr + nc))
-        return connected_components(graph, directed=False)
+        return _graph_components(r_idx, c_idx, nr, nc)
     parent = list(range(nr + nc))
     for a, b in zip(r_idx.tolist(), (c_idx + nr).tolist()):
         while parent[a] != a:
@@ -84,6 +100,30 @@ def _components(r_idx: np.ndarray, c_idx: np.ndarray, nr: int, nc: int):
         roots.append(y)
     uniq, label = np.unique(np.asarray(roots, np.int64), return_inverse=True)
     return len(uniq), label
+
+
+def _graph_components(r_idx: np.ndarray, c_idx: np.ndarray, nr: int, nc: int):
+    """:func:`_components` by scipy, on the pairs that share a row or a column with another
+    pair only: a pair alone on its row and its column (most of them, when the gate is tight)
+    is a component of its own, labelled after the others."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    deg_r = np.bincount(r_idx, minlength=nr)
+    deg_c = np.bincount(c_idx, minlength=nc)
+    alone = (deg_r[r_idx] == 1) & (deg_c[c_idx] == 1)
+    label = np.empty(nr + nc, np.int64)
+    n_comp = 0
+    linked = np.flatnonzero(~alone)
+    if len(linked):
+        rn, rl = dense_ids(r_idx[linked])
+        cn, cl = dense_ids(c_idx[linked])
+        n = len(rn) + len(cn)
+        graph = coo_matrix((np.ones(len(linked)), (rl, len(rn) + cl)), shape=(n, n))
+        n_comp, lab = connected_components(graph, directed=False)
+        label[rn], label[nr + cn] = lab[:len(rn)], lab[len(rn):]
+    single = np.flatnonzero(alone)
+    label[r_idx[single]] = label[nr + c_idx[single]] = n_comp + np.arange(len(single))
+    return n_comp + len(single), label
 
 
 #: Up to this many pairs (a dwell's typical few dozen) :func:`sparse_gated_assignment` runs in
@@ -192,8 +232,8 @@ def sparse_gated_assignment(rows: np.ndarray, cols: np.ndarray, cost: np.ndarray
         return empty, empty
     if len(rows) <= _SMALL_PAIRS:
         return _small_assignment(rows.tolist(), cols.tolist(), cost.tolist(), float(gate))
-    r_ids, r_idx = np.unique(rows, return_inverse=True)
-    c_ids, c_idx = np.unique(cols, return_inverse=True)
+    r_ids, r_idx = dense_ids(rows)
+    c_ids, c_idx = dense_ids(cols)
     nr, nc = len(r_ids), len(c_ids)
     if nr == len(rows) and nc == len(cols):
         o = np.argsort(rows, kind="stable")      # every pair its own component
@@ -241,13 +281,8 @@ def _solve_components(pairs, r_idx, c_idx, cost, label, pair_label, nr, nc, comp
     each solved as :func:`gated_assignment` solves it."""
     # Each component's rows and columns numbered in increasing index (as np.unique gives them
     # to gated_assignment), for all components at once.
-    lab_r, lab_c = label[:nr], label[nr:]
-    local_r = np.empty(nr, np.int64)
-    o = np.lexsort((np.arange(nr), lab_r))
-    local_r[o] = np.arange(nr) - np.searchsorted(lab_r[o], lab_r[o])
-    local_c = np.empty(nc, np.int64)
-    o = np.lexsort((np.arange(nc), lab_c))
-    local_c[o] = np.arange(nc) - np.searchsorted(lab_c[o], lab_c[o])
+    local_r = _local_index(label[:nr], r_idx[pairs])
+    local_c = _local_index(label[nr:], c_idx[pairs])
     order = pairs[np.argsort(pair_label[pairs], kind="stable")]
     lab = pair_label[order]
     first = np.r_[0, np.flatnonzero(lab[1:] != lab[:-1]) + 1]
@@ -325,3 +360,21 @@ def _solve_components(pairs, r_idx, c_idx, cost, label, pair_label, nr, nc, comp
         out_r.append(node_r[ok])
         out_c.append(node_c[col_base[k_row[ok]] + col[ok]])
     return np.concatenate(out_r), np.concatenate(out_c)
+
+
+def _local_index(label: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Per node, its index among its component's nodes taken in increasing node index (as
+    np.unique numbers them for :func:`gated_assignment`), filled for ``nodes`` only (every node
+    of their components must be among them; other entries are undefined)."""
+    involved = np.zeros(len(label), bool)
+    involved[nodes] = True
+    idx = np.flatnonzero(involved)
+    o = np.argsort(label[idx], kind="stable")       # by component, increasing index within
+    lab = label[idx[o]]
+    first = np.empty(len(lab), bool)
+    first[:1] = True
+    first[1:] = lab[1:] != lab[:-1]
+    pos = np.arange(len(lab))
+    out = np.empty(len(label), np.int64)
+    out[idx[o]] = pos - np.maximum.accumulate(np.where(first, pos, 0))
+    return out

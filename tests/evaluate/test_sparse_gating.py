@@ -252,3 +252,33 @@ def test_small_and_vectorised_assignment_paths_agree(monkeypatch):
         n_multi += len(np.unique(rows)) < len(rows)
     assert n_multi > 300
 
+
+
+def test_dense_ids_is_np_unique():
+    # sorted input (runs), a narrow range (bitmap) and a wide one (np.unique): one answer
+    from gmtiflow.evaluate.assignment import dense_ids
+    rng = np.random.default_rng(2)
+    for a in (np.sort(rng.integers(-5, 50, 300)), rng.integers(-5, 50, 300),
+              rng.integers(-10 ** 12, 10 ** 12, 300), np.array([7]), np.zeros(0, np.int64),
+              np.array([3, 3, 3])):
+        ids, idx = dense_ids(a)
+        want_ids, want_idx = np.unique(np.asarray(a, np.int64), return_inverse=True)
+        assert np.array_equal(ids, want_ids) and np.array_equal(idx, want_idx)
+        assert ids.dtype == want_ids.dtype and idx.dtype == want_idx.dtype
+
+
+def test_graph_components_group_as_the_union_find():
+    # scipy on the pairs that share a row or column, the lone pairs labelled after them: the
+    # same grouping of nodes as the plain union-find (labels may be numbered differently)
+    from gmtiflow.evaluate import assignment
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        nr, nc = int(rng.integers(1, 60)), int(rng.integers(1, 60))
+        flat = rng.choice(nr * nc, int(rng.integers(1, min(nr * nc, 90) + 1)), replace=False)
+        r_ids, r_idx = np.unique(flat // nc, return_inverse=True)
+        c_ids, c_idx = np.unique(flat % nc, return_inverse=True)
+        a = assignment._graph_components(r_idx, c_idx, len(r_ids), len(c_ids))
+        b = assignment._components(r_idx, c_idx, len(r_ids), len(c_ids))
+        assert a[0] == b[0]
+        pairs = set(zip(a[1].tolist(), b[1].tolist()))
+        assert len(pairs) == a[0]                 # a bijection between the two numberings
