@@ -48,6 +48,17 @@ def test_map_subsamples_big_layers_and_says_so(small_run):
     assert "every" in scene.get_title()
 
 
+def test_track_lines_are_the_longest_confirmed_tracks_in_row_order():
+    tid = np.array([7, 3, 7, 5, 3, 7, 9, 5, 3, 1])
+    tracks = {"track_id": tid, "x_m": np.arange(10.0), "y_m": -np.arange(10.0),
+              "confirmed": tid != 9}
+    lines = F._track_lines(tracks, 3)
+    # longest first, ties by id; each track's rows in file order (a mask per id)
+    for (x, y), i in zip(lines, (3, 7, 5)):
+        assert np.array_equal(x, np.flatnonzero(tid == i)) and np.array_equal(y, -x)
+    assert len(lines) == 3 and len(F._track_lines(tracks, 10)) == 4   # 9 is not confirmed
+
+
 def test_map_draws_tracks_footprints_and_attribution(small_run):
     run = load_run(small_run)
     fig = _map(run, max_footprints=3)

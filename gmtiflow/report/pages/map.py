@@ -36,10 +36,10 @@ def truth_polyline(truth: Table, max_points: int):
     vid = _col(truth, "vehicle_id")
     order = np.lexsort((_col(truth, "time_s"), vid))
     vs = vid[order]
-    n_vehicles = len(np.unique(vs))
     step = max(1, int(math.ceil(len(vs) / max(max_points, 1))))
     start = np.r_[True, vs[1:] != vs[:-1]]
     last = np.r_[vs[1:] != vs[:-1], True]
+    n_vehicles = int(np.count_nonzero(start)) if len(vs) else 0    # rows sorted by vehicle
     k = np.arange(len(vs)) - np.maximum.accumulate(np.where(start, np.arange(len(vs)), 0))
     keep = (k % step == 0) | last
     order, vs, start = order[keep], vs[keep], start[keep]
@@ -153,7 +153,11 @@ def _draw_roads(ax, nodes: Table, edges: Table, scale: float) -> None:
 
 
 def _track_lines(tracks: Table, max_lines: int, confirmed_only=True):
-    """(x, y) arrays of the longest tracks, at most ``max_lines``."""
+    """(x, y) arrays of the longest tracks, at most ``max_lines`` (longest first, ties by id),
+    each track's rows in file order.
+
+    One stable sort groups the rows by track and each line is a slice of it (a mask over all
+    rows per track was 200 passes over the 1,000-vehicle run's 190,000 track rows)."""
     if not n(tracks):
         return []
     keep = np.ones(n(tracks), bool)
@@ -162,8 +166,10 @@ def _track_lines(tracks: Table, max_lines: int, confirmed_only=True):
     tid = _col(tracks, "track_id")[keep]
     x, y = _col(tracks, "x_m")[keep], _col(tracks, "y_m")[keep]
     ids, counts = np.unique(tid, return_counts=True)
-    ids = ids[np.argsort(-counts, kind="stable")[:max_lines]]
-    return [(x[tid == i], y[tid == i]) for i in ids]
+    rows = np.argsort(tid, kind="stable")       # grouped by id, ascending as ``ids``
+    ends = np.cumsum(counts)
+    return [(x[rows[ends[k] - counts[k]:ends[k]]], y[rows[ends[k] - counts[k]:ends[k]]])
+            for k in np.argsort(-counts, kind="stable")[:max_lines]]
 
 
 def map_figure(nodes: Table, edges: Table, truth: Table, platform: Table, dwells: Table,
