@@ -29,12 +29,36 @@ _EPS_S = 1e-9
 
 
 def _keys(ids: np.ndarray, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray, float, float]:
-    """Dense object index and a combined sortable float key ``index * span + (t - t0)``."""
-    uniq = np.unique(ids)
-    dense = np.searchsorted(uniq, ids)
+    """Dense object index and a combined sortable float key ``index * span + (t - t0)``, for
+    ``ids`` sorted (the distinct ids from their runs: no np.unique sort)."""
+    new = np.empty(len(ids), bool)
+    new[:1] = True
+    new[1:] = ids[1:] != ids[:-1]
+    uniq = ids[new]
+    dense = np.cumsum(new) - 1
     t0 = float(times.min()) if len(times) else 0.0
     span = (float(times.max()) - t0 if len(times) else 0.0) + 1.0
     return uniq, dense, t0, span
+
+
+def lexorder(major: np.ndarray, minor: np.ndarray) -> np.ndarray:
+    """``np.lexsort((minor, major))``, without the sort when the rows are in that order already
+    (a validated track table is, by track then time)."""
+    if len(major) > 1:
+        same = major[1:] == major[:-1]
+        if ((major[1:] > major[:-1]) | (same & (minor[1:] >= minor[:-1]))).all():
+            return np.arange(len(major))
+    return np.lexsort((minor, major))
+
+
+def small_key_order(keys: np.ndarray, n_keys: int) -> np.ndarray:
+    """Stable order of rows by ``keys``, integers in [0, n_keys) (a grid step, a dense
+    index): radix-sorted as 16-bit keys when they fit (~8x faster than a 64-bit sort at 600k
+    rows)."""
+    keys = np.asarray(keys)
+    if n_keys <= 1 << 16:
+        keys = keys.astype(np.uint16)
+    return np.argsort(keys, kind="stable")
 
 
 def interpolate_truth(truth: Mapping[str, np.ndarray], vehicle_id, time_s) -> Table:
@@ -50,7 +74,7 @@ def interpolate_truth(truth: Mapping[str, np.ndarray], vehicle_id, time_s) -> Ta
     tv = np.asarray(truth["vehicle_id"], np.int64)
     tt = np.asarray(truth["time_s"], float)
     if n and len(tv):
-        order = np.lexsort((tt, tv))
+        order = lexorder(tv, tt)
         tv, tt = tv[order], tt[order]
         cols = {k: np.asarray(truth[k], float)[order] for k in out}
         uniq, dense, t0, span = _keys(tv, tt)
@@ -104,7 +128,7 @@ def truth_at_grid(truth: Mapping[str, np.ndarray], grid: np.ndarray) -> Table:
         out = {"step": qs[ok].astype(np.int64), "vehicle_id": qv[ok]}
         for k in ("x_m", "y_m", "vx_mps", "vy_mps"):
             out[k] = it[k][ok]
-    order = np.lexsort((out["vehicle_id"], out["step"]))
+    order = lexorder(out["step"], out["vehicle_id"])
     return {k: v[order] for k, v in out.items()}
 
 
@@ -124,7 +148,7 @@ def tracks_at_grid(tracks: Mapping[str, np.ndarray], grid: np.ndarray,
              "x_m": np.zeros(0), "y_m": np.zeros(0)}
     if len(tid) == 0 or len(grid) == 0:
         return empty
-    order = np.lexsort((tt, tid))
+    order = lexorder(tid, tt)
     tid, tt = tid[order], tt[order]
     x = np.asarray(tracks["x_m"], float)[order]
     y = np.asarray(tracks["y_m"], float)[order]
@@ -155,5 +179,7 @@ def tracks_at_grid(tracks: Mapping[str, np.ndarray], grid: np.ndarray,
     dt = np.maximum(dt, 0.0)
     out = {"step": qs[ok].astype(np.int64), "track_id": uniq[qk[ok]],
            "x_m": (x[j] + vx[j] * dt)[ok], "y_m": (y[j] + vy[j] * dt)[ok]}
-    order = np.lexsort((out["track_id"], out["step"]))
+    # rows made track by track (tracks in increasing id), steps increasing within: a stable
+    # sort by step gives the (step, track) order
+    order = small_key_order(out["step"], len(grid))
     return {k: v[order] for k, v in out.items()}
