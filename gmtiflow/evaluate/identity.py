@@ -34,6 +34,8 @@ from typing import Mapping
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from gmtiflow.evaluate.align import small_key_order
+from gmtiflow.evaluate.assignment import dense_ids
 from gmtiflow.tables import Table
 
 
@@ -145,8 +147,12 @@ def identity_metrics(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,
     """
     vid = np.asarray(truth_at["vehicle_id"], np.int64)
     step = np.asarray(truth_at["step"], np.int64)
-    order = np.lexsort((step, vid))
-    v, s, a = vid[order], step[order], assigned[order]
+    vehicles, vpos = dense_ids(vid)
+    if (step[1:] >= step[:-1]).all():     # rows by step (align's order): a stable sort by vehicle
+        order = small_key_order(vpos, len(vehicles))
+    else:
+        order = np.lexsort((step, vid))
+    v, s, a, vpos = vid[order], step[order], assigned[order], vpos[order]
     n = len(v)
     new_vehicle = np.ones(n, bool)
     new_vehicle[1:] = v[1:] != v[:-1]
@@ -160,7 +166,6 @@ def identity_metrics(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,
     # Fragmentation: starts of associated runs that are not the vehicle's first run.
     run_start = has & (new_vehicle | ~np.roll(has, 1))
     first_run = np.zeros(n, bool)
-    vehicles = np.unique(v)
     starts_idx = np.flatnonzero(run_start)
     if len(starts_idx):
         # first run start per vehicle
@@ -170,10 +175,9 @@ def identity_metrics(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,
         first_run[starts_idx[first]] = True
     frag = run_start & ~first_run
 
-    vpos = np.searchsorted(vehicles, v)
     n_steps = np.bincount(vpos, minlength=len(vehicles))
     n_assoc = np.bincount(vpos, weights=has, minlength=len(vehicles))
-    n_sw = np.bincount(np.searchsorted(vehicles, av[sw]), minlength=len(vehicles))
+    n_sw = np.bincount(vpos[ai[sw]], minlength=len(vehicles))
     n_fr = np.bincount(vpos[frag], minlength=len(vehicles))
     pairs = unique_pairs(v[has], a[has])
     n_ids = np.bincount(np.searchsorted(vehicles, pairs[:, 0]), minlength=len(vehicles))

@@ -160,3 +160,20 @@ def test_closest_claims_keep_the_nearest_truth_of_each_track():
             want.setdefault(kk, rr)
         got_r, got_k = _closest_claims(r, k, d2, n_tracks)
         assert sorted(zip(got_k.tolist(), got_r.tolist())) == sorted(want.items())
+
+
+def test_identity_metrics_rows_in_any_order():
+    # align gives rows by step (a stable sort by vehicle then suffices); any other order is
+    # sorted by (vehicle, step) first: the same tables
+    from gmtiflow.evaluate.identity import identity_metrics
+    rng = np.random.default_rng(12)
+    step = np.repeat(np.arange(40), 6)
+    vid = np.tile(np.array([9, 2, 5, 1000, 7, 3]), 40)
+    assigned = np.where(rng.uniform(size=240) < 0.2, -1, rng.integers(0, 4, 240))
+    want = identity_metrics({"step": step, "vehicle_id": vid}, assigned, np.arange(40.0))
+    o = rng.permutation(240)
+    got = identity_metrics({"step": step[o], "vehicle_id": vid[o]}, assigned[o], np.arange(40.0))
+    assert want["switches"] > 5 and want["fragmentations"] > 5
+    for part in ("truth", "tracks", "switch_times"):
+        for col in want[part]:
+            assert np.array_equal(got[part][col], want[part][col], equal_nan=True), (part, col)
