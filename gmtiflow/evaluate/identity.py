@@ -55,7 +55,7 @@ def unique_pairs(a: np.ndarray, b: np.ndarray, return_counts: bool = False):
 
 
 #: Up to this many (truth, track) pairs a step is paired with one dense assignment; above,
-#: candidate pairs inside the gate come from a k-d tree and are assigned per connected
+#: candidate pairs inside the gate come from a cell grid and are assigned per connected
 #: component.  Both give the same association (the threshold only trades fixed cost for scaling).
 DENSE_PAIRS = 4096
 
@@ -117,22 +117,21 @@ def _closest_claims(r: np.ndarray, k: np.ndarray, d2: np.ndarray, n_tracks: int)
 
 def _pass2(X: np.ndarray, Y: np.ndarray, g2: float):
     """Pairs (rows of X, rows of Y) of one optimal assignment on ``min(D², g2)`` that are inside
-    the gate: dense for small steps, else k-d tree candidates assigned per component (the same
-    optimum: a pair at or beyond the gate costs what leaving both unpaired costs)."""
+    the gate: dense for small steps, else the candidate pairs (a cell grid) assigned per
+    component (the same optimum: a pair at or beyond the gate costs what leaving both unpaired
+    costs)."""
     if len(X) * len(Y) <= DENSE_PAIRS:
         sub = (X[:, None, 0] - Y[None, :, 0]) ** 2 + (X[:, None, 1] - Y[None, :, 1]) ** 2
         r, k = linear_sum_assignment(np.minimum(sub, g2))
         inside = sub[r, k] < g2
         return r[inside], k[inside]
-    from scipy.spatial import cKDTree
-
     from gmtiflow.evaluate.assignment import sparse_gated_assignment
-    hits = cKDTree(Y).query_ball_point(X, np.sqrt(g2) * (1.0 + 1e-9))
-    counts = np.fromiter((len(h) for h in hits), np.int64, len(X))
-    if not counts.sum():
+    from gmtiflow.evaluate.neighbours import close_pairs
+    # candidates a hair beyond the gate (every pair with d2 < g2 among them), sorted by
+    # (row, column); the gate test is then made on d2 itself
+    r, k, _ = close_pairs(X, Y, np.sqrt(g2) * (1.0 + 1e-9))
+    if not len(r):
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    r = np.repeat(np.arange(len(X), dtype=np.int64), counts)
-    k = np.concatenate([np.sort(np.asarray(h, np.int64)) for h in hits])
     d2 = (X[r, 0] - Y[k, 0]) ** 2 + (X[r, 1] - Y[k, 1]) ** 2
     inside = d2 < g2
     return sparse_gated_assignment(r[inside], k[inside], d2[inside], g2)
