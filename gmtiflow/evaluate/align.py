@@ -23,6 +23,7 @@ from typing import Mapping, Tuple
 import numpy as np
 
 from gmtiflow import frames
+from gmtiflow.evaluate.order import lexorder, small_key_order
 from gmtiflow.tables import Table
 
 _EPS_S = 1e-9
@@ -39,26 +40,6 @@ def _keys(ids: np.ndarray, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray, f
     t0 = float(times.min()) if len(times) else 0.0
     span = (float(times.max()) - t0 if len(times) else 0.0) + 1.0
     return uniq, dense, t0, span
-
-
-def lexorder(major: np.ndarray, minor: np.ndarray) -> np.ndarray:
-    """``np.lexsort((minor, major))``, without the sort when the rows are in that order already
-    (a validated track table is, by track then time)."""
-    if len(major) > 1:
-        same = major[1:] == major[:-1]
-        if ((major[1:] > major[:-1]) | (same & (minor[1:] >= minor[:-1]))).all():
-            return np.arange(len(major))
-    return np.lexsort((minor, major))
-
-
-def small_key_order(keys: np.ndarray, n_keys: int) -> np.ndarray:
-    """Stable order of rows by ``keys``, integers in [0, n_keys) (a grid step, a dense
-    index): radix-sorted as 16-bit keys when they fit (~8x faster than a 64-bit sort at 600k
-    rows)."""
-    keys = np.asarray(keys)
-    if n_keys <= 1 << 16:
-        keys = keys.astype(np.uint16)
-    return np.argsort(keys, kind="stable")
 
 
 def interpolate_truth(truth: Mapping[str, np.ndarray], vehicle_id, time_s) -> Table:

@@ -12,6 +12,8 @@ import math
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from gmtiflow.evaluate.order import dense_ids
+
 
 def gated_assignment(cost: np.ndarray, gate: float):
     """Optimal one-to-one assignment of rows to columns with cost < ``gate``.
@@ -56,25 +58,6 @@ _SMALL_GRAPH = 256
 #: Components whose augmented matrix has up to this many entries share one buffer; larger ones
 #: are built one at a time.
 _BUFFERED = 1024
-
-
-def dense_ids(a: np.ndarray):
-    """``np.unique(a, return_inverse=True)`` of integers, without the sort when ``a`` is sorted
-    (as the pair searches return rows) or spans at most 4 values per element (a bitmap)."""
-    a = np.asarray(a, np.int64)
-    if len(a) < 2:
-        return np.unique(a, return_inverse=True)
-    step = a[1:] != a[:-1]
-    if not (a[1:] < a[:-1]).any():                     # sorted: runs of equal values
-        new = np.empty(len(a), bool)
-        new[0], new[1:] = True, step
-        return a[new], np.cumsum(new) - 1
-    lo, hi = int(a.min()), int(a.max())
-    if hi - lo >= 4 * len(a):
-        return np.unique(a, return_inverse=True)
-    present = np.zeros(hi - lo + 1, bool)
-    present[a - lo] = True
-    return np.flatnonzero(present) + lo, (np.cumsum(present) - 1)[a - lo]
 
 
 def _components(r_idx: np.ndarray, c_idx: np.ndarray, nr: int, nc: int):

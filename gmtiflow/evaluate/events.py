@@ -39,6 +39,7 @@ from typing import Mapping
 
 import numpy as np
 
+from gmtiflow.evaluate.order import lexorder
 from gmtiflow.tables import Table
 
 OUTCOME_DETECTED = 0
@@ -77,7 +78,7 @@ def stop_events(truth: Mapping[str, np.ndarray]) -> Table:
     """Stop events (vehicle_id, kind, start_s, end_s) from the truth ``mode`` column."""
     v = np.asarray(truth["vehicle_id"], np.int64)
     t = np.asarray(truth["time_s"], float)
-    o = np.lexsort((t, v))
+    o = lexorder(v, t)
     v, t = v[o], t[o]
     stopped = np.asarray(truth["mode"])[o] == STOPPED
     s, e = _runs(stopped, v)
@@ -92,7 +93,7 @@ def blind_gap_events(looks: Mapping[str, np.ndarray], min_gap_looks: int = 1) ->
     """Blind-gap events (vehicle_id, kind, start_s, end_s) from the /looks outcomes."""
     v = np.asarray(looks["vehicle_id"], np.int64)
     t = np.asarray(looks["time_s"], float)
-    o = np.lexsort((t, v))
+    o = lexorder(v, t)
     v, t = v[o], t[o]
     outcome = np.asarray(looks["outcome"]).astype(np.int64)[o]
     s, e = _runs(outcome != OUTCOME_DETECTED, v)
@@ -120,7 +121,7 @@ def score_events(events: Mapping[str, np.ndarray], assoc_vehicle: np.ndarray,
 
     ``assoc_*``: the per-step association (vehicle_id, time_s, track_id; -1 = none).
     """
-    o = np.lexsort((assoc_time, assoc_vehicle))
+    o = lexorder(assoc_vehicle, assoc_time)
     av, at, ak = assoc_vehicle[o], assoc_time[o], assoc_track[o]
     has = ak >= 0
     av, at, ak = av[has], at[has], ak[has]

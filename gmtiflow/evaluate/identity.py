@@ -34,8 +34,7 @@ from typing import Mapping
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from gmtiflow.evaluate.align import small_key_order
-from gmtiflow.evaluate.assignment import dense_ids
+from gmtiflow.evaluate.order import dense_ids, lexorder
 from gmtiflow.tables import Table
 
 
@@ -146,12 +145,9 @@ def identity_metrics(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,
     """
     vid = np.asarray(truth_at["vehicle_id"], np.int64)
     step = np.asarray(truth_at["step"], np.int64)
-    vehicles, vpos = dense_ids(vid)
-    if (step[1:] >= step[:-1]).all():     # rows by step (align's order): a stable sort by vehicle
-        order = small_key_order(vpos, len(vehicles))
-    else:
-        order = np.lexsort((step, vid))
-    v, s, a, vpos = vid[order], step[order], assigned[order], vpos[order]
+    order = lexorder(vid, step)
+    v, s, a = vid[order], step[order], assigned[order]
+    vehicles, vpos = dense_ids(v)
     n = len(v)
     new_vehicle = np.ones(n, bool)
     new_vehicle[1:] = v[1:] != v[:-1]

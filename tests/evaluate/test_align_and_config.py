@@ -64,23 +64,6 @@ def test_a_track_ends_with_its_last_row():
     assert list(at["step"]) == [1, 2]
 
 
-def test_lexorder_and_by_step_are_the_sorts_they_replace():
-    # lexorder skips the sort only when the rows are in order (ties, NaN and unsorted rows
-    # sort as np.lexsort does); small_key_order is the stable sort by step (16-bit radix or not)
-    from gmtiflow.evaluate.align import small_key_order, lexorder
-    rng = np.random.default_rng(8)
-    ids = np.sort(rng.integers(0, 20, 400))
-    t = rng.integers(0, 5, 400).astype(float)
-    for major, minor in ((ids, t), (ids, np.sort(t)), (rng.permutation(ids), t),
-                         (ids, np.where(t > 3, np.nan, t)), (ids[:1], t[:1]), (ids[:0], t[:0])):
-        assert np.array_equal(lexorder(major, minor), np.lexsort((minor, major)))
-    order = np.lexsort((t, ids))
-    assert np.array_equal(lexorder(ids[order], t[order]), np.arange(400))
-    step = rng.integers(0, 7, 400)
-    for n_steps in (7, 1 << 17):
-        assert np.array_equal(small_key_order(step, n_steps), np.argsort(step, kind="stable"))
-
-
 def test_tracks_at_grid_rows_sorted_by_step_then_track():
     from gmtiflow.evaluate.align import tracks_at_grid
     rng = np.random.default_rng(6)

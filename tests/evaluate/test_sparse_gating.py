@@ -254,19 +254,6 @@ def test_small_and_vectorised_assignment_paths_agree(monkeypatch):
 
 
 
-def test_dense_ids_is_np_unique():
-    # sorted input (runs), a narrow range (bitmap) and a wide one (np.unique): one answer
-    from gmtiflow.evaluate.assignment import dense_ids
-    rng = np.random.default_rng(2)
-    for a in (np.sort(rng.integers(-5, 50, 300)), rng.integers(-5, 50, 300),
-              rng.integers(-10 ** 12, 10 ** 12, 300), np.array([7]), np.zeros(0, np.int64),
-              np.array([3, 3, 3])):
-        ids, idx = dense_ids(a)
-        want_ids, want_idx = np.unique(np.asarray(a, np.int64), return_inverse=True)
-        assert np.array_equal(ids, want_ids) and np.array_equal(idx, want_idx)
-        assert ids.dtype == want_ids.dtype and idx.dtype == want_idx.dtype
-
-
 def test_graph_components_group_as_the_union_find():
     # scipy on the pairs that share a row or column, the lone pairs labelled after them: the
     # same grouping of nodes as the plain union-find (labels may be numbered differently)
