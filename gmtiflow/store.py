@@ -145,6 +145,13 @@ _LCPL.set_char_encoding(h5t.CSET_ASCII)
 _TEXT_DCPL = h5p.create(h5p.DATASET_CREATE)  # h5py's create_dataset of a scalar: no
 _TEXT_DCPL.set_obj_track_times(False)        # timestamps, attribute order not tracked
 _TEXT_DCPL.set_attr_creation_order(0)
+_CHUNK_CACHE_SLOTS = 1
+"""Slots of the chunk cache of each dataset the writer makes (the file's access property):
+numeric columns are written whole-chunk by direct chunk writes, which bypass the cache, and a
+text column's chunks once each, so HDF5 2.0's default of 8,191 slots only cost a 64 KB table
+zeroed for every column created.  The cache's size is left as it is: the same HDF5 calls in
+the same order, the same file byte for byte.  The 10-target, 1-scan peer run's writer calls
+replayed, alternated in one process (300 pairs, 03:08 UTC, load 5): 6.90 -> 6.57 ms CPU."""
 _PLAIN_PATH = re.compile(r"[A-Za-z0-9_.-]+(/[A-Za-z0-9_.-]+)*")
 """Group paths :func:`_new_group` makes itself (ASCII, relative, no empty or odd parts)."""
 
@@ -854,7 +861,8 @@ class RunWriter:
             deflate_workers, inline = min(4, os.cpu_count() or 1), _INLINE_RUN_BYTES
         self._deflater = _ChunkDeflater(deflate_workers, inline_bytes=inline)
         try:
-            self._file = h5py.File(self.tmp_path, "w", track_order=True)
+            self._file = h5py.File(self.tmp_path, "w", track_order=True,
+                                   rdcc_nslots=_CHUNK_CACHE_SLOTS)
             self.set_attrs({"layout_version": LAYOUT_VERSION, "seed": int(seed),
                             "gmtiflow_version": __version__, "complete": False})
             self.set_attrs(attrs or {})
