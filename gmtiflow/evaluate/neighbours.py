@@ -63,13 +63,47 @@ def close_pairs(X: np.ndarray, Y: np.ndarray, c: float, step_x=None, step_y=None
     return _by_row(np.concatenate(rows), np.concatenate(cols), np.concatenate(dists), len(Y))
 
 
+#: :func:`step_pairs` searches whole steps in chunks of about this many rows (truth and track
+#: rows): a chunk's arrays stay in the CPU caches.  Measured on the scaling benchmark's 60-step
+#: tables (best of 5 CPU): 10k truths (1.2M rows) 134 -> 106 ms at 32k rows a chunk (16k: 106,
+#: 64k: 113, 128k: 123 ms); 1k truths 11.0 -> 10.5 ms.
+CHUNK_ROWS = 32768
+
+
+def step_chunks(step_x: np.ndarray, step_y: np.ndarray, rows: int = None):
+    """``(x0, x1, y0, y1)`` of each chunk of whole steps of two tables sorted by step: rows
+    ``x0:x1`` of the first and ``y0:y1`` of the second, about ``rows`` (default
+    :data:`CHUNK_ROWS`) rows in all (at least one step)."""
+    rows = CHUNK_ROWS if rows is None else int(rows)
+    sx, sy = np.asarray(step_x, np.int64), np.asarray(step_y, np.int64)
+    if not len(sx) or not len(sy):
+        return [(0, len(sx), 0, len(sy))]
+    s0 = min(int(sx[0]), int(sy[0]))
+    edges = s0 + np.arange(max(int(sx[-1]), int(sy[-1])) - s0 + 2)
+    xb, yb = np.searchsorted(sx, edges), np.searchsorted(sy, edges)
+    total = xb + yb
+    cut = np.unique(np.r_[0, np.searchsorted(total, np.arange(rows, total[-1], rows)),
+                          len(edges) - 1]).tolist()
+    xb, yb = xb.tolist(), yb.tolist()
+    return [(xb[a], xb[b], yb[a], yb[b]) for a, b in zip(cut[:-1], cut[1:])]
+
+
 def step_pairs(truth_at, tracks_at, c: float):
     """:func:`close_pairs` of the truth rows and track rows of one grid step (the tables of
-    :mod:`gmtiflow.evaluate.align`: step, x_m, y_m): ``(truth row, track row, distance)`` of
-    every pair closer than ``c``, sorted by truth row then track row."""
+    :mod:`gmtiflow.evaluate.align`, sorted by step: step, x_m, y_m): ``(truth row, track row,
+    distance)`` of every pair closer than ``c``, sorted by truth row then track row.  Searched
+    in chunks of whole steps (:data:`CHUNK_ROWS`): the same pairs in the same order."""
     X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1).astype(float)
     Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1).astype(float)
-    return close_pairs(X, Y, c, truth_at["step"], tracks_at["step"])
+    sx = np.asarray(truth_at["step"], np.int64)
+    sy = np.asarray(tracks_at["step"], np.int64)
+    if (sx[1:] < sx[:-1]).any() or (sy[1:] < sy[:-1]).any():
+        return close_pairs(X, Y, c, sx, sy)
+    parts = [close_pairs(X[x0:x1], Y[y0:y1], c, sx[x0:x1], sy[y0:y1]) + (x0, y0)
+             for x0, x1, y0, y1 in step_chunks(sx, sy)]
+    return (np.concatenate([r + x0 for r, _, _, x0, _ in parts]),
+            np.concatenate([k + y0 for _, k, _, _, y0 in parts]),
+            np.concatenate([D for _, _, D, _, _ in parts]))
 
 
 def close_pairs_tree(X, Y, c, sx, sy):

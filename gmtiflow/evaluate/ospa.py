@@ -116,6 +116,23 @@ def _result(m: int, n: int, rows, cols, loc: float, capped_sum: float, cp: float
             "n_assigned": n_ass, "rows": rows, "cols": cols}
 
 
+def _assign_by_chunks(r, k, C, cp: float, step_x, step_y):
+    """:func:`~gmtiflow.evaluate.assignment.sparse_gated_assignment` of the pairs ``(r, k)``
+    (sorted by row) of steps sorted by step, chunk by chunk of whole steps
+    (:func:`~gmtiflow.evaluate.neighbours.step_chunks`): the same pairs, sorted by row (a
+    component never spans two steps, and the chunks' rows follow each other)."""
+    from gmtiflow.evaluate.assignment import sparse_gated_assignment
+    from gmtiflow.evaluate.neighbours import step_chunks
+    out_r, out_c = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for x0, x1, _, _ in step_chunks(step_x, step_y):
+        a, b = np.searchsorted(r, [x0, x1])
+        if b > a:
+            rows, cols = sparse_gated_assignment(r[a:b], k[a:b], C[a:b], cp)
+            out_r.append(rows)
+            out_c.append(cols)
+    return np.concatenate(out_r), np.concatenate(out_c)
+
+
 def series(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray],
            grid: np.ndarray, c: float, p: float, pairs=None) -> Table:
     """OSPA/GOSPA at every grid step from the outputs of :mod:`gmtiflow.evaluate.align`.
@@ -124,13 +141,12 @@ def series(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarra
     p-th power sums, unit m^p), n_truth, n_tracks, n_assigned.
 
     ``truth_at`` and ``tracks_at`` are sorted by ``step``.  Each step is :func:`ospa_gospa` of
-    its objects; the steps above :data:`DENSE_PAIRS` pairs are solved together (one k-d tree
-    search and one :func:`~gmtiflow.evaluate.assignment.sparse_gated_assignment` for all of
-    them: their components never span two steps), with the same pairs and sums.
+    its objects; the steps above :data:`DENSE_PAIRS` pairs are solved together (one pair
+    search, and :func:`~gmtiflow.evaluate.assignment.sparse_gated_assignment` by chunks of
+    whole steps: their components never span two steps), with the same pairs and sums.
     ``pairs``: :func:`~gmtiflow.evaluate.neighbours.step_pairs` at ``c`` when the caller has
     them already (those of the big steps are the pairs the search would find).
     """
-    from gmtiflow.evaluate.assignment import sparse_gated_assignment
     n = len(grid)
     c, p = float(c), float(p)
     tb = np.searchsorted(truth_at["step"], np.arange(n + 1))
@@ -156,7 +172,7 @@ def series(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarra
             keep = in_x[pairs[0]]           # the pairs of the big steps
             r, k, D = (a[keep] for a in pairs)
         C = D ** p
-        rows, cols = sparse_gated_assignment(r, k, C, cp)
+        rows, cols = _assign_by_chunks(r, k, C, cp, truth_at["step"], tracks_at["step"])
         ny = max(len(Y), 1)
         at = np.searchsorted(r * ny + k, rows * ny + cols)
         C_ass = C[at]

@@ -269,3 +269,31 @@ def test_graph_components_group_as_the_union_find():
         assert a[0] == b[0]
         pairs = set(zip(a[1].tolist(), b[1].tolist()))
         assert len(pairs) == a[0]                 # a bijection between the two numberings
+
+
+def test_chunks_of_steps_give_the_whole_search_and_assignment(monkeypatch):
+    # step_pairs and OSPA's assignment by chunks of whole steps: the pairs and the series of
+    # one search over all steps
+    from gmtiflow.evaluate import neighbours, ospa
+    rng = np.random.default_rng(13)
+    n_steps = 15
+    t_step = np.sort(rng.integers(1, n_steps, 900))
+    k_step = np.sort(rng.integers(0, n_steps - 1, 800))
+    truth_at = {"step": t_step, "x_m": rng.uniform(0, 3000, 900), "y_m": rng.uniform(0, 3000, 900)}
+    tracks_at = {"step": k_step, "x_m": rng.uniform(0, 3000, 800),
+                 "y_m": rng.uniform(0, 3000, 800)}
+    X = np.c_[truth_at["x_m"], truth_at["y_m"]]
+    Y = np.c_[tracks_at["x_m"], tracks_at["y_m"]]
+    whole = neighbours.close_pairs(X, Y, 200.0, t_step, k_step)
+    monkeypatch.setattr(ospa, "DENSE_PAIRS", 100)
+    want = ospa.series(truth_at, tracks_at, np.arange(float(n_steps)), 200.0, 2.0, whole)
+    for rows in (1, 150, 400, 10 ** 6):
+        monkeypatch.setattr(neighbours, "CHUNK_ROWS", rows)
+        chunks = neighbours.step_chunks(t_step, k_step, rows)
+        assert chunks[0][0] == chunks[0][2] == 0 and chunks[-1][1::2] == (900, 800)
+        assert all(a[1] == b[0] and a[3] == b[2] for a, b in zip(chunks, chunks[1:]))
+        got = neighbours.step_pairs(truth_at, tracks_at, 200.0)
+        assert all(np.array_equal(a, b) for a, b in zip(got, whole))
+        series = ospa.series(truth_at, tracks_at, np.arange(float(n_steps)), 200.0, 2.0, got)
+        for col in want:
+            assert np.array_equal(series[col], want[col]), (rows, col)
