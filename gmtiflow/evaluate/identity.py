@@ -71,7 +71,7 @@ def associate(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.nda
     X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1)
     Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1)
     tid = np.asarray(tracks_at["track_id"], np.int64)
-    vehicles, vpos = np.unique(np.asarray(truth_at["vehicle_id"], np.int64), return_inverse=True)
+    vehicles, vpos = dense_ids(truth_at["vehicle_id"])
     g2 = float(gate_m) ** 2
     last = np.full(len(vehicles), -1, np.int64)   # per vehicle: last associated track id
     for s in np.flatnonzero((np.diff(tb) > 0) & (np.diff(kb) > 0)):

@@ -28,6 +28,20 @@ def dense_ids(a: np.ndarray):
     return np.flatnonzero(present) + lo, (np.cumsum(present) - 1)[a - lo]
 
 
+def count_distinct(a: np.ndarray) -> int:
+    """``len(np.unique(a))`` of integers, by a bitmap when ``a`` spans at most 4 values per
+    element (np.unique hashes or sorts: 26 ms against 0.7 ms for 600k vehicle ids)."""
+    a = np.asarray(a, np.int64)
+    if len(a) < 2:
+        return len(a)
+    lo, hi = int(a.min()), int(a.max())
+    if hi - lo >= 4 * len(a):
+        return len(np.unique(a))
+    present = np.zeros(hi - lo + 1, bool)
+    present[a - lo] = True
+    return int(np.count_nonzero(present))
+
+
 def small_key_order(keys: np.ndarray, n_keys: int) -> np.ndarray:
     """Stable order of rows by ``keys``, integers in [0, n_keys): radix-sorted as 16-bit keys
     when they fit."""

@@ -31,6 +31,7 @@ from gmtiflow import frames
 from gmtiflow.evaluate import (align, clearmot, events as events_mod, identity,
                                neighbours, ospa)
 from gmtiflow.evaluate.config import MetricsConfig
+from gmtiflow.evaluate.order import count_distinct
 from gmtiflow.evaluate.track_errors import track_errors
 from gmtiflow.evaluate.tracks import validate_tracks
 from gmtiflow.tables import Table, concat
@@ -139,8 +140,8 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
                              pairs)
 
     values = {
-        "n_truths": len(np.unique(truth_at["vehicle_id"])),
-        "n_tracks": len(np.unique(tracks_at["track_id"])), "n_steps": len(grid),
+        "n_truths": count_distinct(truth_at["vehicle_id"]),
+        "n_tracks": count_distinct(tracks_at["track_id"]), "n_steps": len(grid),
         "ospa_mean_m": _mean(ospa_tab["ospa_m"]), "gospa_mean_m": _mean(ospa_tab["gospa_m"]),
         "gospa_localisation_mean": _mean(ospa_tab["gospa_localisation"]),
         "gospa_missed_mean": _mean(ospa_tab["gospa_missed"]),

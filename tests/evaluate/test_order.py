@@ -1,7 +1,7 @@
 """The sorting helpers give what the numpy calls they replace give."""
 import numpy as np
 
-from gmtiflow.evaluate.order import dense_ids, lexorder, small_key_order
+from gmtiflow.evaluate.order import count_distinct, dense_ids, lexorder, small_key_order
 
 
 def test_dense_ids_is_np_unique():
@@ -11,6 +11,7 @@ def test_dense_ids_is_np_unique():
               rng.integers(-10 ** 12, 10 ** 12, 300), np.array([7]), np.zeros(0, np.int64),
               np.array([3, 3, 3])):
         ids, idx = dense_ids(a)
+        assert count_distinct(a) == len(np.unique(a))
         want_ids, want_idx = np.unique(np.asarray(a, np.int64), return_inverse=True)
         assert np.array_equal(ids, want_ids) and np.array_equal(idx, want_idx)
         assert ids.dtype == want_ids.dtype and idx.dtype == want_idx.dtype
