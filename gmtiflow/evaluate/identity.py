@@ -45,11 +45,14 @@ def unique_pairs(a: np.ndarray, b: np.ndarray, return_counts: bool = False):
     if len(a) == 0:
         empty = np.zeros((0, 2), np.int64)
         return (empty, np.zeros(0, np.int64)) if return_counts else empty
-    b0 = b.min()
+    a0, b0 = a.min(), b.min()
     span = int(b.max() - b0) + 1
-    key = (a - a.min()) * span + (b - b0)
-    _, idx, counts = np.unique(key, return_index=True, return_counts=True)
-    pairs = np.stack([a[idx], b[idx]], axis=1)
+    # one sortable key per pair, sorted (a plain sort: which row of equal keys is kept does not
+    # matter, the key gives the pair back) and cut into runs
+    key = np.sort((a - a0) * span + (b - b0))
+    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    pairs = np.stack([key[first] // span + a0, key[first] % span + b0], axis=1)
+    counts = np.diff(np.r_[first, len(key)])
     return (pairs, counts) if return_counts else pairs
 
 

@@ -177,3 +177,15 @@ def test_identity_metrics_rows_in_any_order():
     for part in ("truth", "tracks", "switch_times"):
         for col in want[part]:
             assert np.array_equal(got[part][col], want[part][col], equal_nan=True), (part, col)
+
+
+def test_unique_pairs_is_np_unique_of_the_rows():
+    from gmtiflow.evaluate.identity import unique_pairs
+    rng = np.random.default_rng(21)
+    for lo, hi in ((0, 5), (-7, 40), (-10 ** 6, 10 ** 6)):
+        a, b = rng.integers(lo, hi, 500), rng.integers(lo, hi, 500)
+        want, counts = np.unique(np.c_[a, b], axis=0, return_counts=True)
+        got, got_counts = unique_pairs(a, b, return_counts=True)
+        assert np.array_equal(got, want) and np.array_equal(got_counts, counts)
+        assert got.dtype == np.int64 and got_counts.dtype == counts.dtype
+        assert np.array_equal(unique_pairs(a, b), want)
