@@ -93,8 +93,8 @@ def step_pairs(truth_at, tracks_at, c: float):
     :mod:`gmtiflow.evaluate.align`, sorted by step: step, x_m, y_m): ``(truth row, track row,
     distance)`` of every pair closer than ``c``, sorted by truth row then track row.  Searched
     in chunks of whole steps (:data:`CHUNK_ROWS`): the same pairs in the same order."""
-    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1).astype(float)
-    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1).astype(float)
+    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1).astype(float, copy=False)
+    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1).astype(float, copy=False)
     sx = np.asarray(truth_at["step"], np.int64)
     sy = np.asarray(tracks_at["step"], np.int64)
     if (sx[1:] < sx[:-1]).any() or (sy[1:] < sy[:-1]).any():

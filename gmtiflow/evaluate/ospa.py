@@ -151,8 +151,8 @@ def series(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarra
     c, p = float(c), float(p)
     tb = np.searchsorted(truth_at["step"], np.arange(n + 1))
     kb = np.searchsorted(tracks_at["step"], np.arange(n + 1))
-    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1).astype(float)
-    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1).astype(float)
+    X = np.stack([truth_at["x_m"], truth_at["y_m"]], axis=1).astype(float, copy=False)
+    Y = np.stack([tracks_at["x_m"], tracks_at["y_m"]], axis=1).astype(float, copy=False)
     out = {name: np.zeros(n) for name in ("ospa_m", "gospa_m", "gospa_localisation",
                                           "gospa_missed", "gospa_false")}
     n_truth = np.diff(tb).astype(np.int64)

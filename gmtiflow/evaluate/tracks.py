@@ -50,7 +50,7 @@ def _fail(source: str, message: str) -> InputFileError:
 def _numeric(table, name: str, source: str) -> np.ndarray:
     raw = np.asarray(table[name])
     try:
-        col = raw.astype(np.float64)
+        col = raw.astype(np.float64, copy=False)     # a float64 column is not copied
     except (TypeError, ValueError):
         for i, v in enumerate(raw):
             try:
