@@ -35,7 +35,7 @@ from gmtiflow.tables import Table
 
 
 #: Up to this many (truth, track) pairs a step is solved with one dense assignment (as the
-#: formulas above say); above, pairs closer than ``c`` come from a k-d tree and are assigned per
+#: formulas above say); above, pairs closer than ``c`` come from a cell grid and are assigned per
 #: connected component (linear in the objects at a fixed density).  The pairs and
 #: ``localisation``, ``missed``, ``false``, GOSPA are identical either way, OSPA too when there
 #: are at least as many tracks as truths; with more truths than tracks OSPA's sum adds the same
@@ -74,7 +74,7 @@ def ospa_gospa(X: np.ndarray, Y: np.ndarray, c: float, p: float) -> dict:
 
 def _sparse_sums(X: np.ndarray, Y: np.ndarray, c: float, p: float):
     """The assigned pairs closer than ``c``, their sum and OSPA's capped sum, without the dense
-    (m, n) matrix: pairs closer than ``c`` from a k-d tree, one optimal assignment per connected
+    (m, n) matrix: pairs closer than ``c`` from a cell grid, one optimal assignment per connected
     component (minimising Σ(d^p − c^p) over the pairs, which is the dense problem: a pair at or
     beyond ``c`` costs c^p, what leaving both unassigned costs); every other assigned row adds
     c^p."""
