@@ -101,7 +101,7 @@ def required_columns() -> Dict[str, tuple]:
     from gmtiflow.evaluate.tracks import REQUIRED_TRACK_COLUMNS
     from gmtiflow.formats.geojson import EDGE_COLUMNS, NODE_COLUMNS
     from gmtiflow.scene.fleet import TRUTH_COLUMNS
-    from gmtiflow.sensor.model import DETECTION_COLUMNS, DWELL_COLUMNS, LOOK_COLUMNS
+    from gmtiflow.sensor.columns import DETECTION_COLUMNS, DWELL_COLUMNS, LOOK_COLUMNS
     return {"dwells": tuple(DWELL_COLUMNS), "detections": tuple(DETECTION_COLUMNS),
             "looks": tuple(LOOK_COLUMNS), "tracks": REQUIRED_TRACK_COLUMNS,
             "truth": tuple(TRUTH_COLUMNS), "metrics/events": tuple(EVENT_COLUMNS),

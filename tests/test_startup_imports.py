@@ -68,3 +68,19 @@ def test_a_run_without_tracker_and_metrics_does_not_load_them(tmp_path):
                                                 "gmtiflow.evaluate.stage"))] == []
     # The default scene routes its vehicles on RoadMap.arcs(): networkx (~0.15 s) stays out.
     assert [m for m in modules if m.split(".")[0] == "networkx"] == []
+
+
+def test_checking_a_run_files_columns_loads_no_simulation(tmp_path):
+    # The report (and every reader) checks a run file's columns against the writers' lists
+    # first: those lists live in light modules, so a fresh report does not pay for the sensor
+    # model and its merge's scipy.spatial (~0.2 s).
+    probe = ("import json, sys\nfrom gmtiflow.store import required_columns\n"
+             "cols = required_columns()\n"
+             "print(json.dumps({'dwells': len(cols['dwells']), 'modules': sorted(sys.modules)}))")
+    proc = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=120)
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["dwells"] > 20                            # the lists really were read
+    assert [m for m in out["modules"] if m.startswith(("gmtiflow.sensor.model",
+                                                       "gmtiflow.sensor.merge",
+                                                       "scipy.spatial"))] == []
