@@ -55,9 +55,11 @@ _STAR_MARGIN = 1e-9
 #: than building a scipy.sparse graph for a dwell's handful of pairs); above, by scipy.
 _SMALL_GRAPH = 256
 
-#: Components whose augmented matrix has up to this many entries share one buffer; larger ones
-#: are built one at a time.
-_BUFFERED = 1024
+#: The augmented matrices of the components are built together in flat buffers of about this
+#: many entries (8 MB of costs; a larger component alone): a few numpy calls per buffer instead
+#: of a dozen per component (the 1,000-vehicle scene's OSPA has ~2,500 components above 1,024
+#: entries, which were built one by one at ~30 us each).
+_BUFFER_ENTRIES = 1 << 20
 
 
 def _components(r_idx: np.ndarray, c_idx: np.ndarray, nr: int, nc: int):
@@ -287,62 +289,58 @@ def _solve_components(pairs, r_idx, c_idx, cost, label, pair_label, nr, nc, comp
         order, lab = order[keep], lab[keep]
         comps = comps[~general]
         first = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else first[:0]
-    large = comp_rows[comps] * (comp_rows[comps] + comp_cols[comps]) > _BUFFERED
-    if large.any():          # one by one: their matrices would make the buffer huge
-        bounds = np.r_[first, len(order)]
-        for k in np.flatnonzero(large).tolist():
-            grp = order[bounds[k]:bounds[k + 1]]
-            n, m = int(comp_rows[comps[k]]), int(comp_cols[comps[k]])
-            gr, ir = np.unique(r_idx[grp], return_inverse=True)
-            gc, ic = np.unique(c_idx[grp], return_inverse=True)
-            aug = np.full((n, m + n), gate * (n + 1) + 1.0)
-            aug[ir, ic] = cost[grp]
-            aug[np.arange(n), m + np.arange(n)] = gate
-            a, b = linear_sum_assignment(aug)
-            real = b < m
-            a, b = a[real], b[real]
-            pair = np.zeros((n, m), bool)
-            pair[ir, ic] = True
-            keep = pair[a, b]
-            out_r.append(gr[a[keep]])
-            out_c.append(gc[b[keep]])
-        keep = ~large[np.searchsorted(comps, lab)]
-        order, lab = order[keep], lab[keep]
-        comps = comps[~large]
-        first = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else first[:0]
     if len(comps):
-        # One flat buffer holding every component's augmented matrix (n rows, m + n columns:
-        # the pairs' costs, big elsewhere, the rows' private miss columns at the gate).
+        # Buffers of whole components, each starting a new _BUFFER_ENTRIES-sized share of the
+        # entries (a larger component ends its buffer); the pairs are grouped by component in
+        # the order of comps.
         n, m = comp_rows[comps], comp_cols[comps]
-        width = m + n
-        size = n * width
-        start = np.r_[0, np.cumsum(size)[:-1]]
-        big = gate * (n + 1) + 1.0
-        buf = np.repeat(big, size)
-        k_of_pair = np.searchsorted(comps, lab)
-        lr, lc = local_r[r_idx[order]], local_c[c_idx[order]]
-        buf[start[k_of_pair] + lr * width[k_of_pair] + lc] = cost[order]
-        k_row = np.repeat(np.arange(len(comps)), n)
-        row = np.arange(len(k_row)) - np.repeat(np.r_[0, np.cumsum(n)[:-1]], n)
-        buf[start[k_row] + row * width[k_row] + m[k_row] + row] = gate
-        picked = [linear_sum_assignment(buf[s:s + z].reshape(a, w))[1]
-                  for s, z, a, w in zip(start.tolist(), size.tolist(), n.tolist(),
-                                        width.tolist())]
-        col = np.concatenate(picked)            # per component row, its column (rows in order)
-        # Back to nodes: the component's rows / columns in increasing index.
-        node_r = np.empty(len(k_row), np.int64)
-        row_base = np.r_[0, np.cumsum(n)[:-1]]
-        node_r[row_base[k_of_pair] + lr] = r_idx[order]
-        col_base = np.r_[0, np.cumsum(m)[:-1]]
-        node_c = np.empty(int(m.sum()), np.int64)
-        node_c[col_base[k_of_pair] + lc] = c_idx[order]
-        real = col < m[k_row]
-        ok = np.flatnonzero(real)
-        ok = ok[buf[start[k_row[ok]] + row[ok] * width[k_row[ok]] + col[ok]]
-                < big[k_row[ok]]]   # a gated pair, not a filler (never picked: costs more)
-        out_r.append(node_r[ok])
-        out_c.append(node_c[col_base[k_row[ok]] + col[ok]])
+        size = n * (m + n)
+        part = (np.cumsum(size) - size) // _BUFFER_ENTRIES
+        cut = np.r_[0, np.flatnonzero(part[1:] != part[:-1]) + 1, len(comps)]
+        pair_cut = np.r_[first, len(order)][cut]
+        for a, b, pa, pb in zip(cut[:-1].tolist(), cut[1:].tolist(), pair_cut[:-1].tolist(),
+                                pair_cut[1:].tolist()):
+            r, c = _solve_buffered(comps[a:b], order[pa:pb], lab[pa:pb], r_idx, c_idx, cost,
+                                   local_r, local_c, comp_rows, comp_cols, gate)
+            out_r.append(r)
+            out_c.append(c)
     return np.concatenate(out_r), np.concatenate(out_c)
+
+
+def _solve_buffered(comps, order, lab, r_idx, c_idx, cost, local_r, local_c, comp_rows,
+                    comp_cols, gate):
+    """The assigned (row node, column node) pairs of the components ``comps`` (all pairs inside
+    the gate; ``order``: their pairs grouped by component in the order of ``comps``, ``lab``
+    their components), from one flat buffer holding every component's augmented matrix as
+    :func:`gated_assignment` builds it (n rows, m + n columns: the pairs' costs, big elsewhere,
+    the rows' private miss columns at the gate), each solved by one ``linear_sum_assignment``."""
+    n, m = comp_rows[comps], comp_cols[comps]
+    width = m + n
+    size = n * width
+    start = np.r_[0, np.cumsum(size)[:-1]]
+    big = gate * (n + 1) + 1.0
+    buf = np.repeat(big, size)
+    k_of_pair = np.searchsorted(comps, lab)
+    lr, lc = local_r[r_idx[order]], local_c[c_idx[order]]
+    buf[start[k_of_pair] + lr * width[k_of_pair] + lc] = cost[order]
+    k_row = np.repeat(np.arange(len(comps)), n)
+    row = np.arange(len(k_row)) - np.repeat(np.r_[0, np.cumsum(n)[:-1]], n)
+    buf[start[k_row] + row * width[k_row] + m[k_row] + row] = gate
+    picked = [linear_sum_assignment(buf[s:s + z].reshape(a, w))[1]
+              for s, z, a, w in zip(start.tolist(), size.tolist(), n.tolist(), width.tolist())]
+    col = np.concatenate(picked)            # per component row, its column (rows in order)
+    # Back to nodes: the component's rows / columns in increasing index.
+    node_r = np.empty(len(k_row), np.int64)
+    row_base = np.r_[0, np.cumsum(n)[:-1]]
+    node_r[row_base[k_of_pair] + lr] = r_idx[order]
+    col_base = np.r_[0, np.cumsum(m)[:-1]]
+    node_c = np.empty(int(m.sum()), np.int64)
+    node_c[col_base[k_of_pair] + lc] = c_idx[order]
+    real = col < m[k_row]
+    ok = np.flatnonzero(real)
+    ok = ok[buf[start[k_row[ok]] + row[ok] * width[k_row[ok]] + col[ok]]
+            < big[k_row[ok]]]   # a gated pair, not a filler (never picked: costs more)
+    return node_r[ok], node_c[col_base[k_row[ok]] + col[ok]]
 
 
 def _local_index(label: np.ndarray, nodes: np.ndarray) -> np.ndarray:

@@ -254,6 +254,53 @@ def test_small_and_vectorised_assignment_paths_agree(monkeypatch):
 
 
 
+@pytest.mark.parametrize("buffer_entries", [1, 64, 1 << 20])
+def test_components_built_in_buffers_give_the_dense_assignment(monkeypatch, buffer_entries):
+    # small and large components (up to ~40 rows) built in flat buffers of any size, one
+    # component alone or many together: each solved as gated_assignment solves it alone, ties
+    # (integer costs) included
+    from gmtiflow.evaluate import assignment
+    monkeypatch.setattr(assignment, "_SMALL_PAIRS", 0)
+    monkeypatch.setattr(assignment, "_BUFFER_ENTRIES", buffer_entries)
+    rng = np.random.default_rng(5)
+    for integer in (False, True):
+        nr, nc, gate = 300, 320, 9.0
+        cost = np.full((nr, nc), np.inf)
+        for size in (40, 25, 12, 3, 2, 2, 2, 1):
+            for _ in range(3):
+                rs = rng.choice(nr, size, replace=False)
+                cs = rng.choice(nc, size + int(rng.integers(0, 3)), replace=False)
+                block = rng.uniform(0, 8.9, (len(rs), len(cs)))
+                block[rng.random(block.shape) < 0.6] = np.inf
+                cost[np.ix_(rs, cs)] = np.floor(block) if integer else block
+        r, c = np.nonzero(cost < gate)
+        sr, sc = assignment.sparse_gated_assignment(r, c, cost[r, c], gate)
+        dr, dc = _per_component(cost, gate)
+        assert np.array_equal(sr, dr) and np.array_equal(sc, dc)
+        assert len(dr) > 50
+
+
+def _per_component(cost, gate):
+    """gated_assignment of each connected component's own rows and columns (what
+    sparse_gated_assignment promises), sorted by row."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    nr, nc = cost.shape
+    r, c = np.nonzero(cost < gate)
+    graph = coo_matrix((np.ones(len(r)), (r, nr + c)), shape=(nr + nc, nr + nc))
+    _, label = connected_components(graph, directed=False)
+    out_r, out_c = [], []
+    for comp in np.unique(label[r]):
+        rs = np.unique(r[label[r] == comp])
+        cs = np.unique(c[label[nr + c] == comp])
+        a, b = gated_assignment(cost[np.ix_(rs, cs)], gate)
+        out_r.append(rs[a])
+        out_c.append(cs[b])
+    rr, cc = np.concatenate(out_r), np.concatenate(out_c)
+    o = np.argsort(rr)
+    return rr[o], cc[o]
+
+
 def test_graph_components_group_as_the_union_find():
     # scipy on the pairs that share a row or column, the lone pairs labelled after them: the
     # same grouping of nodes as the plain union-find (labels may be numbered differently)
