@@ -82,6 +82,47 @@ def _wrap_pi(angle_rad):
     return np.mod(angle_rad + np.pi, 2.0 * np.pi) - np.pi
 
 
+def _usable(det) -> np.ndarray:
+    """Which detections the tracker uses: finite positions, not flagged ``implausible``."""
+    usable = np.ones(len(det["dwell_id"]), bool)
+    if len(usable):
+        if "implausible" in det:
+            usable &= ~np.asarray(det["implausible"], bool)
+        for c in ("x_m", "y_m"):
+            usable &= np.isfinite(np.asarray(det[c], float))
+    return usable
+
+
+#: Columns :func:`track` adds to the baseline's prepared /detections (the batches slice them as
+#: they slice the others): the usable mask and :func:`_measurements` of every usable plot.
+_USABLE, _ZMEAS, _R, _ZDET, _WRAP = ("_tracker_usable", "_tracker_zmeas", "_tracker_R",
+                                     "_tracker_zdet", "_tracker_wrap")
+
+
+def _add_measurements(det, dw, cfg: TrackerConfig) -> None:
+    """Add the :data:`_USABLE` ... :data:`_WRAP` columns to ``det``, the detections of ``dw``
+    grouped by dwell in its order (``dw["n_detections"]`` rows each, as
+    :class:`~gmtiflow.evaluate.protocol._Prepared` holds them).
+
+    One pass over the run's plots instead of one per dwell (4,602 calls, ~0.2 s of the
+    1,000-vehicle run): the same element-wise numpy operations on the same values, each plot
+    seen from its own dwell's platform, so the values are those :func:`_measurements` gives per
+    dwell bit for bit (``tests/evaluate/test_tracker.py``).  Unusable rows hold NaN."""
+    n = len(det["dwell_id"])
+    usable = _usable(det)
+    idx = np.flatnonzero(usable)
+    at = np.repeat(np.arange(len(dw["n_detections"])), dw["n_detections"])[idx]
+    plat = tuple(np.asarray(dw[c], float)[at] for c in ("platform_x_m", "platform_y_m",
+                                                       "platform_z_m"))
+    zmeas, R, zdet, wrap = _measurements(det, idx, plat, cfg)
+    det[_USABLE] = usable
+    for name, got in ((_ZMEAS, zmeas), (_R, R), (_ZDET, zdet), (_WRAP, wrap)):
+        if got is not None:
+            full = np.full((n,) + got.shape[1:], np.nan)
+            full[idx] = got
+            det[name] = full
+
+
 class _Tracks:
     """Live track state as parallel arrays (rows = live tracks)."""
 
@@ -129,7 +170,8 @@ def _covered(dw, k: int, pos: np.ndarray, z: np.ndarray, plat: np.ndarray, margi
 
 
 def _measurements(det, idx, plat, cfg: TrackerConfig):
-    """Position (and range-rate) measurements of detections ``idx`` and their covariances."""
+    """Position (and range-rate) measurements of detections ``idx`` and their covariances;
+    ``plat`` the platform position, one (3,) or three arrays, one value per detection."""
     n = len(idx)
     x = np.asarray(det["x_m"], float)[idx]
     y = np.asarray(det["y_m"], float)[idx]
@@ -205,12 +247,7 @@ class NNKalmanTracker:
         if not len(dw["dwell_id"]):
             return None
         has_fp = "beam_az_rad" in dw and "angle_half_extent_rad" in dw
-        usable = np.ones(len(det["dwell_id"]), bool)
-        if len(usable):
-            if "implausible" in det:
-                usable &= ~np.asarray(det["implausible"], bool)
-            for c in ("x_m", "y_m"):
-                usable &= np.isfinite(np.asarray(det[c], float))
+        usable = det[_USABLE] if _USABLE in det else _usable(det)
         out = []
         one = len(dw["dwell_id"]) == 1          # per-dwell batches: the batch is the dwell
         for k, rows in batch.dwell_slices():
@@ -253,7 +290,11 @@ class NNKalmanTracker:
         assigned_track = np.full(len(ci), -1, np.int64)       # detection slot per covered track
         det_taken = np.zeros(len(didx), bool)
         if len(didx):
-            zmeas, R, zdet, wrap = _measurements(det, didx, plat_pos, cfg)
+            if _ZMEAS in det:               # computed once for the run (track())
+                zmeas, R, zdet = det[_ZMEAS][didx], det[_R][didx], det[_ZDET][didx]
+                wrap = det[_WRAP][didx] if use_rr else None
+            else:
+                zmeas, R, zdet, wrap = _measurements(det, didx, plat_pos, cfg)
         if len(didx) and len(ci):
             h, H = _model(xp, tr.z[ci], plat_pos, plat_vel, use_rr)
             HPHt = H @ Pp @ np.transpose(H, (0, 2, 1))
@@ -385,6 +426,8 @@ def track(cfg: TrackerConfig, detections: Mapping[str, np.ndarray],
         return empty_tracks()
     tracker = make_tracker(cfg)
     prepared = _Prepared(detections, dwells, origin, cfg.per)
+    if isinstance(tracker, NNKalmanTracker):
+        _add_measurements(prepared.detections, prepared.dwells, tracker.cfg)
     scene = SceneInfo(origin=origin, epoch_utc=epoch_utc, duration_s=duration_s,
                       n_dwells=prepared.n_dwells, n_batches=len(prepared),
                       sensor_ids=prepared.sensor_ids, per=cfg.per, seed=int(seed))
