@@ -12,7 +12,7 @@ import math
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from gmtiflow.evaluate.order import dense_ids
+from gmtiflow.evaluate.order import dense_ids, small_key_order
 
 
 def gated_assignment(cost: np.ndarray, gate: float):
@@ -227,7 +227,7 @@ def sparse_gated_assignment(rows: np.ndarray, cols: np.ndarray, cost: np.ndarray
     pair_label = label[r_idx]
     n_pairs = np.bincount(pair_label, minlength=n_comp)
     single = n_pairs[pair_label] == 1
-    out_r, out_c = [r_ids[r_idx[single]]], [c_ids[c_idx[single]]]
+    out_r, out_c = [r_idx[single]], [c_idx[single]]      # row / column nodes
     multi = np.flatnonzero(~single)
     if len(multi):
         comp_rows = np.bincount(label[:nr], minlength=n_comp)
@@ -247,17 +247,17 @@ def sparse_gated_assignment(rows: np.ndarray, cols: np.ndarray, cost: np.ndarray
             clear = second - best > _STAR_MARGIN * scale
             win = o[first[clear]]
             solved[lab[first[clear]]] = True
-            out_r.append(r_ids[r_idx[win]])
-            out_c.append(c_ids[c_idx[win]])
+            out_r.append(r_idx[win])
+            out_c.append(c_idx[win])
         rest = multi[~solved[pair_label[multi]]]
         if len(rest):
             r, c = _solve_components(rest, r_idx, c_idx, cost, label, pair_label, nr, nc,
                                      comp_rows, comp_cols, comp_out, float(gate))
-            out_r.append(r_ids[r])
-            out_c.append(c_ids[c])
+            out_r.append(r)
+            out_c.append(c)
     rr, cc = np.concatenate(out_r), np.concatenate(out_c)
-    o = np.argsort(rr, kind="stable")
-    return rr[o], cc[o]
+    o = small_key_order(rr, nr)        # by row (r_ids increase with the node index)
+    return r_ids[rr[o]], c_ids[cc[o]]
 
 
 def _solve_components(pairs, r_idx, c_idx, cost, label, pair_label, nr, nc, comp_rows,
@@ -268,7 +268,7 @@ def _solve_components(pairs, r_idx, c_idx, cost, label, pair_label, nr, nc, comp
     # to gated_assignment), for all components at once.
     local_r = _local_index(label[:nr], r_idx[pairs])
     local_c = _local_index(label[nr:], c_idx[pairs])
-    order = pairs[np.argsort(pair_label[pairs], kind="stable")]
+    order = pairs[small_key_order(pair_label[pairs], len(comp_rows))]
     lab = pair_label[order]
     first = np.r_[0, np.flatnonzero(lab[1:] != lab[:-1]) + 1]
     comps = lab[first]
@@ -350,7 +350,8 @@ def _local_index(label: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     involved = np.zeros(len(label), bool)
     involved[nodes] = True
     idx = np.flatnonzero(involved)
-    o = np.argsort(label[idx], kind="stable")       # by component, increasing index within
+    o = small_key_order(label[idx], int(label[idx].max()) + 1 if len(idx) else 0)   # by component,
+    # increasing index within
     lab = label[idx[o]]
     first = np.empty(len(lab), bool)
     first[:1] = True
