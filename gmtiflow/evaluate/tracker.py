@@ -95,36 +95,28 @@ def _usable(det) -> np.ndarray:
 
 #: Columns :func:`track` adds to the baseline's prepared /detections (the batches slice them as
 #: they slice the others): the usable mask and :func:`_measurements` of every usable plot.
-_USABLE, _ZMEAS, _R, _ZDET, _WRAP, _X0, _P0 = (
-    "_tracker_usable", "_tracker_zmeas", "_tracker_R", "_tracker_zdet", "_tracker_wrap",
-    "_tracker_x0", "_tracker_P0")
+_USABLE, _ZMEAS, _R, _ZDET, _WRAP = ("_tracker_usable", "_tracker_zmeas", "_tracker_R",
+                                     "_tracker_zdet", "_tracker_wrap")
 
 
 def _add_measurements(det, dw, cfg: TrackerConfig) -> None:
-    """Add the :data:`_USABLE` ... :data:`_P0` columns to ``det``, the detections of ``dw``
+    """Add the :data:`_USABLE` ... :data:`_WRAP` columns to ``det``, the detections of ``dw``
     grouped by dwell in its order (``dw["n_detections"]`` rows each, as
-    :class:`~gmtiflow.evaluate.protocol._Prepared` holds them): each usable plot's measurement
-    (:func:`_measurements`) and the track it would start (:func:`_initial_states`).
+    :class:`~gmtiflow.evaluate.protocol._Prepared` holds them).
 
-    One pass over the run's plots instead of one per dwell (4,602 and 4,251 calls, ~0.2 s each
-    on the 1,000-vehicle run): the same element-wise numpy operations and per-row matrix
-    products on the same values, each plot seen from its own dwell's platform, so the values
-    are those the per-dwell calls give bit for bit (``tests/evaluate/test_tracker.py``).
-    Unusable rows hold NaN."""
+    One pass over the run's plots instead of one per dwell (4,602 calls, ~0.2 s of the
+    1,000-vehicle run): the same element-wise numpy operations on the same values, each plot
+    seen from its own dwell's platform, so the values are those :func:`_measurements` gives per
+    dwell bit for bit (``tests/evaluate/test_tracker.py``).  Unusable rows hold NaN."""
     n = len(det["dwell_id"])
     usable = _usable(det)
     idx = np.flatnonzero(usable)
     at = np.repeat(np.arange(len(dw["n_detections"])), dw["n_detections"])[idx]
     plat = tuple(np.asarray(dw[c], float)[at] for c in ("platform_x_m", "platform_y_m",
                                                        "platform_z_m"))
-    plat_vel = tuple(np.asarray(dw[c], float)[at] for c in ("platform_vx_mps", "platform_vy_mps",
-                                                           "platform_vz_mps"))
     zmeas, R, zdet, wrap = _measurements(det, idx, plat, cfg)
-    x0, P0 = _initial_states(zmeas, R, zdet, wrap, plat, plat_vel, wrap is not None,
-                             cfg.init_speed_sigma_mps ** 2)
     det[_USABLE] = usable
-    for name, got in ((_ZMEAS, zmeas), (_R, R), (_ZDET, zdet), (_WRAP, wrap), (_X0, x0),
-                      (_P0, P0)):
+    for name, got in ((_ZMEAS, zmeas), (_R, R), (_ZDET, zdet), (_WRAP, wrap)):
         if got is not None:
             full = np.full((n,) + got.shape[1:], np.nan)
             full[idx] = got
@@ -212,24 +204,6 @@ def _measurements(det, idx, plat, cfg: TrackerConfig):
     R[:, :2, :2] = R_pos
     R[:, 2, 2] = s_rr ** 2
     return np.stack([x, y, rr], axis=1), R, z, wrap
-
-
-def _initial_states(zmeas, R, zdet, wrap, plat_pos, plat_vel, use_rr: bool, init_var_v: float):
-    """Single-point initiation (module docstring, step 6) at measurements ``zmeas`` (n, m) with
-    covariances ``R``: states (n, 4) and covariances (n, 4, 4)."""
-    nf = len(zmeas)
-    x0 = np.zeros((nf, 4))
-    x0[:, :2] = zmeas[:, :2]
-    P0 = np.zeros((nf, 4, 4))
-    P0[:, :2, :2] = R[:, :2, :2]
-    P0[:, 2, 2] = P0[:, 3, 3] = init_var_v
-    if use_rr:
-        h, H = _model(x0, zdet, plat_pos, plat_vel, True)
-        H1, h1 = H[:, 2:3, :], h[:, 2:3]
-        nu1 = kalman.wrap_symmetric(zmeas[:, 2:3] - h1, wrap[:, None])
-        S1 = H1 @ P0 @ np.transpose(H1, (0, 2, 1)) + R[:, 2:3, 2:3]
-        x0, P0 = kalman.kalman_update(x0, P0, H1, nu1, S1, R[:, 2:3, 2:3])
-    return x0, P0
 
 
 def _model(x: np.ndarray, z: np.ndarray, plat_pos, plat_vel, use_rr: bool):
@@ -348,13 +322,17 @@ class NNKalmanTracker:
         free = np.flatnonzero(~det_taken)
         nf = len(free)
         if nf:
-            if _X0 in det:                  # computed once for the run (track())
-                at = didx[free]
-                x0, P0 = det[_X0][at], det[_P0][at]
-            else:
-                x0, P0 = _initial_states(zmeas[free], R[free], zdet[free],
-                                         None if wrap is None else wrap[free], plat_pos,
-                                         plat_vel, use_rr, init_var_v)
+            x0 = np.zeros((nf, 4))
+            x0[:, :2] = zmeas[free, :2]
+            P0 = np.zeros((nf, 4, 4))
+            P0[:, :2, :2] = R[free, :2, :2]
+            P0[:, 2, 2] = P0[:, 3, 3] = init_var_v
+            if use_rr:
+                h, H = _model(x0, zdet[free], plat_pos, plat_vel, True)
+                H1, h1 = H[:, 2:3, :], h[:, 2:3]
+                nu1 = kalman.wrap_symmetric(zmeas[free, 2:3] - h1, wrap[free, None])
+                S1 = H1 @ P0 @ np.transpose(H1, (0, 2, 1)) + R[free, 2:3, 2:3]
+                x0, P0 = kalman.kalman_update(x0, P0, H1, nu1, S1, R[free, 2:3, 2:3])
             ids = self._next_id + np.arange(nf, dtype=np.int64)
             self._next_id += nf
             zeros = np.zeros(nf, np.int64)

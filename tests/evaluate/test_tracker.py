@@ -280,8 +280,8 @@ def test_turn_during_a_short_gap_keeps_the_track_with_cwna_but_not_dwna():
 
 @pytest.mark.parametrize("per", ["dwell", "revisit"])
 def test_measurements_computed_once_for_the_run_give_the_same_tracks(per):
-    """track() hands the baseline every plot's measurement and initial track computed in one
-    pass; a tracker fed plain batches computes them per dwell: the tracks are the same bits."""
+    """track() hands the baseline every plot's measurement computed in one pass; a tracker fed
+    plain batches (protocol.batches) computes them per dwell: the tracks are the same bits."""
     from gmtiflow.evaluate.protocol import SceneInfo, _Prepared, run_tracker
     from gmtiflow.evaluate.tracker import NNKalmanTracker
     scene = straight_scene(n_vehicles=4, n_revisits=40, n_beams=3, clutter_per_dwell=4.0,
