@@ -317,21 +317,25 @@ def _solve_buffered(comps, order, lab, r_idx, c_idx, cost, local_r, local_c, com
     n, m = comp_rows[comps], comp_cols[comps]
     width = m + n
     size = n * width
-    start = np.r_[0, np.cumsum(size)[:-1]]
+    # the buffer holds the components by shape (stable): one shape's are one (K, n, w) block
+    shape = n * (int(width.max()) + 1) + width
+    by_shape = np.argsort(shape, kind="stable")
+    start = np.empty(len(comps), np.int64)
+    start[by_shape] = np.r_[0, np.cumsum(size[by_shape])[:-1]]
     big = gate * (n + 1) + 1.0
-    buf = np.repeat(big, size)
-    k_of_pair = np.searchsorted(comps, lab)
+    buf = np.repeat(big[by_shape], size[by_shape])
+    new = np.empty(len(lab), bool)
+    new[:1], new[1:] = True, lab[1:] != lab[:-1]
+    k_of_pair = np.cumsum(new) - 1          # the pairs come grouped by component, in comps order
     lr, lc = local_r[r_idx[order]], local_c[c_idx[order]]
     buf[start[k_of_pair] + lr * width[k_of_pair] + lc] = cost[order]
     k_row = np.repeat(np.arange(len(comps)), n)
-    row = np.arange(len(k_row)) - np.repeat(np.r_[0, np.cumsum(n)[:-1]], n)
+    row_base = np.r_[0, np.cumsum(n)[:-1]]
+    row = np.arange(len(k_row)) - np.repeat(row_base, n)
     buf[start[k_row] + row * width[k_row] + m[k_row] + row] = gate
-    picked = [linear_sum_assignment(buf[s:s + z].reshape(a, w))[1]
-              for s, z, a, w in zip(start.tolist(), size.tolist(), n.tolist(), width.tolist())]
-    col = np.concatenate(picked)            # per component row, its column (rows in order)
+    col = _solve_by_shape(buf, start, n, width, shape, by_shape, row_base)
     # Back to nodes: the component's rows / columns in increasing index.
     node_r = np.empty(len(k_row), np.int64)
-    row_base = np.r_[0, np.cumsum(n)[:-1]]
     node_r[row_base[k_of_pair] + lr] = r_idx[order]
     col_base = np.r_[0, np.cumsum(m)[:-1]]
     node_c = np.empty(int(m.sum()), np.int64)
@@ -341,6 +345,38 @@ def _solve_buffered(comps, order, lab, r_idx, c_idx, cost, local_r, local_c, com
     ok = ok[buf[start[k_row[ok]] + row[ok] * width[k_row[ok]] + col[ok]]
             < big[k_row[ok]]]   # a gated pair, not a filler (never picked: costs more)
     return node_r[ok], node_c[col_base[k_row[ok]] + col[ok]]
+
+
+#: Components of one shape are solved by iterating over their (K, n, w) block of the buffer
+#: when there are at least this many of them (a view per matrix, ~0.3 us cheaper than slicing
+#: and reshaping the flat buffer); the others one by one from the flat buffer.
+_BLOCK_MIN = 8
+
+
+def _solve_by_shape(buf, start, n, width, shape, by_shape, row_base):
+    """``linear_sum_assignment``'s column of every row of the components whose matrices lie in
+    ``buf`` (component k: ``n[k]`` rows of ``width[k]`` from ``start[k]``, laid out in the order
+    ``by_shape``, which groups equal ``shape``), indexed as the rows of the components in their
+    own order (component k's rows from ``row_base[k]``)."""
+    col = np.empty(int(n.sum()), np.int64)
+    sk = shape[by_shape]
+    cuts = np.r_[0, np.flatnonzero(sk[1:] != sk[:-1]) + 1, len(sk)]
+    count = np.diff(cuts)
+    for g in np.flatnonzero(count >= _BLOCK_MIN).tolist():
+        ks = by_shape[cuts[g]:cuts[g + 1]]
+        a, w, s0 = int(n[ks[0]]), int(width[ks[0]]), int(start[ks[0]])
+        block = buf[s0:s0 + len(ks) * a * w].reshape(len(ks), a, w)
+        picked = [linear_sum_assignment(mat)[1] for mat in block]
+        col[(row_base[ks][:, None] + np.arange(a)).ravel()] = np.concatenate(picked)
+    small = np.flatnonzero(np.repeat(count < _BLOCK_MIN, count))
+    if len(small):
+        ks = by_shape[small]
+        a, w, s0 = n[ks], width[ks], start[ks]
+        picked = [linear_sum_assignment(buf[s:s + r * c].reshape(r, c))[1]
+                  for s, r, c in zip(s0.tolist(), a.tolist(), w.tolist())]
+        rows = np.arange(int(a.sum())) + np.repeat(row_base[ks] - np.r_[0, np.cumsum(a)[:-1]], a)
+        col[rows] = np.concatenate(picked)
+    return col
 
 
 def _local_index(label: np.ndarray, nodes: np.ndarray) -> np.ndarray:

@@ -254,20 +254,23 @@ def test_small_and_vectorised_assignment_paths_agree(monkeypatch):
 
 
 
+@pytest.mark.parametrize("block_min", [1, 8])
 @pytest.mark.parametrize("buffer_entries", [1, 64, 1 << 20])
-def test_components_built_in_buffers_give_the_dense_assignment(monkeypatch, buffer_entries):
+def test_components_built_in_buffers_give_the_dense_assignment(monkeypatch, buffer_entries,
+                                                               block_min):
     # small and large components (up to ~40 rows) built in flat buffers of any size, one
     # component alone or many together: each solved as gated_assignment solves it alone, ties
     # (integer costs) included
     from gmtiflow.evaluate import assignment
     monkeypatch.setattr(assignment, "_SMALL_PAIRS", 0)
     monkeypatch.setattr(assignment, "_BUFFER_ENTRIES", buffer_entries)
+    monkeypatch.setattr(assignment, "_BLOCK_MIN", block_min)     # by shape blocks or one by one
     rng = np.random.default_rng(5)
     for integer in (False, True):
         nr, nc, gate = 300, 320, 9.0
         cost = np.full((nr, nc), np.inf)
         for size in (40, 25, 12, 3, 2, 2, 2, 1):
-            for _ in range(3):
+            for _ in range(3 if size > 3 else 12):      # many small ones of one shape
                 rs = rng.choice(nr, size, replace=False)
                 cs = rng.choice(nc, size + int(rng.integers(0, 3)), replace=False)
                 block = rng.uniform(0, 8.9, (len(rs), len(cs)))
