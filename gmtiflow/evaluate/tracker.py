@@ -70,18 +70,6 @@ def _column(det, name, n, default):
     return np.full(n, float(default))
 
 
-def _heading_rad(east, north):
-    """:func:`gmtiflow.frames.heading_rad` (the same values: ``fastnp.mod`` gives np.mod's) with
-    ``np.mod`` itself: a dwell's few tracks or plots are too few for ``fastnp.mod``'s three
-    masked passes to pay (~20 µs a call; 0.15 s of the 1,000-vehicle run's 5,040 dwells)."""
-    return np.mod(np.arctan2(east, north), 2.0 * np.pi)
-
-
-def _wrap_pi(angle_rad):
-    """:func:`gmtiflow.frames.wrap_pi` with ``np.mod`` (see :func:`_heading_rad`)."""
-    return np.mod(angle_rad + np.pi, 2.0 * np.pi) - np.pi
-
-
 def _usable(det) -> np.ndarray:
     """Which detections the tracker uses: finite positions, not flagged ``implausible``."""
     usable = np.ones(len(det["dwell_id"]), bool)
@@ -155,8 +143,8 @@ def _covered(dw, k: int, pos: np.ndarray, z: np.ndarray, plat: np.ndarray, margi
     """Which positions (n, 2) the footprint of the batch's dwell ``k`` covers."""
     dx, dy, dz = pos[:, 0] - plat[0], pos[:, 1] - plat[1], z - plat[2]
     ground = np.hypot(dx, dy)
-    az = _heading_rad(dx, dy)
-    off = np.abs(_wrap_pi(az - float(dw["beam_az_rad"][k])))
+    az = frames.heading_rad(dx, dy)
+    off = np.abs(frames.wrap_pi(az - float(dw["beam_az_rad"][k])))
     half = float(dw["angle_half_extent_rad"][k])
     ok = np.ones(len(pos), bool)
     if np.isfinite(half):
@@ -179,7 +167,7 @@ def _measurements(det, idx, plat, cfg: TrackerConfig):
     dx, dy, dz = x - plat[0], y - plat[1], z - plat[2]
     ground = np.hypot(dx, dy)
     slant = np.sqrt(ground ** 2 + dz ** 2)
-    los_az = _heading_rad(dx, dy)
+    los_az = frames.heading_rad(dx, dy)
     nall = len(det["x_m"])
     s_r = _column(det, "sigma_range_m", nall, cfg.default_sigma_range_m)[idx]
     s_az = _column(det, "sigma_azimuth_rad", nall, np.radians(cfg.default_sigma_azimuth_deg))[idx]

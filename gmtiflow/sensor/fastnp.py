@@ -19,14 +19,22 @@ def ratio(num, den, fill: float = 0.0):
     return np.divide(num, den, out=np.full_like(num, fill), where=den > 0)
 
 
+_MOD_MIN_SIZE = 2048
+"""Below this many values :func:`mod` is ``np.mod`` itself: its three masked passes cost ~10 µs
+of numpy calls, more than ``np.mod`` spends on ~2,000 values (measured 2026-11-28: 1.95 against
+10.4 µs at 256 values, 24 against 18 µs at 4,096; the tracker's per-dwell handful of angles
+called it 14,678 times on the 1,000-vehicle scene)."""
+
+
 def mod(x, period: float):
     """``np.mod(x, period)`` for a positive float ``period``, through numpy's own steps where
     they are a single operation: r = fmod(x, p) is exact, and numpy adds p when r and p differ
     in sign.  So a value in (0, p) is its own remainder, one in (−p, 0) gives x + p (fmod returns
     x itself) and one in (p, 2p) gives x − p (exact, as fmod's result is); only the others
-    (0, ±p, beyond, NaN) go through ``np.mod`` (~10 ns a value here)."""
+    (0, ±p, beyond, NaN) go through ``np.mod`` (~10 ns a value here).  Arrays of fewer than
+    :data:`_MOD_MIN_SIZE` values go to ``np.mod`` whole."""
     x = np.asarray(x, np.float64)
-    if x.ndim != 1:
+    if x.ndim != 1 or x.size < _MOD_MIN_SIZE:
         return np.mod(x, period)
     out = x.copy()
     below = np.flatnonzero((x > -period) & (x < 0.0))
