@@ -23,7 +23,7 @@ from typing import Mapping, Tuple
 import numpy as np
 
 from gmtiflow import frames
-from gmtiflow.evaluate.order import lexorder, small_key_order
+from gmtiflow.evaluate.order import dense_ids, lexorder, small_key_order
 from gmtiflow.tables import Table
 
 _EPS_S = 1e-9
@@ -31,12 +31,9 @@ _EPS_S = 1e-9
 
 def _keys(ids: np.ndarray, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray, float, float]:
     """Dense object index and a combined sortable float key ``index * span + (t - t0)``, for
-    ``ids`` sorted (the distinct ids from their runs: no np.unique sort)."""
-    new = np.empty(len(ids), bool)
-    new[:1] = True
-    new[1:] = ids[1:] != ids[:-1]
-    uniq = ids[new]
-    dense = np.cumsum(new) - 1
+    ``ids`` sorted (:func:`~gmtiflow.evaluate.order.dense_ids`: the distinct ids from their
+    runs, no np.unique sort)."""
+    uniq, dense = dense_ids(ids)
     t0 = float(times.min()) if len(times) else 0.0
     span = (float(times.max()) - t0 if len(times) else 0.0) + 1.0
     return uniq, dense, t0, span

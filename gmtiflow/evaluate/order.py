@@ -20,11 +20,9 @@ def dense_ids(a: np.ndarray):
         new = np.empty(len(a), bool)
         new[0], new[1:] = True, a[1:] != a[:-1]
         return a[new], np.cumsum(new) - 1
-    lo, hi = int(a.min()), int(a.max())
-    if hi - lo >= 4 * len(a):
+    lo, present = _bitmap(a)
+    if present is None:
         return np.unique(a, return_inverse=True)
-    present = np.zeros(hi - lo + 1, bool)
-    present[a - lo] = True
     return np.flatnonzero(present) + lo, (np.cumsum(present) - 1)[a - lo]
 
 
@@ -34,12 +32,20 @@ def count_distinct(a: np.ndarray) -> int:
     a = np.asarray(a, np.int64)
     if len(a) < 2:
         return len(a)
+    _, present = _bitmap(a)
+    return len(np.unique(a)) if present is None else int(np.count_nonzero(present))
+
+
+def _bitmap(a: np.ndarray):
+    """``(lo, present)``: which of the integers lo, lo + 1, ... occur in ``a`` (non-empty
+    int64), or ``(lo, None)`` when ``a`` spans more than 4 values per element (a bitmap would
+    cost more than a sort)."""
     lo, hi = int(a.min()), int(a.max())
     if hi - lo >= 4 * len(a):
-        return len(np.unique(a))
+        return lo, None
     present = np.zeros(hi - lo + 1, bool)
     present[a - lo] = True
-    return int(np.count_nonzero(present))
+    return lo, present
 
 
 def small_key_order(keys: np.ndarray, n_keys: int) -> np.ndarray:
