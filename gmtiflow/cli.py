@@ -78,6 +78,7 @@ def _run_job(cfg) -> None:
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
+    from gmtiflow import interrupts
     from gmtiflow.errors import GmtiflowError
 
     hc = HydraConfig.get()
@@ -85,7 +86,8 @@ def _run_job(cfg) -> None:
     multirun = hc.mode == RunMode.MULTIRUN
     console.set_verbosity(_VERBOSE or bool(hc.verbose))
     try:
-        path = _run_locked(cfg, out_dir)
+        with interrupts.errors_as_interrupt():     # Ctrl-C that h5py turned into a TypeError
+            path = _run_locked(cfg, out_dir)
     except GmtiflowError as exc:
         if multirun:
             raise  # let the launcher record this job as failed

@@ -6,11 +6,14 @@ and the run would finish and claim to be complete (seen about once in ten runs a
 :func:`install` (called by the ``gmtiflow`` command) keeps Python's behaviour and also records
 the request; :func:`check`, called by the runner between stages, raises it again, so an
 interrupted run stops at the latest at the next stage boundary — before ``run.h5`` is committed
-if the interrupt came earlier.  A SIGINT the parent process ignores (``nohup``, a background job
-of a script) stays ignored.
+if the interrupt came earlier.  Some extensions turn the ``KeyboardInterrupt`` into an error of
+their own instead (h5py's type conversion code raises ``TypeError`` when Ctrl-C lands inside
+it); :func:`errors_as_interrupt` gives the command that error back as the interrupt it was.  A
+SIGINT the parent process ignores (``nohup``, a background job of a script) stays ignored.
 """
 from __future__ import annotations
 
+import contextlib
 import signal
 import threading
 
@@ -36,3 +39,15 @@ def check() -> None:
     """Raise ``KeyboardInterrupt`` if Ctrl-C was pressed (and perhaps swallowed) earlier."""
     if _requested.is_set():
         raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def errors_as_interrupt():
+    """Raise ``KeyboardInterrupt`` (chained to the error) for any error raised in the block
+    after Ctrl-C was pressed: the error is then the interrupt's doing, not the input's."""
+    try:
+        yield
+    except Exception as exc:
+        if _requested.is_set():
+            raise KeyboardInterrupt from exc
+        raise

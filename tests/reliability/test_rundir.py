@@ -210,6 +210,45 @@ def test_ctrl_c_is_one_line_exit_130_and_outputs_marked_incomplete(tmp_path):
     assert not (out / "run.h5").exists() and not list(out.glob(".run.h5.*"))
 
 
+# The CLI with the run file's first root attribute written the way h5py's conversion code reacts
+# to a Ctrl-C inside it: the KeyboardInterrupt comes out as a TypeError (seen once in the test
+# above: exit 1 and "Error executing job" with two tracebacks).
+H5PY_TURNS_CTRL_C_INTO_TYPEERROR = textwrap.dedent("""
+    import os, signal, sys, time
+    from gmtiflow import cli, store
+    orig = store._set_root_attr
+    def set_root_attr(*a, **k):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+        except BaseException as exc:
+            raise TypeError("Operation not defined for data type class") from exc
+        return orig(*a, **k)
+    store._set_root_attr = set_root_attr
+    sys.argv = ["gmtiflow", *sys.argv[1:]]
+    cli.main()
+""")
+
+
+def test_ctrl_c_that_an_extension_turns_into_an_error_is_still_ctrl_c(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-c", H5PY_TURNS_CTRL_C_INTO_TYPEERROR,
+                           f"hydra.run.dir={out}", *TINY], capture_output=True, text=True,
+                          cwd=tmp_path, timeout=300, preexec_fn=_sigint_as_in_a_terminal)
+    assert proc.returncode == 130, proc.stderr
+    assert "Traceback" not in proc.stderr and "TypeError" not in proc.stderr, proc.stderr
+    assert proc.stderr.strip().splitlines()[-1].startswith("gmtiflow: interrupted")
+    assert json.loads((out / pipeline.MANIFEST).read_text())["complete"] is False
+    assert not (out / "run.h5").exists() and not list(out.glob(".run.h5.*"))
+
+
+def test_an_error_without_ctrl_c_stays_that_error():
+    from gmtiflow import interrupts
+    with pytest.raises(TypeError):
+        with interrupts.errors_as_interrupt():
+            raise TypeError("not an interrupt")
+
+
 def test_temporaries_are_what_the_writers_glob_patterns_match(tmp_path):
     """rundir.temporaries lists the directory once for every name; it finds exactly the files
     glob's ``.<name>.*.partial*`` and ``<name>.*.part`` find (sorted, in that order),
