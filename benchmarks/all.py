@@ -50,6 +50,13 @@ BENCHMARKS = {
     "fidelity_tradeoff": ("fidelity_tradeoff", "docs/scale.md", ["--seeds", "1", "2"],
                           ["--seeds", "1", "--", "scene.duration_s=300",
                            "vehicles.random.count=100"]),
+    "fidelity_1k": ("fidelity_tradeoff", "docs/scale.md",     # issue 18's 1,000-vehicle scene
+                    ["--seeds", "1", "--out", "{out}/fidelity_1k", "--",
+                     "vehicles.random.count=1000", "scene.duration_s=1800",
+                     "vehicles.random.start_time_max_s=1500"],
+                    ["--seeds", "1", "--out", "{out}/fidelity_1k", "--",
+                     "vehicles.random.count=500", "scene.duration_s=900",
+                     "vehicles.random.start_time_max_s=600"]),
     "stonesoup_peer": ("stonesoup_peer", "docs/scale.md", [], ["--quick"]),
     "run_file_write": ("run_file_write", "docs/scale.md", [], ["--rounds", "1", "--repeat", "2"]),
     "truth_windows": ("truth_windows", "docs/scale.md", [],
