@@ -373,6 +373,17 @@ class StoneSoupJPDA(_AssociatingTracker):
         return used
 
 
+def _in_value_order(components) -> list:
+    """The mixture's components by weight (highest first), then state and covariance.
+
+    Stone Soup's ``GaussianMixtureReducer`` hands back the merged mixture in the iteration order
+    of a set of tags: string hashes, salted per process, and new tags are uuid4.  That order
+    fed the next dwell's sums (different last bits, then different tracks from one process to
+    the next) and the order new tags are named in.  An order of the values alone repeats."""
+    return sorted(components, key=lambda c: (-float(c.weight), *np.ravel(c.state_vector),
+                                             *np.ravel(c.covar)))
+
+
 class StoneSoupGMPHD(_StoneSoupTracker):
     """Gaussian-mixture PHD filter with tagged components (Stone Soup PHD components)."""
 
@@ -438,7 +449,7 @@ class StoneSoupGMPHD(_StoneSoupTracker):
         hyps = self.hypothesiser.hypothesise(inside + [self._birth(dw, k, when)], detections,
                                              when)
         updated = self.phd.update(hyps).components
-        updated = list(self.reducer.reduce(updated))
+        updated = _in_value_order(self.reducer.reduce(updated))
         fresh: Dict[str, str] = {}      # Stone Soup's new tags are uuid4: name them in order
         for c in updated:
             if c.tag != c.BIRTH and c.tag not in self._known:
