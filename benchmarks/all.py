@@ -57,6 +57,17 @@ BENCHMARKS = {
                     ["--seeds", "1", "--out", "{out}/fidelity_1k", "--",
                      "vehicles.random.count=500", "scene.duration_s=900",
                      "vehicles.random.start_time_max_s=600"]),
+    "fidelity_variants_1k": ("fidelity_tradeoff", "docs/scale.md",   # fast with 2 s steps
+                             ["--seeds", "1", "--out", "{out}/fidelity_variants_1k",
+                              "--variant", "fast-2s=fast:fidelity.time_step_s=2.0",
+                              "--variant", "fast-2s5s=fast:fidelity.time_step_s=2.0,"
+                              "fidelity.truth_output_dt_s=5.0", "--",
+                              "vehicles.random.count=1000", "scene.duration_s=1800",
+                              "vehicles.random.start_time_max_s=1500"],
+                             ["--seeds", "1", "--out", "{out}/fidelity_variants_1k",
+                              "--variant", "fast-2s=fast:fidelity.time_step_s=2.0", "--",
+                              "vehicles.random.count=500", "scene.duration_s=900",
+                              "vehicles.random.start_time_max_s=600"]),
     "stonesoup_peer": ("stonesoup_peer", "docs/scale.md", [], ["--quick"]),
     "run_file_write": ("run_file_write", "docs/scale.md", [], ["--rounds", "1", "--repeat", "2"]),
     "truth_windows": ("truth_windows", "docs/scale.md", [],
