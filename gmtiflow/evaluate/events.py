@@ -39,7 +39,7 @@ from typing import Mapping
 
 import numpy as np
 
-from gmtiflow.evaluate.order import lexorder
+from gmtiflow.evaluate.order import lexorder, searchsorted_within
 from gmtiflow.tables import Table
 
 OUTCOME_DETECTED = 0
@@ -125,24 +125,28 @@ def score_events(events: Mapping[str, np.ndarray], assoc_vehicle: np.ndarray,
     av, at, ak = assoc_vehicle[o], assoc_time[o], assoc_track[o]
     has = ak >= 0
     av, at, ak = av[has], at[has], ak[has]
-    n = len(events["vehicle_id"])
+    vid = np.asarray(events["vehicle_id"])
+    t0 = np.asarray(events["start_s"], np.float64)
+    t1 = np.asarray(events["end_s"], np.float64)
+    n = len(vid)
+    eps = 1e-9
     before = np.full(n, -1, np.int64)
     after = np.full(n, -1, np.int64)
     delay = np.full(n, np.nan)
-    eps = 1e-9
-    for i in range(n):
-        vid = events["vehicle_id"][i]
-        lo, hi = np.searchsorted(av, [vid, vid + 1])
-        times, ids = at[lo:hi], ak[lo:hi]
-        t0, t1 = events["start_s"][i], events["end_s"][i]
-        j = np.searchsorted(times, t0 + eps, side="right") - 1
-        if j >= 0 and times[j] >= t0 - lookback_s - eps:
-            before[i] = ids[j]
-        if np.isfinite(t1):
-            j = np.searchsorted(times, t1 - eps, side="left")
-            if j < len(times):
-                after[i] = ids[j]
-                delay[i] = max(times[j] - t1, 0.0)
+    if n and len(av):
+        # Each event's two searches in its vehicle's associations (a segment of the sorted
+        # rows), for all events at once, with the comparisons a search per event made.
+        lo, hi = np.searchsorted(av, vid), np.searchsorted(av, vid + 1)
+        # before: the last association at or before start_s (+eps), within the lookback
+        j = searchsorted_within(at, lo, hi, t0 + eps, side="right") - 1
+        hit = j >= lo
+        hit[hit] = at[j[hit]] >= t0[hit] - lookback_s - eps
+        before[hit] = ak[j[hit]]
+        # after: the first association at or after end_s (-eps); none for an open event
+        j = searchsorted_within(at, lo, hi, t1 - eps, side="left")
+        hit = np.isfinite(t1) & (j < hi)
+        after[hit] = ak[j[hit]]
+        delay[hit] = np.maximum(at[j[hit]] - t1[hit], 0.0)
     out = {k: np.asarray(events[k]) for k in ("vehicle_id", "kind", "start_s", "end_s")}
     out["sensor_id"] = (np.asarray(events["sensor_id"], np.int64) if "sensor_id" in events
                         else np.full(n, FUSED, np.int64))

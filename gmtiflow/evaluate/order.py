@@ -77,3 +77,28 @@ def lexorder(major: np.ndarray, minor: np.ndarray) -> np.ndarray:
             ids, idx = dense_ids(major)
             return small_key_order(idx, len(ids))
     return np.lexsort((minor, major))
+
+
+def searchsorted_within(values: np.ndarray, lo: np.ndarray, hi: np.ndarray, queries: np.ndarray,
+                        side: str = "left") -> np.ndarray:
+    """``lo[i] + np.searchsorted(values[lo[i]:hi[i]], queries[i], side)`` for every i at once:
+    a binary search per query in its own sorted segment of ``values``, all queries stepping
+    together (log2 of the longest segment rounds of numpy operations on the queries), with the
+    comparisons ``np.searchsorted`` makes, so the same indices (NaN sorts last, as there)."""
+    lo = np.array(lo, np.int64)
+    hi = np.array(hi, np.int64)
+    queries = np.asarray(queries)
+    floats = queries.dtype.kind == "f" or values.dtype.kind == "f"
+    active = np.flatnonzero(lo < hi)
+    while len(active):
+        a, b = lo[active], hi[active]
+        mid = (a + b) // 2
+        v, q = values[mid], queries[active]
+        if side == "right":                                     # the answer lies after mid
+            right = (v <= q) | np.isnan(q) if floats else v <= q
+        else:
+            right = (v < q) | (np.isnan(q) & ~np.isnan(v)) if floats else v < q
+        lo[active] = np.where(right, mid + 1, a)
+        hi[active] = np.where(right, b, mid)
+        active = active[lo[active] < hi[active]]
+    return lo

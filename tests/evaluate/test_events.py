@@ -137,3 +137,72 @@ def test_event_tables_written_before_the_sensor_id_column_still_read(tmp_path):
         bad = w.commit()
     with pytest.raises(store.StoreError, match="lacks the column"):
         store.open_run(bad, require_columns=True).close()
+
+
+def _score_events_one_by_one(events, av, at, ak, lookback_s):
+    """The per-event loop score_events replaced: the reference its vectorised searches must
+    reproduce bit for bit."""
+    from gmtiflow.evaluate.order import lexorder
+    o = lexorder(av, at)
+    av, at, ak = av[o], at[o], ak[o]
+    has = ak >= 0
+    av, at, ak = av[has], at[has], ak[has]
+    n = len(events["vehicle_id"])
+    before, after = np.full(n, -1, np.int64), np.full(n, -1, np.int64)
+    delay = np.full(n, np.nan)
+    eps = 1e-9
+    for i in range(n):
+        vid = events["vehicle_id"][i]
+        lo, hi = np.searchsorted(av, [vid, vid + 1])
+        times, ids = at[lo:hi], ak[lo:hi]
+        t0, t1 = events["start_s"][i], events["end_s"][i]
+        j = np.searchsorted(times, t0 + eps, side="right") - 1
+        if j >= 0 and times[j] >= t0 - lookback_s - eps:
+            before[i] = ids[j]
+        if np.isfinite(t1):
+            j = np.searchsorted(times, t1 - eps, side="left")
+            if j < len(times):
+                after[i] = ids[j]
+                delay[i] = max(times[j] - t1, 0.0)
+    return before, after, delay
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_score_events_matches_a_search_per_event(seed):
+    from gmtiflow.evaluate.events import score_events
+    g = np.random.default_rng(seed)
+    n_veh, n_steps = [(1, 5), (3, 40), (20, 200), (50, 30), (7, 1), (30, 100)][seed]
+    grid = np.arange(n_steps) * 0.5
+    av = np.repeat(np.arange(n_veh) * 3, n_steps)          # sparse ids: some never associated
+    at = np.tile(grid, n_veh)
+    ak = np.where(g.random(len(av)) < 0.3, -1, g.integers(0, 10, len(av)))
+    keep = g.random(len(av)) < 0.8                          # holes in each vehicle's series
+    av, at, ak = av[keep], at[keep], ak[keep]
+    shuffle = g.permutation(len(av))
+    av, at, ak = av[shuffle], at[shuffle], ak[shuffle]
+    n_ev = 3 * n_veh + 5
+    start = g.choice(grid, n_ev) + g.choice([0.0, 1e-9, -1e-9, 2e-9, 0.25], n_ev)
+    end = start + g.choice([0.0, 0.5, 1.0, 3.7, np.nan, np.inf], n_ev)
+    ids = np.r_[np.arange(n_veh) * 3, -1, 1, 3 * n_veh]         # and three never associated
+    events = {"vehicle_id": g.choice(ids, n_ev), "kind": np.zeros(n_ev, np.int64),
+              "start_s": start, "end_s": end}
+    out = score_events(events, av, at, ak, lookback_s=1.0)
+    before, after, delay = _score_events_one_by_one(events, av, at, ak, 1.0)
+    assert np.array_equal(out["track_before"], before)
+    assert np.array_equal(out["track_after"], after)
+    assert out["reacq_delay_s"].tobytes() == delay.tobytes()
+    if n_veh * n_steps >= 100:                  # the bigger cases find tracks both sides
+        assert (before >= 0).any() and (after >= 0).any() and np.isfinite(delay).any()
+
+
+def test_score_events_with_no_association_or_no_event():
+    from gmtiflow.evaluate.events import score_events
+    events = {"vehicle_id": np.array([0, 1]), "kind": np.zeros(2, np.int64),
+              "start_s": np.array([1.0, 2.0]), "end_s": np.array([3.0, np.nan])}
+    none = np.array([], np.int64)
+    out = score_events(events, none, np.array([]), none, 5.0)
+    assert (out["track_before"] == -1).all() and (out["track_after"] == -1).all()
+    assert np.isnan(out["reacq_delay_s"]).all()
+    empty = {k: v[:0] for k, v in events.items()}
+    assert len(score_events(empty, np.array([0]), np.array([1.0]), np.array([4]), 5.0)
+               ["track_before"]) == 0

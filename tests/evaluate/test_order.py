@@ -1,5 +1,6 @@
 """The sorting helpers give what the numpy calls they replace give."""
 import numpy as np
+import pytest
 
 from gmtiflow.evaluate.order import count_distinct, dense_ids, lexorder, small_key_order
 
@@ -38,3 +39,21 @@ def test_small_key_order_is_the_stable_sort():
     step = np.random.default_rng(3).integers(0, 7, 400)
     for n_keys in (7, 1 << 17):
         assert np.array_equal(small_key_order(step, n_keys), np.argsort(step, kind="stable"))
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_searchsorted_within_is_a_searchsorted_per_segment(side):
+    from gmtiflow.evaluate.order import searchsorted_within
+    g = np.random.default_rng(3)
+    lengths = g.integers(0, 40, 200)                         # empty segments too
+    values = np.concatenate([
+        np.sort(np.r_[g.choice(np.arange(20) * 0.5, max(k - 1, 0)),
+                      np.nan if g.random() < 0.2 else 9.5])[:k]          # NaN sorts last
+        for k in lengths])
+    bounds = np.r_[0, np.cumsum(lengths)]
+    seg = g.integers(0, len(lengths), 3000)
+    lo, hi = bounds[seg], bounds[seg + 1]
+    queries = g.choice(np.r_[np.arange(-2, 22) * 0.5, 3.25, np.nan, np.inf, -np.inf], 3000)
+    got = searchsorted_within(values, lo, hi, queries, side=side)
+    want = [a + np.searchsorted(values[a:b], q, side=side) for a, b, q in zip(lo, hi, queries)]
+    assert np.array_equal(got, want)
