@@ -155,8 +155,8 @@ def main() -> None:
           f"({1000 / secs:.0f} steps/s)")
     secs, out = best_of(lambda: evaluate(cfg, truth, tracks), repeats=2)
     print(f"evaluate() whole stage, same sizes:               {secs:.3f} s "
-          f"(identity switches: {summary_value(out, 'identity_switches'):.0f}: 300 planted "
-          f"id changes plus vehicles crossing)")
+          f"(identity switches: {summary_value(out, 'identity_switches'):.0f}; the tables plant "
+          f"300 id changes)")
 
     scene = straight_scene(n_vehicles=100, n_revisits=100, revisit_s=2.0, spacing_m=300.0,
                            clutter_per_dwell=20.0, clutter_half_width_m=20000.0, seed=1)

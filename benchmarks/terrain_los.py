@@ -56,8 +56,9 @@ def main():
     ap.add_argument("--steps", type=float, nargs="+", default=sorted(T.SUGGESTED_STEP_M.values()))
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    print(f"python {platform.python_version()}, numpy {np.__version__}, {platform.processor()}, "
-          f"{os.cpu_count()} CPUs, load before {os.getloadavg()[0]:.2f} (1-min average)")
+    print(f"python {platform.python_version()}, numpy {np.__version__}, "
+          f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
+          f"load before {os.getloadavg()[0]:.2f} (1-min average)")
     print(f"{'terrain':14s} {'rays':>8s} {'step_m':>7s} {'seconds':>8s} {'rays/s':>10s} {'visible':>8s}")
     for name, ter in terrains().items():
         for n in args.rays:
