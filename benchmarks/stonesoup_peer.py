@@ -1,6 +1,7 @@
 """gmtiflow against Stone Soup's own detection simulator on a matched workload (docs/scale.md).
 
     python benchmarks/stonesoup_peer.py [--quick] [--targets 10 1000] [--scans 1800 120]
+                                        [--repeat 3]
 
 Workload, the same for both: N targets present at every scan, S scans 5 s apart, about 10
 false alarms per scan, P_D about 0.9 from the signal.  gmtiflow also models what Stone Soup's
@@ -17,21 +18,27 @@ resolution cell (merged into one report), so it reports fewer detections per tar
   false alarms at 10 per scan (``sensor.pfa`` set from the resolution cells), no clutter
   regions; tracker, metrics, report and text exports off; run.h5 written.
 
-Both run in a fresh process each.  "sim" is the simulation alone (Stone Soup: building and
-iterating the simulators; gmtiflow: ``pipeline.run``, truth + sensor + run.h5, after its
-imports), "process" is the whole process from launch (imports and config included).  The figure compared is detections per second
-(target detections and false alarms): ratio = gmtiflow's / Stone Soup's, per wall second and per
-CPU second of the simulation (the CPU ratio is the steadier one on a shared machine; gmtiflow's
-CPU time includes its run-file compression threads).  "sim faults" counts the minor page faults
-during the simulation (fresh memory the kernel maps and zero-fills: a fresh process pays them
-as its heap grows to the run's peak).  ``--quick`` runs 10
-targets x 120 scans and 1,000 targets x 3 scans (Stone Soup takes ~4 s a scan at 1,000).  Prints the load before and after.
+Both run in a fresh process each, in ``--repeat`` rounds (default 3) per target count; the two
+simulators alternate which goes first from round to round.  "sim" is the simulation alone
+(Stone Soup: building and iterating the simulators; gmtiflow: ``pipeline.run``, truth + sensor +
+run.h5, after its imports), "process" is the whole process from launch (imports and config
+included).  The figure compared is detections per second (target detections and false alarms):
+ratio = gmtiflow's / Stone Soup's within a round, per wall second and per CPU second of the
+simulation (the CPU ratio is the steadier one on a shared machine; gmtiflow's CPU time includes
+its run-file compression threads) and per second of the whole process; the summary is the
+median over the rounds with their range (either side moves by ~5 % between runs on a shared
+machine, so one round is not enough to say which side of a goal a ratio falls).  "sim faults"
+counts the minor page faults during the simulation (fresh memory the kernel maps and
+zero-fills: a fresh process pays them as its heap grows to the run's peak).  ``--quick`` runs
+one round of 10 targets x 120 scans and 1,000 targets x 3 scans.  Prints the load before and
+after.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
 import time
@@ -149,11 +156,22 @@ def run_child(kind: str, n: int, scans: int, out: str) -> dict:
     return r
 
 
+def ratios(res: dict) -> dict:
+    """gmtiflow's detections per second over Stone Soup's, per second of simulation wall time
+    ("sim"), of simulation CPU time ("cpu") and of the whole process ("process")."""
+    def rate(kind, key):
+        return res[kind]["detections"] / res[kind][key]
+    return {name: rate("gmtiflow", key) / rate("stonesoup", key)
+            for name, key in (("sim", "sim_s"), ("cpu", "sim_cpu_s"), ("process", "process_s"))}
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--targets", type=int, nargs="+", default=[10, 1000])
     ap.add_argument("--scans", type=int, nargs="+", default=[1800, 120],
                     help="scans per target count (same order)")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="rounds per target count, the two simulators alternating (default 3)")
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", default="outputs/benchmarks/stonesoup_peer")
     ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
@@ -165,31 +183,38 @@ def main(argv=None) -> None:
         print(json.dumps(res))
         return
     scans = [120, 3] if args.quick else args.scans
+    repeat = 1 if args.quick else max(args.repeat, 1)
     print(f"load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)")
-    print(f"{'targets':>7} {'scans':>6} {'simulator':>10} {'detections':>10} {'sim s':>8} "
-          f"{'sim CPU s':>9} {'process s':>9} {'det/s sim':>10} {'det/s sim CPU':>13} "
-          f"{'det/s process':>13} {'sim faults':>10}")
+    print(f"{'targets':>7} {'scans':>6} {'round':>5} {'simulator':>10} {'detections':>10} "
+          f"{'sim s':>8} {'sim CPU s':>9} {'process s':>9} {'det/s sim':>10} "
+          f"{'det/s sim CPU':>13} {'det/s process':>13} {'sim faults':>10}")
     for n, s in zip(args.targets, scans):
-        res = {}
-        for kind in ("stonesoup", "gmtiflow"):
-            r = run_child(kind, n, s, os.path.join(args.out, f"{n}_{s}"))
-            res[kind] = r
-            print(f"{n:7d} {s:6d} {kind:>10} {r['detections']:10d} {r['sim_s']:8.2f} "
-                  f"{r['sim_cpu_s']:9.2f} {r['process_s']:9.2f} "
-                  f"{r['detections'] / r['sim_s']:10.3g} "
-                  f"{r['detections'] / r['sim_cpu_s']:13.3g} "
-                  f"{r['detections'] / r['process_s']:13.3g} {r['faults']:10d}", flush=True)
-        rate = {k: (v["detections"] / v["sim_s"], v["detections"] / v["process_s"])
-                for k, v in res.items()}
-        ratio_sim = rate["gmtiflow"][0] / rate["stonesoup"][0]
-        cpu = {k: v["detections"] / v["sim_cpu_s"] for k, v in res.items()}
-        ratio_cpu = cpu["gmtiflow"] / cpu["stonesoup"]
-        ratio_proc = rate["gmtiflow"][1] / rate["stonesoup"][1]
+        rounds = []
+        for k in range(repeat):
+            res = {}
+            # Alternate which simulator goes first, so neither always runs after the other.
+            for kind in ("stonesoup", "gmtiflow")[::1 if k % 2 == 0 else -1]:
+                r = run_child(kind, n, s, os.path.join(args.out, f"{n}_{s}"))
+                res[kind] = r
+                print(f"{n:7d} {s:6d} {k + 1:5d} {kind:>10} {r['detections']:10d} "
+                      f"{r['sim_s']:8.3f} {r['sim_cpu_s']:9.3f} {r['process_s']:9.2f} "
+                      f"{r['detections'] / r['sim_s']:10.3g} "
+                      f"{r['detections'] / r['sim_cpu_s']:13.3g} "
+                      f"{r['detections'] / r['process_s']:13.3g} {r['faults']:10d}", flush=True)
+            rounds.append((res, ratios(res)))
         goal = GOALS.get(n)
-        print(f"  {n} targets: gmtiflow / Stone Soup detections per second: simulation "
-              f"{ratio_sim:.1f}x" + (f" (goal >= {goal:g}x)" if goal else "") +
-              f", simulation CPU time {ratio_cpu:.1f}x, whole process {ratio_proc:.1f}x; gmtiflow scans {res['gmtiflow']['scans']}, "
-              f"false alarms {res['gmtiflow']['false_alarms']}")
+        summary = []
+        for name, label in (("sim", "simulation"), ("cpu", "simulation CPU time"),
+                            ("process", "whole process")):
+            values = sorted(r[name] for _, r in rounds)
+            spread = (f" (rounds {values[0]:.1f}-{values[-1]:.1f}x)" if repeat > 1 else "")
+            summary.append(f"{label} {statistics.median(values):.1f}x{spread}")
+        res = rounds[-1][0]
+        print(f"  {n} targets: gmtiflow / Stone Soup detections per second, "
+              f"{'median of ' + str(repeat) + ' rounds' if repeat > 1 else 'one round'}: "
+              + "; ".join(summary) + (f"; goal (simulation) >= {goal:g}x" if goal else ""))
+        print(f"  gmtiflow scans {res['gmtiflow']['scans']}, false alarms "
+              f"{res['gmtiflow']['false_alarms']}")
         looks = res["gmtiflow"]["looks"]
         shares = ", ".join(f"{k} {v / max(sum(looks.values()), 1):.1%}"
                            for k, v in looks.items() if v)
