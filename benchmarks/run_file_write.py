@@ -12,9 +12,9 @@ into a fresh file in child processes, and each child prints the median CPU time
 * ``fixed``: the same calls with every table cut to its first 10 rows: what writing a run file
   costs whatever the size of its tables (the file, 137 datasets and their attributes, the
   commit);
-* ``deflate``: compressing the run's columns as the writer does (``store._deflated_chunk`` on
-  each chunk) and, for comparison, HDF5's own filters on the same chunks (shuffle, then zlib
-  level 1, what h5py's ``compression="gzip", compression_opts=1, shuffle=True`` does), with
+* ``deflate``: compressing the run's columns as the writer does
+  (``gmtiflow.chunk_codec._deflated_chunk`` on each chunk) and, for comparison, HDF5's own
+  filters on the same chunks (shuffle, then zlib level 1, what h5py's ``compression="gzip", compression_opts=1, shuffle=True`` does), with
   the bytes each stores.
 
 With ``--against DIR`` (another revision's package: ``mkdir DIR && git archive COMMIT
@@ -129,6 +129,10 @@ def _hdf5_filters(values) -> bytes:
 def child(pickle_path: str, repeat: int) -> dict:
     """Replay the recorded calls; median CPU seconds of each measure (printed as JSON)."""
     from gmtiflow import store
+    try:
+        from gmtiflow import chunk_codec    # the chunk encoder's module since 2026-11-28
+    except ImportError:                     # an older revision (--against): store.py's own
+        chunk_codec = store
     calls = pickle.loads(Path(pickle_path).read_bytes())
     small = _cut(calls, 10)
     chunks = list(_chunks(calls))
@@ -138,7 +142,7 @@ def child(pickle_path: str, repeat: int) -> dict:
         _replay(calls, path)        # warm-up: imports, HDF5's first file
         for label, fn in (("whole", lambda: _replay(calls, path)),
                           ("fixed", lambda: _replay(small, path)),
-                          ("deflate", lambda: sum(len(store._deflated_chunk(c)) for c in chunks)),
+                          ("deflate", lambda: sum(len(chunk_codec._deflated_chunk(c)) for c in chunks)),
                           ("hdf5_level1", lambda: sum(len(_hdf5_filters(c)) for c in chunks))):
             times = []
             for _ in range(repeat):

@@ -6,7 +6,7 @@ import h5py
 import numpy as np
 import pytest
 
-from gmtiflow import store
+from gmtiflow import chunk_codec, store
 from gmtiflow.errors import StoreError
 
 
@@ -95,7 +95,7 @@ def test_a_small_run_compresses_without_threads(tmp_path, monkeypatch):
     def deflate_threads():
         return [t for t in threading.enumerate() if t.name.startswith("deflate")]
 
-    monkeypatch.setattr(store, "_INLINE_RUN_BYTES", 2 * store._CHUNK_ROWS * (3 * 8 + 1))
+    monkeypatch.setattr(store, "INLINE_RUN_BYTES", 2 * store._CHUNK_ROWS * (3 * 8 + 1))
     paths = []
     for workers in (None, 2):
         path = tmp_path / f"run_{workers}.h5"
@@ -182,7 +182,7 @@ def test_deflated_chunk_is_what_the_hdf5_filters_decode(tmp_path):
                                   chunks=(store._CHUNK_ROWS,), compression="gzip",
                                   compression_opts=1, shuffle=True)
             for i in (0, 1):
-                ds.id.write_direct_chunk((i * n,), store._deflated_chunk(v[i * n:(i + 1) * n]))
+                ds.id.write_direct_chunk((i * n,), chunk_codec._deflated_chunk(v[i * n:(i + 1) * n]))
     with h5py.File(path) as f:
         for name, v in values.items():
             assert np.array_equal(f[name][()], v), name
@@ -203,10 +203,10 @@ def test_a_padded_last_chunk_inflates_to_its_rows_and_zeros():
         joined = np.concatenate(pieces)
         padded = np.zeros(n, joined.dtype)
         padded[:len(joined)] = joined
-        raw = zlib.decompress(store._deflated_chunk(values, n - len(joined)))
-        assert raw == zlib.decompress(store._deflated_chunk(padded))
+        raw = zlib.decompress(chunk_codec._deflated_chunk(values, n - len(joined)))
+        assert raw == zlib.decompress(chunk_codec._deflated_chunk(padded))
     noise = rng.integers(0, 2**63, 30_000, dtype=np.uint64)
-    assert len(store._deflated_chunk(noise, n - len(noise))) < noise.nbytes + 1000
+    assert len(chunk_codec._deflated_chunk(noise, n - len(noise))) < noise.nbytes + 1000
 
 
 def test_chunks_deflated_together_are_the_bytes_of_each_alone():
@@ -222,33 +222,33 @@ def test_chunks_deflated_together_are_the_bytes_of_each_alone():
               ([rng.normal(size=100), rng.normal(size=30_000)], n - 30_100),
               (np.repeat(rng.normal(size=500), 30).astype(np.float32), 0),
               (np.zeros(5, np.int64), n - 5), (rng.integers(0, 2**63, 4000, dtype=np.uint64), 0)]
-    alone = [store._deflated_chunk(values, pad) for values, pad in chunks]
-    assert store._deflated_chunks(chunks) == alone
-    assert store._deflated_chunks(chunks[::-1]) == alone[::-1]
-    assert store._deflated_chunks([]) == []
+    alone = [chunk_codec._deflated_chunk(values, pad) for values, pad in chunks]
+    assert chunk_codec._deflated_chunks(chunks) == alone
+    assert chunk_codec._deflated_chunks(chunks[::-1]) == alone[::-1]
+    assert chunk_codec._deflated_chunks([]) == []
 
 
 def test_constant_planes_are_found_and_checksummed_without_their_bytes():
     """Byte planes that hold one byte value (ids' high bytes, constant columns) are sections
     made once; the stream's checksum over them is zlib's (the inflater checks it)."""
     n = 1000
-    assert store._constant_planes(np.arange(n, dtype=np.int64)).tolist() == \
+    assert chunk_codec._constant_planes(np.arange(n, dtype=np.int64)).tolist() == \
         [False, False] + [True] * 6
-    assert store._constant_planes(np.full(n, -1.0)).all()
-    assert store._constant_planes(np.array([0.0, -0.0])).tolist() == [True] * 7 + [False]
-    assert store._constant_planes(np.ones(n, bool)).tolist() == [True]
+    assert chunk_codec._constant_planes(np.full(n, -1.0)).all()
+    assert chunk_codec._constant_planes(np.array([0.0, -0.0])).tolist() == [True] * 7 + [False]
+    assert chunk_codec._constant_planes(np.ones(n, bool)).tolist() == [True]
     rng = np.random.default_rng(4)
     for byte, count in ((0, 1), (255, 5552), (7, 5553), (128, 300_000)):
         adler = zlib.adler32(rng.bytes(77))
-        assert store._adler32_run(adler, byte, count) == \
+        assert chunk_codec._adler32_run(adler, byte, count) == \
             zlib.adler32(bytes((byte,)) * count, adler)
     for values in (np.full(n, 3.5), np.arange(n, dtype=np.int64), np.zeros(n, bool)):
-        raw = zlib.decompress(store._deflated_chunk(values))
+        raw = zlib.decompress(chunk_codec._deflated_chunk(values))
         k = values.dtype.itemsize
         back = np.frombuffer(raw, np.uint8).reshape(k, n).T.copy().view(values.dtype).ravel()
         assert back.tobytes() == values.tobytes()
     small = np.arange(10, dtype=np.int64)          # under _SMALL_BYTES: one section
-    raw = zlib.decompress(store._deflated_chunk(small))
+    raw = zlib.decompress(chunk_codec._deflated_chunk(small))
     assert raw == np.ascontiguousarray(small.view(np.uint8).reshape(-1, 8).T).tobytes()
 
 
@@ -278,18 +278,18 @@ def test_noise_planes_are_stored_and_the_rest_deflated():
         return np.ascontiguousarray(v.view(np.uint8).reshape(-1, v.dtype.itemsize).T)
 
     u = rng.integers(0, 2**63, n, dtype=np.uint64)
-    assert store._noise_planes(planes(u))[:7].all()
-    assert len(store._deflated_chunk(u)) < u.nbytes + 100        # stored, not expanded
-    assert store._noise_planes(planes(_mixed_planes(n))).tolist() == [False, True, False, True]
+    assert chunk_codec._noise_planes(planes(u))[:7].all()
+    assert len(chunk_codec._deflated_chunk(u)) < u.nbytes + 100        # stored, not expanded
+    assert chunk_codec._noise_planes(planes(_mixed_planes(n))).tolist() == [False, True, False, True]
     time_s = np.arange(n) * 0.1
-    assert not store._noise_planes(planes(time_s)).any()
-    assert len(store._deflated_chunk(time_s)) < 0.5 * time_s.nbytes
+    assert not chunk_codec._noise_planes(planes(time_s)).any()
+    assert len(chunk_codec._deflated_chunk(time_s)) < 0.5 * time_s.nbytes
     runs = np.repeat(rng.normal(size=n // 16), 16)
-    assert not store._noise_planes(planes(runs)).any()
-    assert len(store._deflated_chunk(runs)) < 0.3 * runs.nbytes
+    assert not chunk_codec._noise_planes(planes(runs)).any()
+    assert len(chunk_codec._deflated_chunk(runs)) < 0.3 * runs.nbytes
     x = rng.normal(size=n)       # low mantissa bytes stored, sign and exponent deflated
-    assert store._noise_planes(planes(x)).tolist() == [True] * 6 + [False] * 2
-    assert len(store._deflated_chunk(x)) < 0.9 * x.nbytes
+    assert chunk_codec._noise_planes(planes(x)).tolist() == [True] * 6 + [False] * 2
+    assert len(chunk_codec._deflated_chunk(x)) < 0.9 * x.nbytes
 
 
 def test_each_plane_is_deflated_the_way_that_stores_it_in_fewer_bytes(monkeypatch):
@@ -298,19 +298,19 @@ def test_each_plane_is_deflated_the_way_that_stores_it_in_fewer_bytes(monkeypatc
     run-length strategy (zlib-ng's quick deflate codes every byte it cannot match in 8-9
     bits), and so is one of one dominant byte, whose repeated strings are its runs; a chunk
     of all these comes out smaller than with either way alone."""
-    if store._MATCH_STRATEGY is None:
+    if chunk_codec._MATCH_STRATEGY is None:
         pytest.skip("zlib-ng is not installed: every plane is deflated with Z_RLE")
     n = store._CHUNK_ROWS
     rng = np.random.default_rng(6)
     periodic = np.resize(rng.normal(size=10), n)
     dominant = np.where(rng.random(n) < 0.05, rng.integers(0, 256, n), 0).astype(np.uint8)
     mixed = _strategy_planes(n)
-    chosen = {name: len(store._deflated_chunk(v)) for name, v in
+    chosen = {name: len(chunk_codec._deflated_chunk(v)) for name, v in
               (("periodic", periodic), ("dominant", dominant), ("mixed", mixed))}
     sizes = {}
     for way, literal_bits in (("run-length", 1e9), ("matches", -1.0)):     # every plane one way
-        monkeypatch.setattr(store, "_LITERAL_BITS", literal_bits)
-        sizes[way] = {name: len(store._deflated_chunk(v)) for name, v in
+        monkeypatch.setattr(chunk_codec, "_LITERAL_BITS", literal_bits)
+        sizes[way] = {name: len(chunk_codec._deflated_chunk(v)) for name, v in
                       (("periodic", periodic), ("dominant", dominant), ("mixed", mixed))}
     assert chosen["periodic"] < 0.05 * periodic.nbytes < sizes["run-length"]["periodic"]
     assert chosen["dominant"] == sizes["run-length"]["dominant"] < \
@@ -331,15 +331,15 @@ def test_a_chunk_given_in_pieces_deflates_to_the_bytes_of_its_joined_rows():
     for values in columns:
         for cuts in ([len(values) // 2], [1, 2, 3, len(values) - 5], [0, 0, 17]):
             pieces = np.split(values, cuts)
-            assert store._deflated_chunk(pieces) == store._deflated_chunk(values)
-            assert store._constant_planes(pieces).tolist() == \
-                store._constant_planes(values).tolist()
+            assert chunk_codec._deflated_chunk(pieces) == chunk_codec._deflated_chunk(values)
+            assert chunk_codec._constant_planes(pieces).tolist() == \
+                chunk_codec._constant_planes(values).tolist()
     pieces = [np.arange(0, 5), np.arange(5, 12), np.arange(12, 13), np.arange(13, 30)]
-    chunks, rest = store._cut(pieces, 8, 24)
+    chunks, rest = chunk_codec._cut(pieces, 8, 24)
     assert [np.concatenate(c).tolist() for c in chunks] == \
         [list(range(0, 8)), list(range(8, 16)), list(range(16, 24))]
     assert np.concatenate(rest).tolist() == list(range(24, 30))
-    chunks, rest = store._cut(pieces, 64, 0)
+    chunks, rest = chunk_codec._cut(pieces, 64, 0)
     assert chunks == [] and np.concatenate(rest).tolist() == list(range(30))
 
 
@@ -352,16 +352,16 @@ def test_planes_of_short_runs_are_deflated_huffman_only(monkeypatch):
     rng = np.random.default_rng(8)
     short = np.where(rng.random(n) < 0.4, 1.2345, np.round(rng.normal(size=n), 1))
     long_runs = np.repeat(rng.integers(0, 256, n // 64), 64).astype(np.uint8)
-    chosen = {name: len(store._deflated_chunk(v)) for name, v in
+    chosen = {name: len(chunk_codec._deflated_chunk(v)) for name, v in
               (("short", short), ("long", long_runs))}
     sizes = {}
     for way, margin in (("huffman", np.inf), ("run-length", -np.inf)):    # every plane one way
-        monkeypatch.setattr(store, "_HUFFMAN_MARGIN_BITS", margin)
-        sizes[way] = {name: len(store._deflated_chunk(v)) for name, v in
+        monkeypatch.setattr(chunk_codec, "_HUFFMAN_MARGIN_BITS", margin)
+        sizes[way] = {name: len(chunk_codec._deflated_chunk(v)) for name, v in
                       (("short", short), ("long", long_runs))}
     assert chosen["short"] == sizes["huffman"]["short"] < 0.95 * sizes["run-length"]["short"]
     assert chosen["long"] == sizes["run-length"]["long"] < 0.2 * sizes["huffman"]["long"]
-    raw = zlib.decompress(store._deflated_chunk(short))
+    raw = zlib.decompress(chunk_codec._deflated_chunk(short))
     back = np.frombuffer(raw, np.uint8).reshape(8, n).T.copy().view(np.float64).ravel()
     assert back.tobytes() == short.tobytes()
 
@@ -378,7 +378,7 @@ def test_a_dominant_value_in_short_runs_is_judged_by_the_bytes_its_runs_leave():
     false_alarm = np.repeat(np.arange(len(lengths)) % 2 == 0, lengths)[:n]
     sigma = np.where(false_alarm, 0.58421364, 0.5 + 0.1 * rng.random(n))
     planes = np.ascontiguousarray(sigma.view(np.uint8).reshape(-1, 8).T)
-    ways = store._plane_ways(store._plane_samples(planes), 8)
+    ways = chunk_codec._plane_ways(chunk_codec._plane_samples(planes), 8)
     assert ways[:6] == [zlib.Z_HUFFMAN_ONLY] * 6 and ways[7] == zlib.Z_RLE
 
     def size(plane, strategy):
@@ -396,28 +396,28 @@ def test_a_plane_huffman_only_would_shrink_by_little_is_stored():
     n = store._CHUNK_ROWS
     rng = np.random.default_rng(15)
     planes = np.stack([rng.integers(0, 128, n), rng.integers(0, 32, n)]).astype(np.uint8)
-    ways = store._plane_ways(store._plane_samples(planes), 2)
-    assert ways == [store._STORED, zlib.Z_HUFFMAN_ONLY]
+    ways = chunk_codec._plane_ways(chunk_codec._plane_samples(planes), 2)
+    assert ways == [chunk_codec._STORED, zlib.Z_HUFFMAN_ONLY]
     values = planes.T.copy().view(np.uint16).ravel()
-    raw = zlib.decompress(store._deflated_chunk(values))
+    raw = zlib.decompress(chunk_codec._deflated_chunk(values))
     assert raw == planes.tobytes()
 
 
 def test_without_zlib_ng_the_chunks_are_deflated_by_cpythons_zlib(monkeypatch):
     """zlib-ng is a dependency, but the run file needs only the deflate streams: with
     CPython's zlib every deflated plane is run-length coded, and the values come back."""
-    monkeypatch.setattr(store, "zlib", zlib)
-    monkeypatch.setattr(store, "_MATCH_STRATEGY", None)
-    monkeypatch.setattr(store, "_local", threading.local())     # compressors of zlib's own
-    monkeypatch.setattr(store, "_SECTIONS", {})
+    monkeypatch.setattr(chunk_codec, "zlib", zlib)
+    monkeypatch.setattr(chunk_codec, "_MATCH_STRATEGY", None)
+    monkeypatch.setattr(chunk_codec, "_local", threading.local())     # compressors of zlib's own
+    monkeypatch.setattr(chunk_codec, "_SECTIONS", {})
     n = store._CHUNK_ROWS
     for values in (_strategy_planes(n), np.random.default_rng(7).normal(size=n),
                    np.arange(n, dtype=np.int64), np.arange(10, dtype=np.int64)):
-        raw = zlib.decompress(store._deflated_chunk(values))
+        raw = zlib.decompress(chunk_codec._deflated_chunk(values))
         k = values.dtype.itemsize
         back = np.frombuffer(raw, np.uint8).reshape(k, -1).T.copy().view(values.dtype).ravel()
         assert back.tobytes() == values.tobytes()
-    assert type(store._local.z3) is type(zlib.compressobj())
+    assert type(chunk_codec._local.z3) is type(zlib.compressobj())
 
 
 def test_a_sink_closed_before_its_first_block_writes_exact_chunks(tmp_path):
