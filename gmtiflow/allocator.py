@@ -15,10 +15,10 @@ memory is not raised: the peak is what the run holds at once).
 Results do not depend on it (memory contents never do).  :func:`tune` changes nothing when the
 C library is not glibc, when the user set any ``MALLOC_*`` variable or ``GLIBC_TUNABLES``
 (their choice wins), or with ``GMTIFLOW_MALLOC=default``.  The ``gmtiflow`` command calls it at
-start-up, and so do ``benchmarks/fidelity_tradeoff.py`` and ``sensor_throughput.py``, which time
-runs in process (the others time the command, or leave it: ``stonesoup_peer.py``'s child runs
-as fast either way, 2026-11-27); a program that imports gmtiflow as a library keeps its own
-allocator settings unless it calls :func:`tune`.
+start-up, and so do the benchmarks that time runs in process (``fidelity_tradeoff.py``,
+``sensor_throughput.py``, ``stonesoup_peer.py``'s gmtiflow child), so that they time the run as
+the command makes it; a program that imports gmtiflow as a library keeps its own allocator
+settings unless it calls :func:`tune`.
 """
 from __future__ import annotations
 
