@@ -1,4 +1,4 @@
-"""The run file's chunks are compressed outside HDF5 (``chunk_codec._deflated_chunk``: per-byte-plane
+"""The run file's chunks are compressed outside HDF5 (:mod:`gmtiflow.chunk_codec`: per-byte-plane
 deflate sections, by zlib's run-length strategy or zlib-ng's matches, cached sections for
 constant planes, stored blocks for noise planes, small chunks whole).  pyfive, a pure-Python
 HDF5 reader written apart from the HDF5 library and h5py (its own chunk index, shuffle and
@@ -6,7 +6,7 @@ deflate handling), must read every column back exactly."""
 import numpy as np
 import pytest
 
-from gmtiflow import chunk_codec, store
+from gmtiflow import store
 
 pyfive = pytest.importorskip("pyfive")
 
