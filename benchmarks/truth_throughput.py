@@ -2,7 +2,8 @@
 
 For 10, 100 and 1,000 random vehicles over 30 simulated minutes (dt = 1 s), time
 ``build_fleet`` (routing + speed profiles) and ``Fleet.truth_table`` at 1 s, and print
-vehicle-seconds per second (N x 1800 s / wall time) and truth rows per second.
+vehicle-seconds per second (N x 1800 s / wall time) and truth rows per second, with the
+machine load before and after.
 
     PYTHONPATH=. python benchmarks/truth_throughput.py [--map default|PATH.osm] [--repeat 3]
 
@@ -11,6 +12,7 @@ Target: 1,000 vehicles x 30 min in under 5 s on a 2-core machine.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -31,6 +33,7 @@ def main() -> None:
         roadmap = load_roadmap(RoadmapConfig())
     else:
         roadmap = load_roadmap(RoadmapConfig(kind=RoadmapKind.osm, path=args.map))
+    print(f"load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)")
     print(f"map {args.map}: {roadmap.n_nodes} nodes, {len(roadmap.edges['edge_id'])} edges; "
           f"{args.duration:.0f} s simulated, dt {args.dt} s, truth at 1 s, best of {args.repeat}")
     print(f"{'vehicles':>8} {'build s':>8} {'truth s':>8} {'total s':>8} {'veh-s/s':>10} "
@@ -53,6 +56,7 @@ def main() -> None:
         build, tt, total, rows = best
         print(f"{n:>8} {build:>8.3f} {tt:>8.3f} {total:>8.3f} {n * args.duration / total:>10.0f} "
               f"{rows:>9} {rows / total:>10.0f}")
+    print(f"load after: {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":
