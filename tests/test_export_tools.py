@@ -57,6 +57,7 @@ def test_tshark_reads_the_4607_export_without_errors_and_decodes_our_values(scen
     assert got["s4607.dwell.rpt.unc.slant"].tolist() == np.rint(
         t["sigma_range_m"] * 100).astype(int).tolist()
     assert got["s4607.dwell.rpt.unc.height"].tolist() == t["sigma_height_m"].astype(int).tolist()
+    assert got["s4607.dwell.rpt.unc.height"].min() >= 1      # a present 0 m σ: singular
     n_sensors = len(store.read_table(run, "sensors")["sensor_id"])
     assert sorted(set(d["sensor_id"].tolist())) == list(range(n_sensors))
 

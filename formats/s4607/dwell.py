@@ -135,8 +135,8 @@ def height_sigma_m(det: dict, dw: dict, row: np.ndarray) -> np.ndarray:
 
     A report placed on the terrain by range and azimuth has a height error of at least the
     slant-range σ times the sine of the depression angle, σ_h = σ_r (h_sensor − h_target) / r.
-    Rounded up to at least the field's 1 m quantum: a present zero σ would make a tracker's
-    covariance singular.
+    At least the field's 1 m quantum: a present zero σ would make a tracker's covariance
+    singular (the floor is 1.0, not 0.5: the writer rounds half to even, and 0.5 gives 0).
     """
     if "sigma_height_m" in det:
         s = np.asarray(det["sigma_height_m"], float)
@@ -154,7 +154,7 @@ def height_sigma_m(det: dict, dw: dict, row: np.ndarray) -> np.ndarray:
                                   np.asarray(det["lon_deg"], float), th)
             sin_dep = np.clip((sh - th) / rng, 0.0, 1.0)
         s = np.asarray(det["sigma_range_m"], float) * sin_dep
-    return np.where(np.isfinite(s), np.maximum(s, 0.5), s)
+    return np.where(np.isfinite(s), np.maximum(s, 1.0), s)
 
 
 def target_raw(det: dict, n: int, row: np.ndarray, dw: dict, draw: dict, m: dict,

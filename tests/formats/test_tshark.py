@@ -97,6 +97,15 @@ def test_d32_14_is_written_whenever_d32_12_is():
     assert t["sigma_height_m"].min() >= 1
 
 
+def test_d32_14_is_at_least_1_m_when_the_range_sigma_is_sub_metre():
+    """A run's σ_range is ~0.3 m, so σ_r·sin(depression) is a few cm: D32.14 must still say
+    1 m, not a present 0 (a singular covariance); np.rint(0.5) is 0, so 0.5 was not a floor."""
+    dw, det = synthetic.tables(6, 80, seed=8)
+    det["sigma_range_m"] = np.full(len(det["det_id"]), 0.3)
+    t = s4607.read_4607(s4607.encode_4607(dw, det, META))["detections"]
+    assert t["sigma_height_m"].tolist() == [1.0] * len(det["det_id"])
+
+
 def test_two_sensors_are_two_platforms_in_time_order_for_the_independent_decoder():
     stanag = pytest.importorskip("stanag4607", reason="PyPI stanag4607==0.1.0 (test extra)")
     dw, det = two_sensor_tables()
