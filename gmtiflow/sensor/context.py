@@ -16,7 +16,7 @@ from typing import Callable, Tuple
 import numpy as np
 
 from gmtiflow import frames
-from gmtiflow.sensor import antenna, geolocate, geometry, scan, visibility
+from gmtiflow.sensor import antenna, geolocate, geometry, measurement, scan, visibility
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.rcs import RcsModels
 from gmtiflow.tables import Table
@@ -167,6 +167,16 @@ class ChunkContext:
         vel = geometry.true_velocity(tuple(self.dwells[f"platform_v{c}_mps"][k] for c in "xyz"),
                                      self._platform(k)[2], self.radius_m)
         return rng_m, geometry.clutter_range_rate(vel, los)
+
+    def world_azimuth_sigma(self, dwell_id, x_m, y_m, z_m, sigma_scan_rad):
+        """σ (rad) of the world azimuth of reports at points (x, y, z) of the dwells, from
+        their antenna-frame σ (:func:`gmtiflow.sensor.measurement.world_azimuth_sigma` at the
+        line of sight to the point), as the sensor reports a detection's."""
+        k = self._local(dwell_id)
+        _, los = self._line_of_sight(k, x_m, y_m, z_m)
+        rate = antenna.azimuth_rate(los, antenna.take(self.boresight, k),
+                                    antenna.take(self.scan_axis, k))
+        return measurement.world_azimuth_sigma(sigma_scan_rad, rate)
 
     def geolocate(self, dwell_id, range_m, azimuth_rad):
         """Ground points ``(x, y, z)`` and ``reached`` of measured slant ranges and *world*

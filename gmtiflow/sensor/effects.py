@@ -126,10 +126,12 @@ class Merging:
         # σ's follow from the merged report's (summed) SNR, as for any report
         s_r, s_az, s_rr = measurement.sigmas(cfg, res.snr[rows], beam_cell[res.strongest[rows]])
         out["sigma_range_m"][rows] = s_r
-        out["sigma_azimuth_rad"][rows] = s_az
         out["sigma_range_rate_mps"][rows] = s_rr
         _set_ground(ctx, out, rows, out["dwell_id"][rows], out["range_m"][rows],
                     out["azimuth_rad"][rows])
+        # σ of the reported world azimuth at the merged report's ground point
+        out["sigma_azimuth_rad"][rows] = ctx.world_azimuth_sigma(
+            out["dwell_id"][rows], out["x_m"][rows], out["y_m"][rows], out["z_m"][rows], s_az)
         # Looks: an ancestor that is not the strongest is now "merged" into the group's report.
         looks = dict(looks)
         ld = np.asarray(looks["det_id"], np.int64)

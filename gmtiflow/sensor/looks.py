@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from gmtiflow import frames, rng
-from gmtiflow.sensor import (antenna, detect, gain, geolocate, measurement, scan, snr,
+from gmtiflow.sensor import (antenna, detect, gain, geolocate, geometry, measurement, scan, snr,
                              visibility)
 from gmtiflow.sensor.context import SensorRun
 from gmtiflow.sensor.outcome import Outcome
@@ -149,9 +149,13 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
     az_meas = geo.at("az", d) + e_az
     dd = np.take(dl, d)
     ppd = antenna.take(poses.pos, dd)
-    ground, _, _ = geolocate.geolocate(ppd, r_meas, az_meas, antenna.take(poses.b, dd),
-                                       antenna.take(poses.h, dd), antenna.take(poses.u, dd),
+    b_dd, h_dd = antenna.take(poses.b, dd), antenna.take(poses.h, dd)
+    ground, _, _ = geolocate.geolocate(ppd, r_meas, az_meas, b_dd, h_dd,
+                                       antenna.take(poses.u, dd),
                                        terrain, radius_m=poses.radius_m, elevation=False)
+    # σ of the reported world azimuth: the error was drawn on the antenna's scan angle
+    _, los_meas = geometry.line_of_sight(ppd, ground, poses.radius_m)
+    s_az_world = measurement.world_azimuth_sigma(s_az, antenna.azimuth_rate(los_meas, b_dd, h_dd))
     lat, lon, hgt = frames.enu_to_geodetic(origin, *ground)
     detections = {
         "det_id": np.arange(k, dtype=np.int64),
@@ -164,7 +168,7 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
         "true_azimuth_rad": np.take(true_az_world, d),
         "true_range_rate_mps": true_rr,
         "snr_db": 10.0 * np.log10(snr_rep),
-        "sigma_range_m": s_r, "sigma_azimuth_rad": s_az, "sigma_range_rate_mps": s_rr,
+        "sigma_range_m": s_r, "sigma_azimuth_rad": s_az_world, "sigma_range_rate_mps": s_rr,
         "x_m": ground[0], "y_m": ground[1], "z_m": ground[2],
         "lat_deg": np.atleast_1d(lat), "lon_deg": np.atleast_1d(lon),
         "height_m": np.atleast_1d(hgt),

@@ -51,6 +51,15 @@ def sigmas(cfg: SensorConfig, snr, beamwidth_rad):
     return s_r, s_az, s_rr
 
 
+def world_azimuth_sigma(sigma_scan_rad, azimuth_rate):
+    """σ of the reported *world* azimuth (rad) from the antenna-frame σ_az of :func:`sigmas`:
+    the error is drawn on the antenna's scan angle α, and the report's world azimuth A moves by
+    it over dα/dA (:func:`gmtiflow.sensor.antenna.azimuth_rate` at the report's line of sight),
+    so σ_A = σ_α / |dα/dA| (σ_α itself for a level antenna)."""
+    rate = np.maximum(np.abs(np.asarray(azimuth_rate, float)), 1e-12)
+    return np.asarray(sigma_scan_rad, float) / rate
+
+
 def draw_errors(seed: int, dwell_id, vehicle_id, s_r, s_az, s_rr, *, counters=None):
     """Zero-mean Gaussian (range, azimuth, range-rate) errors for each pair.
 

@@ -182,6 +182,7 @@ def false_alarm_rows(ctx, cfg: SensorConfig, dwell_id, x, y, z, own_rr, snr_lin,
     rr = ground_rr + own_rr
     bw = ctx.per_beam(lambda beam: scan.broadened_beamwidth_rad(cfg, beam), dwell_id)
     s_r, s_az, s_rr = measurement.sigmas(cfg, snr_lin, bw)
+    s_az = ctx.world_azimuth_sigma(dwell_id, x, y, z, s_az)     # of the reported world azimuth
     lat, lon, h = frames.enu_to_geodetic(ctx.origin, x, y, z)
     false = np.zeros(m, bool)
     return {

@@ -292,6 +292,10 @@ def test_errors_are_gaussian_with_the_reported_sigmas(big_run):
         q = float(np.sum(z * z))
         assert stats.chi2.ppf(1e-5, n) <= q <= stats.chi2.ppf(1 - 1e-5, n)
         assert abs(z.mean()) < 4.5 / math.sqrt(n)
+    z = _azimuth_z(det)
+    q = float(np.sum(z * z))
+    assert stats.chi2.ppf(1e-5, n) <= q <= stats.chi2.ppf(1 - 1e-5, n)
+    assert abs(z.mean()) < 4.5 / math.sqrt(n)
     # strong detections sit on the floors
     strong = det["snr_db"] > 40
     assert np.allclose(det["sigma_range_m"][strong], cfg.kappa_r * cfg.range_resolution_m / 10)
@@ -299,6 +303,31 @@ def test_errors_are_gaussian_with_the_reported_sigmas(big_run):
     assert np.all(det["snr_db"] >= 10 * math.log10(-math.log(cfg.pfa) - 1) - 1e-9)
     # geolocated points on the (flat) ground, near the truth
     assert np.allclose(det["z_m"], 0.0, atol=1e-6)
+
+
+def _azimuth_z(det):
+    """(measured − true world azimuth) / sigma_azimuth_rad, the difference wrapped to ±π."""
+    e = np.angle(np.exp(1j * (det["azimuth_rad"] - det["true_azimuth_rad"])))
+    return e / det["sigma_azimuth_rad"]
+
+
+@pytest.mark.parametrize("bank_deg", [15.0, -10.0])
+def test_azimuth_errors_follow_the_reported_sigma_when_the_antenna_is_banked(bank_deg):
+    """The azimuth error is drawn in the antenna frame, but /detections reports the world
+    azimuth: with the antenna rolled, one antenna-frame radian is not one world radian (15°
+    of bank at these elevations: 0.90–0.95), and sigma_azimuth_rad must be the world
+    azimuth's σ, or a tracker weighting azimuth by it is overconfident (the variance of the
+    normalised error was 1.14 here before the fix)."""
+    from scipy import stats
+    cfg = replace(NO_STAP, el_min_deg=-45.0, el_max_deg=20.0, range_min_m=8_000.0)
+    platform = LevelPlatform(p0=(0.0, -15_000.0, 6_000.0), bank_deg=bank_deg)
+    det = run(cfg, grid_fleet(3_000, seed=5), platform, duration_s=16.0)["detections"]
+    n = len(det["det_id"])
+    assert n > 3_000
+    z = _azimuth_z(det)
+    q = float(np.sum(z * z))
+    assert stats.chi2.ppf(1e-5, n) <= q <= stats.chi2.ppf(1 - 1e-5, n)
+    assert abs(z.mean()) < 4.5 / math.sqrt(n)
 
 
 # --- reproducibility ------------------------------------------------------------------------
