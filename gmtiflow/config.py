@@ -29,7 +29,7 @@ from omegaconf.errors import OmegaConfBaseException
 from gmtiflow import config_yaml
 from gmtiflow.cache import CacheConfig
 from gmtiflow.config_tree import (SCALARS, field_names, field_values, holds_only_scalars,
-                                  is_empty, numeric_leaves, record_columns)
+                                  is_empty, numeric_leaves, record_columns, unknown_keys)
 from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
 from gmtiflow.export import ExportConfig
@@ -282,9 +282,27 @@ def to_object(cfg: DictConfig) -> AppConfig:
         if isinstance(exc, OmegaConfBaseException):
             raise ConfigError(f"invalid config: {exc}") from None
         raise
+    unknown = unknown_key_problems(obj)
+    if unknown:
+        raise ConfigError("invalid config: " + "; ".join(f"{p.key}: {p.message}"
+                                                         for p in unknown))
     obj, file_path = resolved(obj)
     validate(obj, vehicles_file=file_path)
     return obj
+
+
+def unknown_key_problems(obj) -> List[Problem]:
+    """A Problem for each key of the composed tree that its schema lacks (added with ``+``:
+    Hydra accepts it, the dataclass carries it as a stray attribute and nothing reads it), with
+    the closest known key when there is one."""
+    import difflib
+    out = []
+    for key, known in unknown_keys(obj):
+        parent, _, name = key.rpartition(".")
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+        hint = f"; did you mean {parent + '.' if parent else ''}{close[0]}?" if close else ""
+        out.append(Problem(key, f"unknown config key (nothing reads it){hint}"))
+    return out
 
 
 def resolved(obj: AppConfig, base_dir: Optional[str] = None) -> Tuple[AppConfig, Optional[str]]:

@@ -170,3 +170,32 @@ def set_leaf(obj, path: str, value) -> None:
         obj[last] = value
     else:
         object.__setattr__(obj, last, value)
+
+
+def unknown_keys(obj, prefix: str = "") -> Iterator[Tuple[str, Tuple[str, ...]]]:
+    """(key path, the field names of its dataclass) of every attribute of a dataclass in the
+    tree that is not one of its fields.
+
+    ``OmegaConf.to_object`` sets a key that a structured node does not declare as a plain
+    attribute of the dataclass it builds: a key added with ``+`` (``+sensor.pfaa=1e-6``, which
+    Hydra itself suggests for a misspelt key) that nothing reads.  Dicts (``tracker.params``,
+    ``vehicles.random.types``, ``sensors``) take any key and are only walked into."""
+    if dataclasses.is_dataclass(obj):
+        names = field_names(obj)
+        attrs = getattr(obj, "__dict__", None)
+        if attrs is not None and len(attrs) != len(names):
+            for name in attrs:
+                if name not in names:
+                    yield f"{prefix}{name}", names
+        for name, value in zip(names, field_values(obj)):
+            if type(value) not in SCALARS and not is_empty(value):
+                yield from unknown_keys(value, f"{prefix}{name}.")
+    elif isinstance(obj, (list, tuple)):
+        if holds_only_scalars(obj):
+            return
+        for i, item in enumerate(obj):
+            yield from unknown_keys(item, f"{prefix[:-1]}[{i}].")
+    elif isinstance(obj, dict):
+        for key, item in obj.items():
+            if type(item) not in SCALARS:
+                yield from unknown_keys(item, f"{prefix}{key}.")

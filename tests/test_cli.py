@@ -60,6 +60,7 @@ def test_same_config_and_seed_give_identical_datasets(tmp_path):
     (["sensr=wide"], "sensr"),                                  # unknown group
     (["platform=nowhere"], "platform/nowhere"),                 # unknown option
     (["platform.speed=3"], "speed"),                            # unknown key
+    (["+platform.speed=3"], "platform.speed: unknown config key"),  # ... added with +
     (["platform.speed_mps=fast"], "speed_mps"),                 # wrong type
     (["platform.speed_mps=-5"], "platform.speed_mps"),          # out of range
     (["scene.epoch_utc=yesterday"], "scene.epoch_utc"),         # malformed value

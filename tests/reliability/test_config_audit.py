@@ -107,3 +107,35 @@ def test_every_negative_number_is_refused_by_name_or_a_signed_quantity(preset):
 def test_cross_field_rules_through_compose(overrides, key):
     with pytest.raises(ConfigError, match=re.escape(key)):
         compose(overrides)
+
+
+@pytest.mark.parametrize("overrides, key, hint", [
+    # Hydra's own hint for a misspelt key is "To append to your config use +key=value"; a
+    # user who follows it used to get a run with the key silently ignored (exit 0).
+    (["+sensor.pfaa=1e-6"], "sensor.pfaa", "sensor.pfa"),
+    (["+foo=1"], "foo", None),
+    (["+scene.duration=60"], "scene.duration", "scene.duration_s"),
+    (["clutter=lake", "+clutter.regions.0.radius=5"], "clutter.regions[0].radius",
+     "clutter.regions[0].radius_m"),
+    (["+platform@sensors.east.platform=racetrack", "+sensor@sensors.east.sensor=default",
+      "+sensors.east.sensor.pfaa=1e-6"], "sensors.east.sensor.pfaa", "sensors.east.sensor.pfa"),
+])
+def test_a_key_added_with_plus_that_the_schema_lacks_is_refused_by_name(overrides, key, hint):
+    with pytest.raises(ConfigError) as err:
+        compose(overrides)
+    message = str(err.value)
+    assert f"{key}: unknown config key" in message, message
+    if hint is not None:
+        assert f"did you mean {hint}?" in message, message
+
+
+def test_keys_added_where_the_schema_takes_any_name_are_still_accepted():
+    """Free-form dicts stay open: tracker params, vehicle-type weights, more sensors."""
+    cfg = compose(["tracker=python", "tracker.target=mypkg.MyTracker",
+                   "+tracker.params.gate_m=250", "vehicles=random",
+                   "+vehicles.random.types.van=0.5",
+                   "+platform@sensors.east.platform=racetrack",
+                   "+sensor@sensors.east.sensor=default"])
+    assert cfg.tracker.params == {"gate_m": 250}
+    assert cfg.vehicles.random.types["van"] == 0.5
+    assert list(cfg.sensors) == ["east"]
