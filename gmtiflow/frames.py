@@ -139,6 +139,25 @@ def _ecef_to_lat_lon_deg(x, y, z):
     return np.degrees(lat, out=lat), np.degrees(lon, out=lon)
 
 
+def lon_centre_deg(lon_deg) -> float:
+    """The centre longitude (degrees, in [-180, 180]) of the shortest arc of the circle that
+    holds every longitude of ``lon_deg``: ``(min + max) / 2`` when they span at most 180°
+    (exactly that value), else the middle of the circle minus its largest gap between two
+    longitudes, so that a map across the antimeridian (179.9999° and -179.9999°) is centred at
+    ±180° rather than at 0°, the other side of the earth."""
+    lon = np.asarray(lon_deg, dtype=float)
+    lo, hi = float(lon.min()), float(lon.max())
+    if hi - lo <= 180.0:
+        return 0.5 * (lo + hi)
+    s = np.unique(lon)
+    gaps = np.diff(s)
+    i = int(np.argmax(gaps))
+    if gaps[i] <= s[0] + 360.0 - s[-1]:     # the widest gap is the one across ±180°
+        return 0.5 * (lo + hi)
+    centre = 0.5 * (float(s[i + 1]) + float(s[i]) + 360.0)  # the arc s[i+1] -> east -> s[i]
+    return centre - 360.0 if centre > 180.0 else centre
+
+
 def enu_to_geodetic(origin: Origin, x_m, y_m, z_m):
     """Map metres -> (lat_deg, lon_deg, height_m) on WGS-84, vectorised (module doc)."""
     x, y, z = (np.asarray(c, float) for c in (x_m, y_m, z_m))

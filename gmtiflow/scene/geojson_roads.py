@@ -9,7 +9,8 @@
 * Properties: ``oneway`` (true/"yes"/"1" along, "-1"/"reverse" against, else both ways),
   ``tunnel`` (true/"yes"/… ⇒ invisible), ``maxspeed`` (a number in km/h or a string as in OSM),
   ``highway`` (if present, filtered by ``drivable_classes``; stored as ``road_class``).
-* Origin: the centre of the line vertices' bounding box at height 0 unless ``origin_*`` are set.
+* Origin: the centre of the line vertices' bounding box (across the antimeridian: near ±180°) at
+  height 0 unless ``origin_*`` are set.
 """
 from __future__ import annotations
 
@@ -168,7 +169,7 @@ def load_geojson(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
     origin = frames.Origin(
         float(0.5 * (ll[:, 1].min() + ll[:, 1].max())) if cfg.origin_lat_deg is None
         else float(cfg.origin_lat_deg),
-        float(0.5 * (ll[:, 0].min() + ll[:, 0].max())) if cfg.origin_lon_deg is None
+        frames.lon_centre_deg(ll[:, 0]) if cfg.origin_lon_deg is None
         else float(cfg.origin_lon_deg),
         0.0 if cfg.origin_height_m is None else float(cfg.origin_height_m))
     h = np.asarray(heights)

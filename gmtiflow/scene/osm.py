@@ -14,8 +14,8 @@
 * ``tunnel=<anything but no>`` (yes, building_passage …) marks the edges invisible.
 * ``maxspeed``: a number in km/h, or with a unit ``km/h``, ``mph`` or ``knots``; anything
   else (``none``, ``signals``, ``RU:urban``) is no limit (NaN).
-* Origin: the centre of ``<bounds>``, else of the drivable road nodes, at height 0 (override
-  with ``origin_*``); node heights are the origin's (OSM carries no elevation), so z is 0
+* Origin: the centre of ``<bounds>``, else of the drivable road nodes (a map across the
+  antimeridian is centred near ±180°), at height 0 (override with ``origin_*``); node heights are the origin's (OSM carries no elevation), so z is 0
   up to the curvature of the earth (-0.3 m at 2 km).
 * No metadata attributes (version, timestamp, user) are required; elements marked
   ``action="delete"`` or ``visible="false"`` (JOSM files) are ignored.
@@ -180,7 +180,7 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         lon0 = 0.5 * (b["minlon"] + b["maxlon"])
     else:
         lat0 = float(0.5 * (latlon[:, 0].min() + latlon[:, 0].max()))
-        lon0 = float(0.5 * (latlon[:, 1].min() + latlon[:, 1].max()))
+        lon0 = frames.lon_centre_deg(latlon[:, 1])    # across ±180° too
     origin = frames.Origin(
         lat0 if cfg.origin_lat_deg is None else float(cfg.origin_lat_deg),
         lon0 if cfg.origin_lon_deg is None else float(cfg.origin_lon_deg),

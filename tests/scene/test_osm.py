@@ -301,3 +301,24 @@ def test_many_routes_at_once_on_monaco_are_each_vehicles_own(monaco):
     refused = batch_routes_match_one_by_one(monaco, pairs)
     assert monaco.n_nodes * len({a for a, _ in pairs}) > 1_000_000      # the array walk
     assert refused < len(pairs) // 2
+
+
+# -- maps across the antimeridian ---------------------------------------------------------------
+# A road from lon 179.9999 to -179.9999 is 22 m long; the origin used to be the mean of the
+# extreme longitudes (lon 0, the other side of the earth), which put the two nodes 40,000 km
+# apart (x = +-19,970 km) and the run finished without a word.
+def test_osm_road_across_the_antimeridian_stays_22_m_long(tmp_path):
+    body = ('<node id="1" lat="-17.0" lon="179.9999"/><node id="2" lat="-17.0" lon="-179.9999"/>'
+            '<way id="7"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way>')
+    rm = load_osm(write(tmp_path, osm_text(body)))
+    assert abs(abs(rm.origin.lon_deg) - 180.0) < 1e-9 and rm.origin.lat_deg == -17.0
+    assert np.ptp(rm.nodes["x_m"]) == pytest.approx(21.3, abs=0.1)      # 0.0002° at 17° S
+    assert np.all(np.abs(rm.nodes["x_m"]) < 11.0)
+
+
+def test_geojson_road_across_the_antimeridian_stays_22_m_long(tmp_path):
+    doc = {"type": "FeatureCollection",
+           "features": [feature([[179.9999, -17.0], [-179.9999, -17.0]])]}
+    rm = load_geojson(write(tmp_path, json.dumps(doc), "r.geojson"))
+    assert abs(abs(rm.origin.lon_deg) - 180.0) < 1e-9
+    assert np.ptp(rm.nodes["x_m"]) == pytest.approx(21.3, abs=0.1)
