@@ -281,6 +281,26 @@ def test_missing_path_and_directory_and_no_path(tmp_path):
         compose(["vehicles=file"])
 
 
+def test_a_device_or_an_oversized_file_is_refused_unread(tmp_path, monkeypatch):
+    """``vehicles.file=/dev/zero`` used to be read without end (the run hung, its memory
+    growing); like the other loaders, only a regular file within a size cap is read."""
+    import time
+    start = time.process_time()
+    with pytest.raises(ConfigError, match="^vehicles.file /dev/zero: not a regular file"):
+        vehicles_file.load("/dev/zero")
+    assert time.process_time() - start < 1.0
+    big = tmp_path / "big.yaml"
+    with open(big, "wb") as f:                  # sparse: costs no disk
+        f.truncate(vehicles_file.MAX_FILE_BYTES + 1)
+    with pytest.raises(ConfigError, match=f"^vehicles.file {big}: .* over the 256 MiB"):
+        vehicles_file.load(str(big))
+    small = tmp_path / "small.yaml"
+    small.write_text("vehicles: []\n" + "#" * 10_000)
+    monkeypatch.setenv("GMTIFLOW_MEMORY_BYTES", "100000")     # parsing needs ~50x the size
+    with pytest.raises(ConfigError, match=f"^vehicles.file {small}: reading .* of memory"):
+        vehicles_file.load(str(small))
+
+
 def test_a_file_beside_listed_vehicles_is_refused(tmp_path):
     """The default group lists the town's vehicles: the file's list would silently join them."""
     path = write(tmp_path, "vehicles: []\n")
