@@ -8,7 +8,9 @@ shortcuts: the part of a ray above the highest ground is not sampled, and of the
 left only those that the highest ground within reach (a cached running-maximum grid) comes up to
 are sampled. Geodetic DEMs compare heights above the ellipsoid along the local normal: the
 segment ends are converted with pymap3d and the samples interpolated linearly in between
-(error < 2 cm in height, < 1 mm horizontally). Straight rays: no atmospheric refraction.
+(error < 2 cm in height, < 1 mm horizontally). Rays are straight on an earth of the radius the
+caller gives (``earth_radius_m``: the sensor passes k·R, its 4/3-earth refraction model), by
+raising the ground by the earth's bulge (:func:`march`); without a radius, on a flat earth.
 
 The march reads the terrain only through its hooks (``_coords``, ``_ground``,
 ``_ground_bound``) and attributes (``end_skip_m``, ``z_ceiling_m``, ``chunk_samples``,
@@ -47,10 +49,10 @@ def march(terrain, p_from: np.ndarray, p_to: np.ndarray, step_m: float,
     exact: no ground under it can block. Rays are grouped into chunks of at most
     ``chunk_samples`` samples (a single longer ray is its own chunk).
 
-    ``earth_radius_m`` (a): the ray is straight on a round earth, so the ground at fraction t
-    of a ray of ground length d is compared with the ray raised by the bulge t(1 − t)·d²/(2a)
-    (equivalently the ray lowered); the screens add the bulge's maximum d²/(8a), so they stay
-    exact.
+    ``earth_radius_m`` (a): the ray is straight on a round earth, so it sits t(1 − t)·d²/(2a)
+    below the map-straight line at fraction t of a ray of ground length d: the ground there is
+    raised by that bulge before the comparison (equivalently the ray lowered); the screens add
+    the bulge's maximum d²/(8a), so they stay exact.
     """
     n = len(p_from)
     blocked = np.zeros(n, dtype=bool)

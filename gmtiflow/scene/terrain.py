@@ -20,9 +20,9 @@ geodetic DEM the ground below map (x, y) is read at the (lat, lon) of that map p
 
 Line of sight (``line_of_sight``) is the ray march of :mod:`gmtiflow.scene.ray_march`:
 rays sampled every ``step_m``, straight on a round earth of the radius the caller gives (the
-sensor passes k·R, its 4/3-earth refraction model), i.e. lifted by the earth's bulge
-t(1 − t)d²/(2kR) above the map-straight line; a ray is blocked where the ground is more than
-``clearance_m`` above it.
+sensor passes k·R, its 4/3-earth refraction model), i.e. t(1 − t)d²/(2kR) below the
+map-straight line (the ground is raised by that bulge in the comparison); a ray is blocked
+where the ground is more than ``clearance_m`` above it.
 
 ``intersect`` (first ground point of a ray) and ``geolocate`` (ground point at a slant range and
 azimuth, as a GMTI processor places a report) give the ground points of measurements.

@@ -14,6 +14,7 @@ from gmtiflow import frames
 from gmtiflow.errors import InputFileError
 from gmtiflow.scene import dem
 from gmtiflow.scene import terrain as T
+from gmtiflow.scene.hills import HillConfig
 
 REPO = Path(__file__).resolve().parents[2]
 DATA = Path(os.environ.get("GMTIFLOW_DATA_DIR") or REPO.parent / "shared/data")
@@ -396,3 +397,21 @@ def test_intersect_from_off_the_dem_lands_on_it(tmp_path):
     ter = T.build_terrain(T.TerrainConfig(kind=T.TerrainKind.ascii_grid, path=str(path)), ROCHER)
     hit = ter.intersect([1000.0, -20e3, 6000.0], [0.0, 21e3, -5960.0])
     np.testing.assert_allclose(hit, [[1000.0, 1000.0, 40.0]], atol=0.01)
+
+
+def test_rays_are_straight_on_the_earth_of_the_radius_given():
+    """A low ray over a thin 22 m ridge halfway along 40 km: a straight line on an earth of
+    radius a sits t(1 − t)d²/(2a) below the map-straight line (z linear along the ray), at the
+    middle 50 − d²/(8a) m: 18.6 m on the true earth (blocked by the ridge less its 1 m
+    clearance), 26.5 m on the sensor's 4/3 earth (clear, standard refraction) and 50 m with
+    no curvature at all (clear)."""
+    ridge = HillConfig(x_m=0.0, y_m=0.0, height_m=22.0, sigma_m=40.0, length_m=20_000.0,
+                       azimuth_deg=90.0)
+    ter = T.build_terrain(T.TerrainConfig(kind=T.TerrainKind.hills, hills=[ridge],
+                                          grid_spacing_m=10.0), ROCHER)
+    radius = frames.sphere_radius_m(ROCHER)
+    aircraft = np.array([0.0, -20_000.0, 100.0])
+    target = np.array([[0.0, 20_000.0, 0.0]])
+    assert not ter.line_of_sight(aircraft, target, 5.0, earth_radius_m=radius).any()
+    assert ter.line_of_sight(aircraft, target, 5.0, earth_radius_m=4.0 / 3.0 * radius).all()
+    assert ter.line_of_sight(aircraft, target, 5.0).all()
