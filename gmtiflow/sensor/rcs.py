@@ -5,8 +5,8 @@ both clockwise from north, in [0°, 360°): 0° the vehicle drives straight away
 (the radar sees its rear), 180° it comes straight at the radar (front), 90° it crosses the line
 of sight from left to right as seen from the radar (the radar sees its left side).
 
-Table files are CSV with the header ``aspect_deg,rcs_dbsm`` (``#`` comment lines and blank lines
-are skipped), at least two rows, angles strictly increasing in [0, 360), values within
+Table files are UTF-8 CSV (a byte-order mark, as spreadsheets write, is skipped) with the
+header ``aspect_deg,rcs_dbsm`` (``#`` comment lines and blank lines are skipped), at least two rows, angles strictly increasing in [0, 360), values within
 ±:data:`MAX_ABS_DBSM` dBsm, the file a regular file of at most :data:`MAX_TABLE_BYTES`.  They are interpolated
 linearly in dBsm and periodically over 360° (the last row joins the first).  Any problem raises
 :class:`~gmtiflow.errors.InputFileError` naming the file and line.
@@ -56,7 +56,7 @@ def load_table(path: str) -> Tuple[np.ndarray, np.ndarray]:
     file = resolve_table_path(path)
     check_input_file(file, "RCS table", MAX_TABLE_BYTES)
     try:
-        text = file.read_text(encoding="utf-8")
+        text = file.read_text(encoding="utf-8-sig")   # a spreadsheet's byte-order mark too
     except UnicodeDecodeError as exc:
         raise InputFileError(f"RCS table {file}: not UTF-8 text (byte {exc.start}); expected a "
                              "CSV file with columns aspect_deg,rcs_dbsm") from None
@@ -72,8 +72,13 @@ def load_table(path: str) -> Tuple[np.ndarray, np.ndarray]:
         if not header_seen:
             header_seen = True
             if [c.lower() for c in cells] != ["aspect_deg", "rcs_dbsm"]:
+                other = [name for sep, name in ((";", "';'"), ("\t", "tabs"))
+                         if sep in ",".join(cells)]
+                hint = (f" (columns separated by {other[0]}; the table is comma-separated)"
+                        if other else "")
                 raise InputFileError(f"RCS table {file}, line {lineno}: expected the header "
-                                     f"'aspect_deg,rcs_dbsm', got {excerpt(','.join(cells))}")
+                                     f"'aspect_deg,rcs_dbsm', got "
+                                     f"{excerpt(','.join(cells))}{hint}")
             continue
         if len(cells) != 2:
             raise InputFileError(f"RCS table {file}, line {lineno}: expected 2 values "

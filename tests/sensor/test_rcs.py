@@ -71,3 +71,21 @@ def test_too_short_empty_and_missing_tables(tmp_path):
         rcs.load_table(write(tmp_path, "# nothing\n\n", "e.csv"))
     with pytest.raises(InputFileError, match="nope.csv"):
         rcs.load_table(str(tmp_path / "nope.csv"))
+
+
+def test_a_table_saved_with_a_byte_order_mark_loads(tmp_path):
+    """Spreadsheets save "CSV UTF-8" with a byte-order mark; the header then looked right to
+    the user but was refused as "expected the header 'aspect_deg,rcs_dbsm', got (not shown)"."""
+    t = tmp_path / "excel.csv"
+    t.write_bytes(b"\xef\xbb\xbfaspect_deg,rcs_dbsm\r\n0,10\r\n90,20\r\n")
+    aspect, value = rcs.load_table(str(t))
+    assert aspect.tolist() == [0.0, math.pi / 2] and value.tolist() == [10.0, 20.0]
+
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_a_table_with_another_separator_says_so(tmp_path, sep):
+    t = tmp_path / "semi.csv"
+    t.write_text(f"aspect_deg{sep}rcs_dbsm\n0{sep}10\n90{sep}20\n")
+    with pytest.raises(InputFileError, match=r"line 1: .*separated by .*; the table is "
+                                             r"comma-separated"):
+        rcs.load_table(str(t))
