@@ -23,6 +23,7 @@ import numpy as np
 
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError
+from gmtiflow.paths import excerpt
 from gmtiflow.tables import Table
 
 #: The columns of the tracks the baseline writes into /tracks (the Stone Soup trackers a subset).
@@ -67,6 +68,47 @@ def _numeric(table, name: str, source: str) -> np.ndarray:
     return col
 
 
+_FLOAT_EXACT_INT = 2 ** 53
+"""Beyond this, float64 cannot tell neighbouring integers apart (2^60 and 2^60 + 1 are one)."""
+
+
+def _track_ids(table, source: str) -> np.ndarray:
+    """The ``track_id`` column as int64, exactly: integers (and integer text, as a CSV reader
+    gives it) as they are, a float column only where it holds integers below 2^53.  Ids used to
+    go through float64, which merged the tracks 2^60 and 2^60 + 1 into one without a word."""
+    raw = np.asarray(table["track_id"])
+    if raw.dtype.kind == "u" and len(raw) and raw.max() > np.iinfo(np.int64).max:
+        i = int(np.argmax(raw > np.iinfo(np.int64).max))
+        raise _fail(source, f"column 'track_id' row {i}: {_show(raw[i])} does not fit a signed "
+                            f"64-bit integer")
+    if raw.dtype.kind in "iubUSO":
+        try:        # objects as their text: int(1.5) would truncate, int("1.5") refuses
+            return (raw.astype(str) if raw.dtype.kind == "O" else raw).astype(np.int64)
+        except OverflowError:
+            for i, v in enumerate(raw):
+                try:
+                    np.int64(int(str(v, "ascii") if isinstance(v, bytes) else v))
+                except (OverflowError, ValueError):
+                    raise _fail(source, f"column 'track_id' row {i}: {excerpt(str(v))} does "
+                                        f"not fit a signed 64-bit integer") from None
+            raise _fail(source, "column 'track_id' does not fit signed 64-bit integers"
+                        ) from None
+        except (TypeError, ValueError):
+            pass                            # not all integer text: the float checks below
+    ids = _numeric(table, "track_id", source)
+    frac = np.flatnonzero(ids != np.round(ids))
+    if len(frac):
+        i = int(frac[0])
+        raise _fail(source, f"column 'track_id' row {i}: {_show(ids[i])} is not an integer")
+    far = np.flatnonzero(np.abs(ids) > _FLOAT_EXACT_INT)
+    if len(far):
+        i = int(far[0])
+        raise _fail(source, f"column 'track_id' row {i}: {_show(ids[i])} is beyond 2^53, where "
+                            f"floating point cannot tell neighbouring ids apart; write the ids "
+                            f"as integers")
+    return ids.astype(np.int64)
+
+
 def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Origin] = None,
                     source: str = "tracks") -> Table:
     """Check a track table and return it normalised (see the module docstring).
@@ -108,12 +150,7 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
                                 f"{', '.join(missing)} (they come together)")
 
     out: Table = {}
-    ids = _numeric(table, "track_id", source)
-    frac = np.flatnonzero(ids != np.round(ids))
-    if len(frac):
-        i = int(frac[0])
-        raise _fail(source, f"column 'track_id' row {i}: {_show(ids[i])} is not an integer")
-    out["track_id"] = ids.astype(np.int64)
+    out["track_id"] = _track_ids(table, source)
     out["time_s"] = _numeric(table, "time_s", source)
     if has_xy:
         out["x_m"] = _numeric(table, "x_m", source)
