@@ -26,7 +26,8 @@ Adapting the tables (docs/exports.md has the user-facing version):
   row.  Located reports flagged ``implausible`` are exported like any other: a real processor
   cannot tell, and the flag is kept in XML/CSV/GeoJSON for scoring.
 * **Meta** (4607 and XML): epoch = run attr ``scene_epoch_utc``; revisit interval J15 =
-  ``sensor.revisit_s`` of the run's /config (else the dwells' median); MDV J24 = median of the
+  ``sensor.revisit_s`` of the run's /config when every sensor has the same (else each
+  sensor's median time between its revisit starts); MDV J24 = median of the
   dwells' ``mdv_mps``; false-alarm density J26 = ``clutter.fov_density_per_km2`` (per dwell)
   when > 0, else No Statement; Pd J25 only when the user states one (``export.pd``): it is
   defined for a 10 m² target and a run has no single value; nominal accuracies J21–J23 = medians
@@ -374,7 +375,13 @@ def meta_for(cfg: ExportConfig, run: RunTables) -> dict:
             "mission_id": int(cfg.mission_id), "job_id": int(cfg.job_id),
             "nationality": cfg.nationality, "exercise_indicator": int(cfg.exercise_indicator),
             "mission_plan": cfg.mission_plan, "flight_plan": cfg.flight_plan}
-    revisit = _cfg(run.config, "sensor", "revisit_s")
+    # J15 from the config only when every sensor is configured with the same revisit: a meta
+    # value applies to every sensor's Job Definition; left None, the writer takes each
+    # sensor's from its own dwells (the XML's one JobDefinition: the median over the sensors)
+    revisits = {_cfg(run.config, "sensor", "revisit_s")}
+    for extra in (_cfg(run.config, "sensors", default=None) or {}).values():
+        revisits.add(_cfg(extra, "sensor", "revisit_s"))
+    revisit = revisits.pop() if len(revisits) == 1 else None
     if isinstance(revisit, (int, float)) and revisit > 0:
         meta["revisit_interval_s"] = float(revisit)
     fa = _cfg(run.config, "clutter", "fov_density_per_km2")

@@ -283,3 +283,21 @@ def test_every_export_is_read_by_gdal_tshark_and_as_a_road_map(lake_run, tmp_pat
     out = subprocess.run(["tshark", "-r", str(tmp_path / "detections.4607"), "-q", "-z", "expert"],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and "Errors" not in out.stdout, out.stdout
+
+
+def test_4607_job_of_each_sensor_states_its_own_revisit_interval(tmp_path):
+    """Two sensors configured with different revisit intervals: each platform's J15 is its own
+    sensor's (it was the first sensor's ``sensor.revisit_s`` for both), and the XML's one
+    JobDefinition is the median over both sensors' revisits."""
+    cfg = compose_app(["experiment=two_orbits", "sensors.west.sensor.revisit_s=4.0",
+                       "scene.duration_s=20", "vehicles=random", "vehicles.random.count=4",
+                       "progress=false", "export=none", "report.enabled=false", "tracker=none",
+                       "metrics.enabled=false", "cache.enabled=false"])
+    run = pipeline.run(cfg, tmp_path)
+    written = export_run(ExportConfig(formats=["stanag4607", "xml"]), run)
+    jobs = formats.read_4607(tmp_path / "detections.4607")["jobs"]
+    got = {int(j): float(r) for j, r in zip(jobs["job_id"], jobs["revisit_interval_s"])}
+    assert got == {1: 8.0, 2: 4.0}
+    assert len(written) == 2
+    xml = formats.read_xml(tmp_path / "detections.xml")["meta"]["revisit_interval_s"]
+    assert 4.0 <= xml <= 8.0

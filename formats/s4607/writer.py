@@ -111,14 +111,22 @@ def resolve_meta(meta: Mapping, dwells: Mapping, detections: Mapping) -> dict:
 
 
 def _median_revisit_s(dwells) -> float:
+    """Median time between revisit starts, each sensor's dwells on their own (``sensor_id``;
+    the intervals of all sensors pooled): in a stream of interleaved sensors every dwell of
+    the other sensor would otherwise look like a new revisit."""
     if "revisit_id" not in dwells or len(dwells["revisit_id"]) == 0:
         return 0.0
     rev = np.asarray(dwells["revisit_id"])
     t = np.asarray(dwells["time_s"], dtype=np.float64)
-    starts = np.flatnonzero(np.r_[True, rev[1:] != rev[:-1]])
-    if len(starts) < 2:
-        return 0.0
-    return float(np.median(np.diff(t[starts])))
+    sensor = np.asarray(dwells.get("sensor_id", np.zeros(len(rev), np.int64)))
+    gaps = []
+    for s in np.unique(sensor):
+        sel = np.flatnonzero(sensor == s)
+        r, ts = rev[sel], t[sel]
+        starts = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])
+        gaps.append(np.diff(ts[starts]))
+    gaps = np.concatenate(gaps)
+    return float(np.median(gaps)) if len(gaps) else 0.0
 
 
 # ---------------------------------------------------------------------------------------------

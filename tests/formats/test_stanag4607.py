@@ -258,6 +258,35 @@ def test_job_definition_repeats_every_30_s_within_a_long_revisit():
     assert types.count(5) == 3   # t = 0, 36, 72
 
 
+def _two_sensors_revisiting_every(period_a_s, period_b_s):
+    """Two sensors' dwells interleaved in time: sensor 0 revisits every ``period_a_s``, sensor 1
+    every ``period_b_s`` (7 dwells per revisit each)."""
+    a, ta = synthetic.tables(28, 40, seed=1, dwell_period_s=period_a_s / 7)
+    b, tb = synthetic.tables(42, 40, seed=2, dwell_period_s=period_b_s / 7)
+    b["time_s"] = b["time_s"] + 0.1
+    off = int(a["dwell_id"].max()) + 1
+    b["dwell_id"], tb["dwell_id"] = b["dwell_id"] + off, tb["dwell_id"] + off
+    tb["det_id"] = tb["det_id"] + len(ta["det_id"])
+    a["sensor_id"], b["sensor_id"] = np.zeros(28, np.int64), np.ones(42, np.int64)
+    dw = {k: np.concatenate([a[k], b[k]]) for k in a}
+    order = np.argsort(dw["time_s"], kind="stable")
+    return {k: v[order] for k, v in dw.items()}, {k: np.concatenate([ta[k], tb[k]]) for k in ta}
+
+
+def test_each_sensor_job_states_its_own_revisit_interval():
+    """J15 left to the writer: each sensor's Job Definition has its own revisit (8 s and 4 s),
+    and the XML's one JobDefinition the median over the sensors' revisits, not over the
+    interleaved stream (where every dwell of the other sensor looks like a new revisit)."""
+    dw, det = _two_sensors_revisiting_every(8.0, 4.0)
+    jobs = s4607.read_4607(s4607.encode_4607(dw, det, META))["jobs"]
+    got = {int(j): float(r) for j, r in zip(jobs["job_id"], jobs["revisit_interval_s"])}
+    assert got == {1: 8.0, 2: 4.0}
+    # pooled: 3 intervals of 8 s and 5 of 4 s
+    assert s4607.resolve_meta(META, dw, det)["revisit_interval_s"] == pytest.approx(4.0)
+    dw, det = _two_sensors_revisiting_every(8.0, 8.0)
+    assert s4607.resolve_meta(META, dw, det)["revisit_interval_s"] == pytest.approx(8.0)
+
+
 def test_large_dwell_is_split_below_65535_bytes_with_continuing_report_index():
     dwells, dets = synthetic.tables(3, 9000, seed=3, dwells_per_revisit=3)
     dets["dwell_id"] = np.repeat([0, 1, 2], [4000, 0, 5000])   # an empty dwell between two big ones
