@@ -135,25 +135,26 @@ def height_sigma_m(det: dict, dw: dict, row: np.ndarray) -> np.ndarray:
 
     A report placed on the terrain by range and azimuth has a height error of at least the
     slant-range σ times the sine of the depression angle, σ_h = σ_r (h_sensor − h_target) / r.
-    At least the field's 1 m quantum: a present zero σ would make a tracker's covariance
-    singular (the floor is 1.0, not 0.5: the writer rounds half to even, and 0.5 gives 0).
+    The derived σ is at least the field's 1 m quantum: a present zero σ would make a tracker's
+    covariance singular (the floor is 1.0, not 0.5: the writer rounds half to even, and 0.5
+    gives 0).  A given ``sigma_height_m`` is written as it is (a table read from 4607 comes
+    back byte for byte, also one whose D32.14 is 0).
     """
     if "sigma_height_m" in det:
-        s = np.asarray(det["sigma_height_m"], float)
-    else:
-        sh = np.asarray(dw["platform_height_m"], float)[row]
-        th = np.asarray(det.get("height_m", np.zeros(len(row))), float)
-        th = np.where(np.isfinite(th), th, 0.0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            if "range_m" in det:            # the measured slant range
-                rng = np.asarray(det["range_m"], float)
-            else:
-                rng = slant_range(np.asarray(dw["platform_lat_deg"], float)[row],
-                                  np.asarray(dw["platform_lon_deg"], float)[row], sh,
-                                  np.asarray(det["lat_deg"], float),
-                                  np.asarray(det["lon_deg"], float), th)
-            sin_dep = np.clip((sh - th) / rng, 0.0, 1.0)
-        s = np.asarray(det["sigma_range_m"], float) * sin_dep
+        return np.asarray(det["sigma_height_m"], float)
+    sh = np.asarray(dw["platform_height_m"], float)[row]
+    th = np.asarray(det.get("height_m", np.zeros(len(row))), float)
+    th = np.where(np.isfinite(th), th, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        if "range_m" in det:            # the measured slant range
+            rng = np.asarray(det["range_m"], float)
+        else:
+            rng = slant_range(np.asarray(dw["platform_lat_deg"], float)[row],
+                              np.asarray(dw["platform_lon_deg"], float)[row], sh,
+                              np.asarray(det["lat_deg"], float),
+                              np.asarray(det["lon_deg"], float), th)
+        sin_dep = np.clip((sh - th) / rng, 0.0, 1.0)
+    s = np.asarray(det["sigma_range_m"], float) * sin_dep
     return np.where(np.isfinite(s), np.maximum(s, 1.0), s)
 
 

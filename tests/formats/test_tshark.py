@@ -106,6 +106,18 @@ def test_d32_14_is_at_least_1_m_when_the_range_sigma_is_sub_metre():
     assert t["sigma_height_m"].tolist() == [1.0] * len(det["det_id"])
 
 
+def test_a_given_d32_14_of_0_m_is_re_encoded_as_it_is():
+    """The 1 m floor is for the σ the writer derives from σ_range; a table that carries
+    ``sigma_height_m`` (one read from 4607, e.g. a file of gmtiflow before 7ac1919, whose
+    D32.14 was 0) is written as it is, so re-encoding stays byte for byte."""
+    dw, det = synthetic.tables(6, 80, seed=8)
+    det["sigma_height_m"] = np.zeros(len(det["det_id"]))
+    data = s4607.encode_4607(dw, det, META)
+    back = s4607.read_4607(data)
+    assert back["detections"]["sigma_height_m"].tolist() == [0.0] * len(det["det_id"])
+    assert s4607.encode_read_tables(back) == data
+
+
 def test_two_sensors_are_two_platforms_in_time_order_for_the_independent_decoder():
     stanag = pytest.importorskip("stanag4607", reason="PyPI stanag4607==0.1.0 (test extra)")
     dw, det = two_sensor_tables()
