@@ -268,7 +268,26 @@ def _read_hgt_raw(path: Path) -> Tuple[np.ndarray, int]:
         expected = " or ".join(f"{2 * n * n} B ({name}, {n}x{n})" for n, name in SRTM_SIZES.items())
         raise InputFileError(f"{path}: {size} B is not an SRTM .hgt tile; expected {expected}")
     raw = np.fromfile(path, dtype=">i2").reshape(n, n)
+    _check_heights(path, raw)
     return raw, n
+
+
+SRTM_HEIGHT_RANGE_M = (-1000, 9000)
+"""Heights an SRTM tile can hold, voids aside (the Dead Sea shore is -430 m, Everest 8,849 m)."""
+
+
+def _check_heights(path: Path, raw: np.ndarray) -> None:
+    """InputFileError for a height outside :data:`SRTM_HEIGHT_RANGE_M` (not a void): a tile
+    written little-endian (150 m reads as -27,136 m) or damaged; such tiles used to be used as
+    they were, hiding every vehicle behind tens of kilometres of terrain."""
+    lo, hi = SRTM_HEIGHT_RANGE_M
+    bad = ((raw < lo) | (raw > hi)) & (raw != SRTM_VOID)
+    if bad.any():
+        r, c = np.unravel_index(int(np.argmax(bad)), raw.shape)
+        raise InputFileError(
+            f"{path}: {int(bad.sum())} heights outside {lo}..{hi} m, the first {int(raw[r, c])} m "
+            f"at row {r}, column {c}; is the tile byte-swapped (SRTM is big-endian int16) or "
+            f"damaged?")
 
 
 def read_hgt_tiles(paths: Sequence, voids: str = "fill") -> GeoGrid:

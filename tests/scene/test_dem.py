@@ -284,3 +284,22 @@ def test_binary_file_is_not_an_ascii_grid(tmp_path):
     path.write_bytes(b"\xff\xfe\x00\x81" * 10)
     with pytest.raises(InputFileError, match=r"b\.asc"):
         dem.read_ascii_grid(path)
+
+
+def test_a_byte_swapped_or_damaged_tile_is_refused_with_its_heights(tmp_path):
+    """SRTM is big-endian; a tile written little-endian (numpy's default '<i2') gave heights of
+    tens of kilometres (Monaco: 22 % of the samples beyond -1000..9000 m) and a run whose
+    vehicles were all hidden, exit 0."""
+    p = tmp_path / "N43E007.hgt"
+    heights = np.full((1201, 1201), 150, np.int16)
+    heights.astype("<i2").tofile(p)                       # 150 m read back as 38,400 -> -27136
+    with pytest.raises(InputFileError, match=r"N43E007\.hgt: .*-27136 m .*row 0, column 0.*"
+                                             r"byte-swapped"):
+        dem.read_hgt(p)
+    heights[600, 700] = 9500                              # a spike above Everest, big-endian
+    heights.astype(">i2").tofile(p)
+    with pytest.raises(InputFileError, match=r"9500 m .*row 600, column 700"):
+        dem.read_hgt(p)
+    heights[600, 700] = -430                              # the Dead Sea shore is a real height
+    heights.astype(">i2").tofile(p)
+    assert dem.read_hgt(p).values[600, 700] == -430
