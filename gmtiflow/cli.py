@@ -89,15 +89,18 @@ def _run_job(cfg) -> None:
         with interrupts.errors_as_interrupt():     # Ctrl-C that h5py turned into a TypeError
             path = _run_locked(cfg, out_dir)
     except GmtiflowError as exc:
-        if multirun:
-            raise  # let the launcher record this job as failed
+        if multirun:    # the launcher records this job as failed; Hydra prints the message
+            from gmtiflow.sweep_errors import JobError
+            raise JobError(str(exc), type(exc).__name__) from None
         _say(f"{exc}")
         console.discard_failed_run_dir(out_dir)
         sys.exit(1)
     except OSError as exc:  # a full disk or an unwritable output: one line
+        message = f"{exc.filename or out_dir}: {exc.strerror or exc}"
         if multirun:
-            raise
-        _say(f"{exc.filename or out_dir}: {exc.strerror or exc}")
+            from gmtiflow.sweep_errors import JobError
+            raise JobError(message, type(exc).__name__) from None
+        _say(message)
         sys.exit(1)
     except MemoryError:     # a backstop: gmtiflow.budget refuses what it can foresee
         _say("out of memory; reduce scene.duration_s, vehicles.random.count, "

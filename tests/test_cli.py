@@ -165,3 +165,24 @@ def test_a_bad_vehicles_file_is_one_error_line_and_no_run_file(tmp_path, text, n
     assert "Traceback" not in proc.stderr
     assert len([line for line in proc.stderr.splitlines() if "vehicles.file" in line]) == 1
     assert not list(tmp_path.rglob("*.h5")) and not list(tmp_path.rglob("*.partial"))
+
+
+def test_a_sweep_job_with_a_bad_config_fails_alone_without_a_traceback(tmp_path):
+    """A user error in one job of a sweep used to end the sweep with Hydra's printed Python
+    traceback (through cli.py and config.py) after the other jobs had run."""
+    import json
+    env = dict(os.environ, HYDRA_FULL_ERROR="0")
+    cmd = [sys.executable, "-m", "gmtiflow.cli", "-m", f"hydra.sweep.dir={tmp_path / 'sweep'}",
+           "scene.duration_s=20", *LEAN, "sensor.pfa=2,1e-6"]
+    proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, env=env,
+                          timeout=300)
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr and 'File "' not in proc.stderr, proc.stderr
+    assert "sensor.pfa: must be in (0.0, 1.0), got 2.0" in proc.stderr, proc.stderr
+    with store.open_run(tmp_path / "sweep" / "1" / "run.h5"):     # the good job ran
+        pass
+    timing = json.loads((tmp_path / "sweep" / "0" / "timing.json").read_text())
+    assert timing["status"] == "FAILED"
+    assert timing["error"] == ("ConfigError('invalid config: sensor.pfa: must be in (0.0, 1.0), "
+                               "got 2.0')")
+    assert not (tmp_path / "sweep" / "0" / "run.h5").exists()
