@@ -64,8 +64,12 @@ from the straight line, δ(f) = L(f)(q^{-1/2} − 1) with L = σ((1-f)ξ_k + fξ
 (zero at both ends) carried per step as ``bridge``/``noise_mps``; its integral (closed form, see
 :func:`_bridge`) is added to s, and its derivative to the acceleration, so v = ds/dt and
 a = dv/dt still hold exactly.  The bridge is applied only where it keeps v ≥ 0
-(min(v_k, v_{k+1}) ≥ (√2 − 1) max |σξ|); elsewhere (accelerating, braking, capped) the step keeps
-its constant acceleration.
+(min(v_k, v_{k+1}) ≥ (√2 − 1) max |σξ|) and the acceleration within the vehicle's limits at
+every instant of the step: with g = f − ½, A = σ(ξ_k + ξ_{k+1})/2, B = σ(ξ_{k+1} − ξ_k) and
+m = 1 − κ/4 the bridged speed's rate is dv/du = (Bm − Aκg)/((κg² + m)^{3/2} Δt), whose
+extremes over the step are at its ends or where 2Aκg² − 3Bmg − Am = 0
+(:func:`_bridge_within_limits`); a step near a limit whose bridge would cross it keeps its
+constant acceleration, as do the steps that accelerate, brake or are capped.
 
 Randomness enters only through per-profile noise blocks (speed normals, stop uniforms, wait
 uniforms) that the caller draws from each vehicle's own stream on demand (:class:`NoiseSource`),
@@ -133,6 +137,58 @@ def _bridge_constants(kappa):
     m = 1.0 - 0.25 * kappa
     rk = np.sqrt(kappa / m)
     return m, np.sqrt(m), rk, _asinh_ratio(-0.5 * rk)
+
+
+def _bridge_within_limits(a, x0, x1, kappa, dt, amax, dmax):
+    """Whether a step of constant acceleration ``a`` (its straight line from σξ_k = ``x0`` to
+    σξ_{k+1} = ``x1``, slope (x1 − x0)/Δt) stays within [−dmax, amax] at every instant once
+    the bridge is added (module doc): the bridged speed's rate in f is
+    N(g) = (Bm − Aκg)(κg² + m)^{-3/2}, g = f − ½ (the derivative of (A + Bg) q^{-1/2}), whose
+    extremes on [−½, ½] are at the ends (N = Bm ∓ Aκ/2) or at the roots of
+    N' ∝ 2Aκg² − 3Bmg − Am (taken in the cancellation-free form, clipped to the step)."""
+    aa = 0.5 * (x0 + x1)
+    b = x1 - x0
+    m = 1.0 - 0.25 * kappa
+
+    def n_of(g):
+        return (b * m - aa * kappa * g) / (kappa * g * g + m) ** 1.5
+
+    qa, qb, qc = 2.0 * aa * kappa, -3.0 * b * m, -aa * m
+    root = np.sqrt(qb * qb - 4.0 * qa * qc)
+    qq = -0.5 * (qb + np.where(qb < 0, -root, root))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r1 = np.where(qa != 0, qq / qa, 0.0)
+        r2 = np.where(qq != 0, qc / qq, 0.0)
+    r1 = np.clip(np.nan_to_num(r1), -0.5, 0.5)
+    r2 = np.clip(np.nan_to_num(r2), -0.5, 0.5)
+    ends = (n_of(-0.5), n_of(0.5), n_of(r1), n_of(r2))
+    hi = np.maximum(np.maximum(ends[0], ends[1]), np.maximum(ends[2], ends[3]))
+    lo = np.minimum(np.minimum(ends[0], ends[1]), np.minimum(ends[2], ends[3]))
+    return (a + (hi - b) / dt <= amax) & (a + (lo - b) / dt >= -dmax)
+
+
+def _bridge_rate_bounds(kappa):
+    """(e₁, e₂) per profile: |N − B| ≤ |B| e₁ + max(|x0|, |x1|) e₂ over a whole step, N the
+    bridged speed's rate in f (:func:`_bridge_within_limits`), e₁ = m^{-1/2} − 1,
+    e₂ = κ/(2m^{3/2}) (|g| ≤ ½, q ≥ m)."""
+    m = 1.0 - 0.25 * kappa
+    return 1.0 / np.sqrt(m) - 1.0, 0.5 * kappa / (m * np.sqrt(m))
+
+
+def _drop_bridges_past_limits(free, a, x0, x1, kappa, e1, e2, dt, amax, dmax):
+    """``free`` without the steps whose bridge would cross a limit (arrays broadcast to
+    ``free``'s shape; ``e1``, ``e2`` of :func:`_bridge_rate_bounds`).  The bound screens: only
+    the free steps it does not keep inside the limits get the exact test of
+    :func:`_bridge_within_limits` (the same answers, for a few steps)."""
+    beta = (np.abs(x1 - x0) * e1 + np.maximum(np.abs(x0), np.abs(x1)) * e2) / dt
+    idx = np.nonzero(free & ((a + beta > amax) | (a - beta < -dmax)))
+    if idx[0].size:
+        a, x0, x1, kappa, amax, dmax = (np.broadcast_to(v, free.shape)[idx]
+                                        for v in (a, x0, x1, kappa, amax, dmax))
+        ok = _bridge_within_limits(a, x0, x1, kappa, dt, amax, dmax)
+        free = free.copy()
+        free[tuple(i[~ok] for i in idx)] = False
+    return free
 
 
 def _bridge(x0, x1, kappa, f, const=None):
@@ -754,6 +810,7 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     rho_c = np.sqrt(1.0 - rho * rho)
     # ∫_0^1 δ df = (σξ_k + σξ_{k+1})/2 · c1 (_bridge at f = 1: q = 1, the B term is 0)
     c1 = _bridge(np.ones(P), np.ones(P), kappa, 1.0)[2]
+    e1_all, e2_all = _bridge_rate_bounds(kappa)
     amax_all, dmax_all = inp.max_accel_mps2, inp.max_decel_mps2
     sigma_all, p_stop_all = inp.speed_noise_mps, inp.p_stop
     first_seg, last_seg = inp.seg_offset[:-1], inp.seg_offset[1:] - 1
@@ -849,7 +906,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         ev0_a = us_win[ids, c0] < p_stop_all[ids][:, None]
         last_a = step_a + 1 >= horizon[ids][:, None]
         per = {"amx": amax_all, "dmx": dmax_all, "dcap": d_cap_all, "fseg": first_seg,
-               "lseg": last_seg, "pbase": prof_base, "c1": c1, "look_a": look_a_all,
+               "lseg": last_seg, "pbase": prof_base, "c1": c1, "kappa": kappa, "e1": e1_all, "e2": e2_all,
+               "look_a": look_a_all,
                "length": length_all, "slow": slow_mps}
         per = {key: val[ids][:, None] for key, val in per.items()}
         per["drawn"] = (top[ids] - (kk - base[ids]))[:, None]     # steps with drawn noise
@@ -947,6 +1005,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                         & (np.minimum(V, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
                                                                               np.abs(x1)))
                         & (step > 0))
+                free = _drop_bridges_past_limits(free, raw, x0, x1, c["kappa"], c["e1"],
+                                                 c["e2"], dt, amx, dmx)
                 bridged = np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0)
             else:
                 free = np.zeros(V.shape, bool)
@@ -1210,6 +1270,8 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
                 & (np.minimum(v, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
                                                                       np.abs(x1)))
                 & (kk > 0))
+        free = _drop_bridges_past_limits(free, raw, x0, x1, kappa[ids], e1_all[ids],
+                                         e2_all[ids], dt, amax, dmax)
         if free.any():
             s_end = np.where(free, s_end + 0.5 * (x0 + x1) * c1[ids] * dt, s_end)
         still = state == STOPPED

@@ -360,3 +360,26 @@ def test_wander_without_accelerations_is_the_same_offset_and_rate(monkeypatch, c
     assert w_part[2] is None
     for a, b in zip(w_full[:2], w_part[:2]):
         assert a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("dt_s, corr_s", [(0.5, 5.0), (1.0, 5.0), (0.1, 2.0)])
+def test_speed_noise_never_takes_the_acceleration_beyond_the_limits(long_road, dt_s, corr_s):
+    """Between motion steps the free-cruise speed bridge adds its own rate to the step's
+    acceleration; steps that the limits leave free must stay within them at every instant,
+    not only on average over the step (the bridge took a convoy truck of the default scene
+    to 1.018 m/s² against max_accel_mps2 1.0).  Tight limits so that steps come close."""
+    amax, dmax = 0.4, 0.5
+    specs = [VehicleSpec(name=f"v{i}", start="a", end="b", cruise_speed_mps=12.0,
+                         speed_noise_mps=0.6, speed_noise_corr_s=corr_s, max_accel_mps2=amax,
+                         max_decel_mps2=dmax) for i in range(20)]
+    fl = _fleet(long_road, *specs, duration_s=600.0, dt_s=dt_s, seed=11)
+    assert fl.profiles.bridge.any()
+    g = np.random.default_rng(5)
+    n = 50_000
+    t, vid = g.uniform(1.0, 590.0, n), g.integers(0, 20, n)
+    off_grid = np.abs(t / dt_s - np.round(t / dt_s)) * dt_s > 2 * H
+    t, vid = t[off_grid], vid[off_grid]
+    lo, hi = fl.state_at(t - H, vid), fl.state_at(t + H, vid)
+    acc = (hi["speed_mps"] - lo["speed_mps"]) / (2 * H)
+    assert acc.max() <= amax * (1 + 1e-6) + 1e-6, acc.max()
+    assert acc.min() >= -dmax * (1 + 1e-6) - 1e-6, acc.min()
