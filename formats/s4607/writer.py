@@ -262,7 +262,8 @@ def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nd
     plat_times = np.zeros(0)
     plat_bytes = None
     if platform is not None and n_rows(platform, "platform"):
-        plat_bytes = memoryview(platform_location_packets(platform, meta, edition=edition))
+        plat_bytes = memoryview(platform_location_packets(platform, meta, edition=edition,
+                                                          n_sensors=n_sensors))
         plat_times = np.asarray(platform["time_s"], dtype=np.float64)
     pl_len = 32 + 5 + PLATFORM_BODY.itemsize
     piece_time = d_time[d_order][p_dwell] if nd else np.zeros(0)
@@ -336,14 +337,21 @@ def _increasing(x: np.ndarray, strict: bool = False) -> bool:
 
 
 def platform_location_packets(platform: Mapping[str, np.ndarray], meta: Mapping, *,
-                              edition: str = "30") -> bytes:
+                              edition: str = "30", n_sensors: int | None = None) -> bytes:
     """Platform Location packets (segment 13, one per row) for a /platform table.
 
     Uses ``time_s lat_deg lon_deg height_m vx_mps vy_mps vz_mps``; track and speed are those of
     the horizontal velocity (vx east, vy north), vertical velocity in dm/s (S8, saturated).
+    With a ``sensor_id`` column and several sensors (``n_sensors``, default: from that column)
+    each row is sent as its sensor's platform (P8, P9 of :func:`sensor_meta`), as its Dwell
+    packets are.
     """
     m = _meta(meta)
     n = n_rows(platform, "platform")
+    sensor = (np.asarray(platform["sensor_id"], np.int64) if "sensor_id" in platform and n
+              else np.zeros(n, np.int64))
+    if n_sensors is None:
+        n_sensors = int(sensor.max()) + 1 if n else 1
     epoch_sod = _epoch_sod(m["epoch"])
 
     def col(c):
@@ -354,9 +362,11 @@ def platform_location_packets(platform: Mapping[str, np.ndarray], meta: Mapping,
                             col("vz_mps"))
     dt = np.dtype(PACKET_HEADER.descr + SEGMENT_HEADER.descr + PLATFORM_BODY.descr)
     a = np.zeros(n, dt)
-    hdr = _packet_header(m, edition, dt.itemsize, 0)
-    for name in PACKET_HEADER.names:
-        a[name] = hdr[name][0]
+    for s in (np.unique(sensor).tolist() if n_sensors > 1 else [0]):
+        hdr = _packet_header(sensor_meta(m, s, n_sensors), edition, dt.itemsize, 0)
+        rows = sensor == s if n_sensors > 1 else slice(None)
+        for name in PACKET_HEADER.names:
+            a[name][rows] = hdr[name][0]
     a["seg_type"], a["seg_size"] = PLATFORM_LOCATION, 5 + PLATFORM_BODY.itemsize
     for name in PLATFORM_BODY.names:
         a[name] = body[name]

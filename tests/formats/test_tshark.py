@@ -3,11 +3,13 @@ independent PyPI decoder.  The tshark tests skip only where tshark is not instal
 installs it: .ci/run)."""
 from __future__ import annotations
 
+import subprocess
+
 import numpy as np
 import pytest
 
 from gmtiflow.formats import stanag4607 as s4607, synthetic
-from tests.external_tools import needs_tshark, tshark_expert_errors, tshark_fields
+from tests.external_tools import TSHARK, needs_tshark, tshark_expert_errors, tshark_fields
 
 META = {"epoch_utc": synthetic.EPOCH_UTC}
 
@@ -151,3 +153,33 @@ def test_two_sensors_are_two_platforms_in_time_order_for_the_independent_decoder
     # each platform has its own mission and job definition, with its own job id
     assert sorted(set(ours["jobs"]["job_id"].tolist())) == [1, 2]
     assert set(d["job_id"][d["sensor_id"] == 1].tolist()) == {2}
+
+
+def test_platform_locations_of_two_sensors_carry_each_sensors_platform_id(tmp_path):
+    """A two-sensor /platform table: each Platform Location packet is its own sensor's platform
+    (P8 GMTIFLOW0 / GMTIFLOW1, P9 1 / 2), as its Dwell packets are; they were all sent as a
+    third platform, GMTIFLOW, mission 1, jumping between the two orbits."""
+    dw, det = two_sensor_tables()
+    n = 6
+    platform = {"time_s": np.repeat([0.0, 1.0, 2.0], 2), "sensor_id": np.tile([0, 1], 3),
+                "lat_deg": np.tile([43.7, 43.9], 3), "lon_deg": np.tile([7.4, 7.6], 3),
+                "height_m": np.full(n, 7000.0), "vx_mps": np.full(n, 100.0),
+                "vy_mps": np.zeros(n), "vz_mps": np.zeros(n)}
+    data = s4607.encode_4607(dw, det, META, platform=platform)
+    r = s4607.read_4607(data)
+    pk = r["packets"]
+    rows = r["platform_locations"]["packet"]
+    assert [str(p).strip() for p in pk["platform_id"][rows]] == ["GMTIFLOW0", "GMTIFLOW1"] * 3
+    assert pk["mission_id"][rows].tolist() == [1, 2] * 3
+    assert pk["job_id"][rows].tolist() == [0] * n
+    # one sensor: the plain platform id, as before
+    first = {k: v[::2] for k, v in platform.items()}
+    one = s4607.read_4607(s4607.platform_location_packets(first, META))["packets"]
+    assert {str(p).strip() for p in one["platform_id"]} == {"GMTIFLOW"}
+    if TSHARK is not None:
+        path = tmp_path / "two.4607"
+        path.write_bytes(data)
+        got = subprocess.run([TSHARK, "-r", str(path), "-T", "fields", "-e", "s4607.seg.type",
+                              "-e", "s4607.platform"], capture_output=True, text=True).stdout
+        plats = {line.split("\t")[1].strip() for line in got.splitlines()}
+        assert plats == {"GMTIFLOW0", "GMTIFLOW1"}
