@@ -31,7 +31,6 @@ import signal
 import socket
 import subprocess
 import sys
-import threading
 import tempfile
 import time
 from collections import Counter
@@ -291,8 +290,8 @@ def main(argv=None) -> int:
         entries = entry_rows(Path(tmp))
     rows = config_rows(args.config_runs, args.seed) + run_file_rows() + entries + \
         fuzz_rows(args.fuzz_cases, args.seed)
-    print(f"| entry point | inputs tried | clean error | clean run | other |")
-    print(f"|---|---|---|---|---|")
+    print("| entry point | inputs tried | clean error | clean run | other |")
+    print("|---|---|---|---|---|")
     total_other = 0
     for name, c in rows:
         tried = c["clean error"] + c["clean run"] + c["other"] + c["accepted, not run"]

@@ -200,7 +200,7 @@ def gated_pairs(x_pos: np.ndarray, HPHt: np.ndarray, z: np.ndarray, R: np.ndarra
     pairs with ``d2 < gate``.
     """
     from scipy.spatial import cKDTree
-    nt, nd, m = len(x_pos), len(z), z.shape[1]
+    nt, m = len(x_pos), z.shape[1]
     tr_p = HPHt[:, 0, 0] + HPHt[:, 1, 1]       # the traces of the position blocks
     tr_r = R[:, 0, 0] + R[:, 1, 1]
     radius = np.sqrt(gate * (tr_p + tr_r.max(initial=0.0))) * (1.0 + 1e-9) + 1e-9

@@ -43,7 +43,7 @@ def sensors_figure(sensors: Table, window_s: float) -> Figure:
     ax.axis("off")
     cells = [[fmt.format(int(v) if "d" in fmt else float(v)) for v in sensors[c]]
              for c, _, fmt in COLUMNS]
-    table = ax.table(cellText=cells, rowLabels=[label for _, label, _ in COLUMNS],
-                     colLabels=names, cellLoc="center", bbox=[0.25, 0.1, 0.7, 0.8])
+    ax.table(cellText=cells, rowLabels=[label for _, label, _ in COLUMNS],
+             colLabels=names, cellLoc="center", bbox=[0.25, 0.1, 0.7, 0.8])
     fig.suptitle("Sensors: each alone and fused (all sensors' detections together)")
     return fig

@@ -1,8 +1,6 @@
 """Trackers a user might write, loaded by import path in tests (``tracker.target=...``)."""
 import json
 
-import numpy as np
-
 from gmtiflow.evaluate.protocol import TRUTH_DETECTION_COLUMNS
 from gmtiflow.evaluate.tracker import NNKalmanTracker
 

@@ -7,8 +7,6 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 from matplotlib.figure import Figure
 
-from gmtiflow.frames import Origin
-
 from ..common import new_figure
 
 HOW_TO_READ = [

@@ -1,7 +1,6 @@
 """Page 6: track errors w.r.t. truth over time (paper Fig. 5)."""
 from __future__ import annotations
 
-import matplotlib.cm as cm
 import numpy as np
 from matplotlib.figure import Figure
 
