@@ -2,10 +2,10 @@
 
 * Accepts a FeatureCollection, a single Feature, or a bare (Multi)LineString geometry. Other
   geometry types (points, polygons) are ignored; a file without any line is an error.
-* Coordinates are [lon, lat] or [lon, lat, height] (WGS-84 degrees, metres). Vertices whose
-  lon/lat agree to ``merge_decimals`` decimals (default 7, about 1 cm) are one node, so lines that
-  share an end point or cross at a shared vertex are connected; node names are ``gj<i>`` in order
-  of first appearance.
+* Coordinates are [lon, lat] or [lon, lat, height] (WGS-84 degrees, metres; heights within
+  :data:`HEIGHT_RANGE_M`). Vertices whose lon/lat agree to ``merge_decimals`` decimals (default
+  7, about 1 cm) are one node, so lines that share an end point or cross at a shared vertex are
+  connected; node names are ``gj<i>`` in order of first appearance.
 * Properties: ``oneway`` (true/"yes"/"1" along, "-1"/"reverse" against, else both ways),
   ``tunnel`` (true/"yes"/… ⇒ invisible), ``maxspeed`` (a number in km/h or a string as in OSM),
   ``highway`` (if present, filtered by ``drivable_classes``; stored as ``road_class``).
@@ -30,6 +30,11 @@ from gmtiflow.scene.roadmap_config import RoadmapConfig
 
 MAX_GEOJSON_BYTES = 2 * 2**30
 """GeoJSON is parsed in memory (about 10 times its size): larger files are refused."""
+
+
+HEIGHT_RANGE_M = (-1000.0, 9000.0)
+"""Road heights on the earth (metres above the WGS-84 ellipsoid: the Dead Sea shore is about
+-410 m, the highest passes below 6,000 m); 1e9 m or -5e6 m used to be accepted."""
 
 
 def _all_numbers(part: Any) -> bool:
@@ -129,6 +134,13 @@ def load_geojson(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
             if np.any(np.abs(pts[:, 1]) > 90) or np.any(np.abs(pts[:, 0]) > 180):
                 raise RoadMapError(f"{p}: features[{i}]: lon/lat out of range (GeoJSON order is "
                                    f"[lon, lat])")
+            lo, hi = HEIGHT_RANGE_M
+            off = np.flatnonzero((pts[:, 2] < lo) | (pts[:, 2] > hi)) if pts.shape[1] == 3 \
+                else ()
+            if len(off):
+                raise RoadMapError(f"{p}: features[{i}]: height {pts[off[0], 2]:.6g} m "
+                                   f"(position {int(off[0])}) outside {lo:g}..{hi:g} m; GeoJSON "
+                                   f"heights are metres above the WGS-84 ellipsoid")
             lines.append((i, pts, props))
     if not lines:
         raise RoadMapError(f"{p}: no drivable LineString or MultiLineString features; it holds "

@@ -322,3 +322,21 @@ def test_geojson_road_across_the_antimeridian_stays_22_m_long(tmp_path):
     rm = load_geojson(write(tmp_path, json.dumps(doc), "r.geojson"))
     assert abs(abs(rm.origin.lon_deg) - 180.0) < 1e-9
     assert np.ptp(rm.nodes["x_m"]) == pytest.approx(21.3, abs=0.1)
+
+
+@pytest.mark.parametrize("height", [1e9, -5e6, 9500.0])
+def test_geojson_road_heights_off_the_earth_are_refused(tmp_path, height):
+    """Road heights of 1e9 m or -5e6 m (below the earth's centre) were accepted: the run ended
+    with exit 0 and no vehicle ever visible."""
+    doc = {"type": "FeatureCollection", "features": [
+        feature([[7.0, 50.0, 10.0], [7.0, 50.01, height]])]}
+    with pytest.raises(RoadMapError, match=r"r\.geojson: features\[0\]: height .* outside "
+                                           r"-1000\.\.9000 m"):
+        load_geojson(write(tmp_path, json.dumps(doc), "r.geojson"))
+
+
+def test_geojson_road_heights_on_the_earth_are_kept(tmp_path):
+    doc = {"type": "FeatureCollection", "features": [
+        feature([[35.5, 31.5, -410.0], [35.5, 31.51, 8800.0]])]}
+    rm = load_geojson(write(tmp_path, json.dumps(doc), "r.geojson"))
+    assert rm.nodes["z_m"].max() - rm.nodes["z_m"].min() == pytest.approx(9210.0, abs=1.0)
