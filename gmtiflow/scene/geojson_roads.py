@@ -82,7 +82,7 @@ def load_geojson(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
     if not path:
         raise InputFileError("roadmap.path: a GeoJSON road map needs a file path")
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():   # a directory or device: check_input_file says so
         raise InputFileError(f"{p}: GeoJSON file not found")
     check_input_file(p, "GeoJSON file", MAX_GEOJSON_BYTES, memory_factor=10.0)
     try:

@@ -74,7 +74,7 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
     if not path:
         raise InputFileError("roadmap.path: an OSM road map needs a file path")
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():   # a directory or device: check_input_file says so
         raise InputFileError(f"{p}: OSM file not found (roadmap.path; experiment=monaco reads "
                              f"monaco.osm and N43E007.hgt from the folder in GMTIFLOW_DATA_DIR)")
     check_input_file(p, "OSM file", MAX_OSM_BYTES, memory_factor=6.0)

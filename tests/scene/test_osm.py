@@ -340,3 +340,11 @@ def test_geojson_road_heights_on_the_earth_are_kept(tmp_path):
         feature([[35.5, 31.5, -410.0], [35.5, 31.51, 8800.0]])]}
     rm = load_geojson(write(tmp_path, json.dumps(doc), "r.geojson"))
     assert rm.nodes["z_m"].max() - rm.nodes["z_m"].min() == pytest.approx(9210.0, abs=1.0)
+
+
+@pytest.mark.parametrize("load, what", [(load_osm, "OSM file"), (load_geojson, "GeoJSON file")])
+def test_a_directory_or_device_as_road_map_is_not_called_missing(tmp_path, load, what):
+    """``roadmap.path=`` a directory or /dev/zero said "OSM file not found" (it is there)."""
+    for path in (tmp_path, "/dev/zero"):
+        with pytest.raises(InputFileError, match=f"^{what} {path}: not a regular file"):
+            load(path)
