@@ -110,7 +110,10 @@ def evaluate_block(run: SensorRun, poses: Poses, vehicle_ids):
         dv = dl_vis
         l_bc = antenna.direction(scan_angle, geo.at("el", vis), antenna.take(poses.b, dv),
                                  antenna.take(poses.h, dv), antenna.take(poses.u, dv))
-        own_rr = np.take(rr, vis) + antenna.dot(antenna.take(poses.vel, dv), l_bc)
+        # the true platform velocity, as in the target's range rate (map rates are
+        # (R + z)/R slower: the band's centre was off the ground's clutter by 0.094 % at 6 km)
+        vel_p = geometry.true_velocity(poses.vel, poses.pos[2], poses.radius_m)
+        own_rr = np.take(rr, vis) + antenna.dot(antenna.take(vel_p, dv), l_bc)
     folded = gain.blind_offset(own_rr, cfg.blind_speed_mps)   # for the gain and the misses
     if cfg.stap:
         g_r = g_t * gain.stap_notch(own_rr, mdv, cfg.blind_speed_mps, offset=folded)

@@ -80,3 +80,30 @@ def test_mdv_config_values():
     assert [p.key for p in SensorConfig(mdv_mps="fast").problems()] == ["mdv_mps"]
     assert SensorConfig(mdv_mps="auto").problems() == []
     assert gain.stap_notch(np.array([0.0, 1.0]), np.array([0.0, 1.0]))[0] == 1.0
+
+
+def test_no_stap_band_is_centred_on_the_ground_at_the_beam_centre():
+    """A stationary target on the ground exactly where a beam centre points has the range rate
+    of the clutter there, so its offset from the beam centre's clutter is 0 and it is inside
+    even a 1 cm/s band.  The band's centre was computed with the platform's map velocity while
+    the target's range rate uses the true one ((R + z)/R = 1.00094 at 6 km): 0.03 m/s apart at
+    a 9° scan angle and 200 m/s, outside such a band (it was detected)."""
+    from gmtiflow.sensor import antenna, geolocate
+    from sensor_fakes import RADIUS_M, FlatTerrain
+
+    cfg = SensorConfig(stap=False, mdv_mps=0.01)
+    plat = LevelPlatform(speed_mps=200.0)
+    d = run(cfg, still([[0.0, 0.0]]), platform=plat)["dwells"]
+    hits = []
+    for k in (0, len(d["dwell_id"]) - 1):          # the sector's edges: |scan| ≈ 9.3°
+        b, h, u = antenna.antenna_axes(d["platform_heading_rad"][k], d["platform_pitch_rad"][k],
+                                       d["platform_bank_rad"][k], math.radians(cfg.mount_deg))
+        pos = tuple(np.atleast_1d(d[f"platform_{c}_m"][k]) for c in "xyz")
+        ground, _, _ = geolocate.geolocate(pos, np.array([28_000.0]),
+                                           np.array([d["beam_scan_rad"][k]]), b, h, u,
+                                           FlatTerrain(), radius_m=RADIUS_M)
+        target = still([[ground[0][0], ground[1][0]]])
+        lk = run(cfg, target, platform=plat)["looks"]
+        hits.append(lk["outcome"][lk["dwell_id"] == d["dwell_id"][k]][0])
+    assert abs(d["beam_scan_rad"][0]) > math.radians(9.0)
+    assert hits == [Outcome.DOPPLER_BLIND, Outcome.DOPPLER_BLIND], hits
