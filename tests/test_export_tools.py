@@ -118,3 +118,54 @@ def test_every_csv_has_both_times_and_the_sensor_comes_back(scene_run, table):
         np.testing.assert_array_equal(back["time_s"][o], ref["time_s"][r])
         if name == "two_orbits":
             assert set(back["sensor_id"].tolist()) == {0, 1}
+
+
+@needs_tshark
+def test_tshark_decodes_the_values_of_run_h5_itself(scene_run):
+    """What tshark decodes from detections.4607 against run.h5 directly (not our reader):
+    each Dwell packet's D6, D7-D9, D24-D26, D31 and J15 of its platform, and each report's
+    position, height, SNR and truth tag, in the run's dwell and report order."""
+    name, run = scene_run
+    path = run.parent / "detections.4607"
+    dw = store.read_table(run, "dwells")
+    det = store.read_table(run, "detections")
+    with store.open_run(run) as f:
+        epoch = parse_epoch(store.read_attrs(f)["scene_epoch_utc"])
+        revisit_s = float(store.read_config(f)["sensor"]["revisit_s"])
+    day_ms = (epoch - epoch.replace(hour=0, minute=0, second=0, microsecond=0)).total_seconds() * 1e3
+    order = np.argsort(dw["time_s"], kind="stable")
+    got = tshark_fields(path, "s4607.dwell.time", "s4607.dwell.count", "s4607.dwell.sensor.lat",
+                        "s4607.dwell.sensor.lon", "s4607.dwell.sensor.alt", "s4607.dwell.da.lat",
+                        "s4607.dwell.da.range", "s4607.dwell.mdv", "s4607.job.revisit")
+    assert got["s4607.dwell.time"].tolist() == np.rint(dw["time_s"][order] * 1e3 + day_ms).astype(
+        int).tolist()
+    assert got["s4607.dwell.sensor.lat"].tolist() == np.rint(
+        dw["platform_lat_deg"][order] * 2**31 / 90).astype(int).tolist()
+    assert got["s4607.dwell.sensor.lon"].tolist() == (np.rint(
+        np.mod(dw["platform_lon_deg"][order], 360) * 2**32 / 360).astype(int) % 2**32).tolist()
+    assert got["s4607.dwell.sensor.alt"].tolist() == np.rint(
+        dw["platform_height_m"][order] * 100).astype(int).tolist()
+    assert got["s4607.dwell.da.lat"].tolist() == np.rint(
+        dw["area_lat_deg"][order] * 2**31 / 90).astype(int).tolist()
+    assert got["s4607.dwell.da.range"].tolist() == np.rint(
+        dw["range_half_extent_m"][order] * 128 / 1000).astype(int).tolist()
+    assert got["s4607.dwell.mdv"].tolist() == np.rint(dw["mdv_mps"][order] * 10).astype(int).tolist()
+    assert set(got["s4607.job.revisit"].tolist()) == {round(revisit_s * 10)}
+    located = np.isfinite(det["lat_deg"]) & np.isfinite(det["lon_deg"])
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    row = {int(i): k for k, i in enumerate(dw["dwell_id"])}
+    k = np.flatnonzero(located)
+    k = k[np.lexsort((det["det_id"][k], rank[[row[int(i)] for i in det["dwell_id"][k]]]))]
+    assert got["s4607.dwell.count"].tolist() == np.bincount(
+        rank[[row[int(i)] for i in det["dwell_id"][k]]], minlength=len(order)).tolist()
+    rpt = tshark_fields(path, "s4607.dwell.rpt.lat", "s4607.dwell.rpt.lon", "s4607.dwell.rpt.height",
+                        "s4607.dwell.rpt.snr", "s4607.dwell.rpt.tag.entity")
+    assert rpt["s4607.dwell.rpt.lat"].tolist() == np.rint(det["lat_deg"][k] * 2**31 / 90).astype(
+        int).tolist()
+    assert rpt["s4607.dwell.rpt.lon"].tolist() == (np.rint(
+        np.mod(det["lon_deg"][k], 360) * 2**32 / 360).astype(int) % 2**32).tolist()
+    assert rpt["s4607.dwell.rpt.height"].tolist() == np.rint(det["height_m"][k]).astype(int).tolist()
+    assert rpt["s4607.dwell.rpt.snr"].tolist() == np.rint(det["snr_db"][k]).astype(int).tolist()
+    assert rpt["s4607.dwell.rpt.tag.entity"].tolist() == np.where(
+        det["truth_id"][k] < 0, 2**32 - 1, det["truth_id"][k]).tolist()
