@@ -272,6 +272,12 @@ def _read_hgt_raw(path: Path) -> Tuple[np.ndarray, int]:
     return raw, n
 
 
+MAP_Z_RANGE_M = (-11000.0, 11000.0)
+"""Terrain heights as map z (metres above the surface through the scene origin) that lie on the
+earth: its surface spans about -430 to 8,849 m and the origin's height is within -1,000..10,000 m
+(``roadmap.origin_height_m``).  Beyond them (-1e7 m, 1e30 m, heights in millimetres) the run
+used to end in an unrelated error ("tracker ...: negative variance") or see nothing."""
+
 SRTM_HEIGHT_RANGE_M = (-1000, 9000)
 """Heights an SRTM tile can hold, voids aside (the Dead Sea shore is -430 m, Everest 8,849 m)."""
 
@@ -458,6 +464,14 @@ def read_ascii_grid(path, voids: str = "fill") -> EnuGrid:
         void = grid == header["nodata_value"]
     if not np.all(np.isfinite(grid[~void])):
         raise InputFileError(f"{path}: non-finite height values (nan/inf) outside NODATA")
+    lo, hi = MAP_Z_RANGE_M
+    off = ((grid < lo) | (grid > hi)) & ~void
+    if off.any():
+        in_file = off[::-1]             # rows as the file lists them, the first at the north
+        r, c = np.unravel_index(int(np.argmax(in_file)), in_file.shape)
+        raise InputFileError(f"{path}: {int(off.sum())} heights outside {lo:g}..{hi:g} m, the "
+                             f"first {grid[::-1][r, c]:.6g} m at row {r}, column {c} (data rows "
+                             f"from the north); heights are scene map z in metres")
     grid = _handle_voids(grid, void, voids, str(path))
     half = 0.5 * cell
     x0 = header["xllcenter"] if "xllcenter" in header else header["xllcorner"] + half

@@ -35,10 +35,11 @@ class HillConfig:
     def problems(self) -> List[schema.Problem]:
         out = schema.positive(self, "sigma_m")
         out += schema.non_negative(self, "length_m")
-        for name in ("x_m", "y_m", "height_m", "azimuth_deg"):
+        for name in ("x_m", "y_m", "azimuth_deg"):
             v = getattr(self, name)
             if not math.isfinite(v):
                 out.append(schema.Problem(name, f"must be finite, got {v!r}"))
+        out += schema.in_range(self, "height_m", *dem.MAP_Z_RANGE_M)
         return out
 
 

@@ -5,11 +5,11 @@ The kinds and what they read are described in :mod:`gmtiflow.scene.terrain` and 
 from __future__ import annotations
 
 import enum
-import math
 from dataclasses import dataclass, field
 from typing import List, Optional
 
 from gmtiflow import schema
+from gmtiflow.scene import dem
 from gmtiflow.scene.hills import HillConfig, hills_extent
 
 
@@ -55,11 +55,9 @@ class TerrainConfig:
         out: List[schema.Problem] = []
         out += schema.positive(self, "grid_spacing_m")
         out += schema.non_negative(self, "clearance_m", "end_skip_m")
-        if not math.isfinite(self.flat_height_m):
-            out.append(schema.Problem("flat_height_m", f"must be finite, got {self.flat_height_m!r}"))
-        if not math.isfinite(self.hills_base_height_m):
-            out.append(schema.Problem("hills_base_height_m",
-                                      f"must be finite, got {self.hills_base_height_m!r}"))
+        # map z on the earth (dem.MAP_Z_RANGE_M); NaN and inf are refused too
+        out += schema.in_range(self, "flat_height_m", *dem.MAP_Z_RANGE_M)
+        out += schema.in_range(self, "hills_base_height_m", *dem.MAP_Z_RANGE_M)
         if not (isinstance(self.chunk_samples, int) and self.chunk_samples >= 1000):
             out.append(schema.Problem("chunk_samples", f"must be an integer >= 1000, "
                                                        f"got {self.chunk_samples!r}"))

@@ -139,3 +139,17 @@ def test_keys_added_where_the_schema_takes_any_name_are_still_accepted():
     assert cfg.tracker.params == {"gate_m": 250}
     assert cfg.vehicles.random.types["van"] == 0.5
     assert list(cfg.sensors) == ["east"]
+
+
+@pytest.mark.parametrize("overrides, key", [
+    # Heights far off the earth used to end the run with "tracker NNKalmanTracker: row 1:
+    # negative variance cov_xx_m2/cov_yy_m2" (blaming the tracker), or run with nothing seen.
+    (["terrain.flat_height_m=-1e7"], "terrain.flat_height_m"),
+    (["terrain.flat_height_m=1e7"], "terrain.flat_height_m"),
+    (["terrain=hills", "terrain.hills_base_height_m=-1e7"], "terrain.hills_base_height_m"),
+    (["terrain=hills", "terrain.hills_base_height_m=1e9"], "terrain.hills_base_height_m"),
+    (["terrain=hills", "terrain.hills.0.height_m=2e4"], "terrain.hills[0].height_m"),
+])
+def test_terrain_heights_off_the_earth_are_refused_by_name(overrides, key):
+    with pytest.raises(ConfigError, match=re.escape(key) + r": must be in \[-11000.0, 11000.0\]"):
+        compose(overrides)

@@ -303,3 +303,17 @@ def test_a_byte_swapped_or_damaged_tile_is_refused_with_its_heights(tmp_path):
     heights[600, 700] = -430                              # the Dead Sea shore is a real height
     heights.astype(">i2").tofile(p)
     assert dem.read_hgt(p).values[600, 700] == -430
+
+
+@pytest.mark.parametrize("height", [1e30, -1e7, 2.1e6])
+def test_ascii_grid_heights_off_the_earth_are_refused(tmp_path, height):
+    """1e30 m ran to exit 0 with nothing visible; -1e7 m ended the run with "tracker
+    NNKalmanTracker: row 1: negative variance" (blaming the tracker); 2.1e6 is 2,100 m in mm."""
+    p = tmp_path / "grid.asc"
+    rows = [[10.0] * 4 for _ in range(3)]
+    rows[1][2] = height
+    p.write_text("ncols 4\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 10\n"
+                 + "".join(" ".join(f"{v:g}" for v in r) + "\n" for r in rows))
+    with pytest.raises(InputFileError, match=r"grid\.asc: 1 heights outside -11000\.\.11000 m"
+                                             r", the first .* at row 1, column 2"):
+        dem.read_ascii_grid(p)
