@@ -301,3 +301,45 @@ def test_4607_job_of_each_sensor_states_its_own_revisit_interval(tmp_path):
     assert len(written) == 2
     xml = formats.read_xml(tmp_path / "detections.xml")["meta"]["revisit_interval_s"]
     assert 4.0 <= xml <= 8.0
+
+
+def test_blind_exports_do_not_order_reports_by_truth(tmp_path):
+    """run.h5 numbers a dwell's reports target by target (in vehicle id order), then its false
+    alarms; a blind export carrying that order (det_id, CSV rows, XML and 4607 report order)
+    would tell a tracker under test which reports are false alarms and which vehicle is which.
+    Blind exports number each dwell's reports by measured slant range instead (det_id values
+    are those of the dwell, reassigned), in every format."""
+    cfg = compose_app(OVERRIDES + ["clutter=urban", "scene.duration_s=60"])
+    run = pipeline.run(cfg, tmp_path / "run")
+    ref = store.read_table(run, "detections")
+    # the premise: in run.h5, false alarms come last in each dwell that has both
+    fa_last = [np.all(np.diff((ref["truth_id"][ref["dwell_id"] == d] < 0).astype(int)) >= 0)
+               for d in np.unique(ref["dwell_id"])]
+    assert all(fa_last)
+    out = tmp_path / "blind"
+    out.mkdir()
+    export_run(ExportConfig(blind=True), run, out)
+    csv = formats.read_csv(out / "detections.csv", "detections")
+    assert sorted(csv["det_id"].tolist()) == sorted(ref["det_id"].tolist())
+    both = 0
+    for d in np.unique(ref["dwell_id"]):
+        mine = np.flatnonzero(csv["dwell_id"] == d)
+        mine = mine[np.argsort(csv["det_id"][mine])]
+        assert np.all(np.diff(csv["range_m"][mine]) >= 0), d           # by range
+        assert sorted(csv["det_id"][mine].tolist()) == sorted(
+            ref["det_id"][ref["dwell_id"] == d].tolist())                # the dwell's ids
+        fa = ref["truth_id"][ref["dwell_id"] == d] < 0
+        if fa.any() and (~fa).any():
+            # the truth of each written report, found by its (dwell, range) in run.h5
+            key = {r: t for r, t in zip(ref["range_m"][ref["dwell_id"] == d],
+                                        ref["truth_id"][ref["dwell_id"] == d])}
+            written_fa = np.array([key[r] < 0 for r in csv["range_m"][mine]])
+            both += not np.all(np.diff(written_fa.astype(int)) >= 0)
+    assert both > 0        # some dwell now lists a false alarm before a target
+    xml = formats.read_xml(out / "detections.xml")["detections"]
+    assert xml["det_id"].tolist() == csv["det_id"][np.lexsort(
+        (csv["det_id"], csv["time_s"]))].tolist()
+    x = formats.read_4607(out / "detections.4607")["detections"]
+    order = np.argsort(csv["det_id"], kind="stable")
+    located = np.isfinite(csv["lat_deg"][order])
+    np.testing.assert_allclose(x["lat_deg"], csv["lat_deg"][order][located], atol=1e-7)
