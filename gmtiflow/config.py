@@ -101,7 +101,17 @@ class FidelityConfig:
         out = positive(self, "time_step_s", "truth_output_dt_s", "terrain_step_m")
         if not out and self.time_step_s > 10.0:
             out.append(Problem("time_step_s", f"must be at most 10 s, got {self.time_step_s}"))
+        if not out and self.terrain_step_m < MIN_TERRAIN_STEP_M:
+            out.append(Problem("terrain_step_m", f"must be at least {MIN_TERRAIN_STEP_M:g} m "
+                                                 f"(finer than any DEM), got "
+                                                 f"{self.terrain_step_m!r}"))
         return out
+
+
+MIN_TERRAIN_STEP_M = 0.1
+"""The finest line-of-sight ray step: a tenth of a 1 m lidar grid's cell.  A ray holds about
+(its length / step) samples, its work and memory growing as 1/step: 0.1 m took 1.9 s and 260 MB
+on a 20 s hills scene, 1e-4 m 2.9 GB and over a minute (1e-6 m: no end)."""
 
 
 MAIN_SENSOR = "main"
