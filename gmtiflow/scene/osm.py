@@ -68,6 +68,25 @@ def hardened_parser():
                            remove_pis=True)
 
 
+_COMPRESSED = ((b"\x1f\x8b", "gzip", "gunzip"), (b"\xfd7zXZ\x00", "xz", "unxz"),
+               (b"BZh", "bzip2", "bunzip2"), (b"\x28\xb5\x2f\xfd", "zstd", "unzstd"))
+
+
+def _refuse_other_encodings(p: Path) -> None:
+    """RoadMapError for a compressed file or OSM PBF, before parsing.  libxml2 decompresses gzip
+    by itself, so the size and memory checks (made on the file's size) saw a 3.6 MB .osm.gz
+    whose parse took 1.3 GB (53 MB of XML); PBF used to be "Document is empty, line 1"."""
+    with open(p, "rb") as f:
+        head = f.read(32)
+    for magic, kind, tool in _COMPRESSED:
+        if head.startswith(magic):
+            raise RoadMapError(f"{p}: compressed ({kind}); decompress it first ({tool} {p.name}):"
+                               f" the size and memory checks are made on the XML itself")
+    if b"OSMHeader" in head:
+        raise RoadMapError(f"{p}: OSM PBF (binary) is not read; convert it to OSM XML, e.g. "
+                           f"osmium cat {p.name} -o map.osm")
+
+
 def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
     """Road map of the drivable highways in an OSM XML file."""
     cfg = cfg or RoadmapConfig()
@@ -78,6 +97,7 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         raise InputFileError(f"{p}: OSM file not found (roadmap.path; experiment=monaco reads "
                              f"monaco.osm and N43E007.hgt from the folder in GMTIFLOW_DATA_DIR)")
     check_input_file(p, "OSM file", MAX_OSM_BYTES, memory_factor=6.0)
+    _refuse_other_encodings(p)
     from lxml import etree
     try:
         root = etree.parse(str(p), hardened_parser()).getroot()
