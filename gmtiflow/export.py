@@ -31,7 +31,7 @@ Adapting the tables (docs/exports.md has the user-facing version):
   dwells' ``mdv_mps``; false-alarm density J26 = ``clutter.fov_density_per_km2`` (per dwell)
   when > 0, else No Statement; Pd J25 only when the user states one (``export.pd``): it is
   defined for a 10 m² target and a run has no single value; nominal accuracies J21–J23 = medians
-  of the reports' σ when ``export.nominal_accuracies``.
+  of the written reports' σ (each sensor's own) when ``export.nominal_accuracies``.
 * **GeoJSON**: truth and road nodes get ``lat_deg lon_deg height_m`` through
   :func:`gmtiflow.frames.enu_to_geodetic` with the run's origin; clutter regions of the run's
   config are drawn as polygons (circles and rings as 72-gons; a ring is its outer circle with
@@ -389,19 +389,8 @@ def meta_for(cfg: ExportConfig, run: RunTables) -> dict:
         meta["false_alarm_density_per_m2"] = float(fa) / 1e6
     if cfg.pd is not None:
         meta["pd"] = float(cfg.pd)
-    det = run.tables.get("detections", {})
-    if cfg.nominal_accuracies and len(det.get("det_id", ())):
-        def med(x):
-            x = np.asarray(x, float)
-            x = x[np.isfinite(x)]
-            return float(np.median(x)) if len(x) else None
-        if "sigma_range_m" in det:
-            meta["nominal_slant_range_sigma_m"] = med(det["sigma_range_m"])
-        if "sigma_azimuth_rad" in det:
-            s = med(det["sigma_azimuth_rad"])
-            meta["nominal_cross_range_sigma_deg"] = None if s is None else float(np.degrees(s))
-        if "sigma_range_rate_mps" in det:
-            meta["nominal_range_rate_sigma_mps"] = med(det["sigma_range_rate_mps"])
+    # J21-J23: the writer takes the medians of the reports it writes, each sensor's own
+    meta["nominal_sigmas_from_reports"] = bool(cfg.nominal_accuracies)
     return meta
 
 

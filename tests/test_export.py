@@ -343,3 +343,28 @@ def test_blind_exports_do_not_order_reports_by_truth(tmp_path):
     order = np.argsort(csv["det_id"], kind="stable")
     located = np.isfinite(csv["lat_deg"][order])
     np.testing.assert_allclose(x["lat_deg"], csv["lat_deg"][order][located], atol=1e-7)
+
+
+def test_4607_job_of_each_sensor_states_its_own_nominal_accuracies(tmp_path):
+    """J21-J23 are the medians of each sensor's own reports: a second sensor with a fifth of
+    the bandwidth (5x the range σ) was announced with the pooled median, ~the first sensor's.
+    The XML's one JobDefinition keeps the median over all reports."""
+    cfg = compose_app(["experiment=two_orbits", "sensors.west.sensor.bandwidth_hz=10e6",
+                       "scene.duration_s=20", "progress=false", "export=none",
+                       "report.enabled=false", "tracker=none", "metrics.enabled=false",
+                       "cache.enabled=false"])
+    run = pipeline.run(cfg, tmp_path)
+    export_run(ExportConfig(formats=["stanag4607", "xml"]), run)
+    det = store.read_table(run, "detections")
+    jobs = formats.read_4607(tmp_path / "detections.4607")["jobs"]
+    for s in (0, 1):
+        mine = det["sensor_id"] == s
+        rows = jobs["job_id"] == 1 + s
+        assert np.all(np.abs(jobs["sigma_slant_range_m"][rows]
+                             - np.median(det["sigma_range_m"][mine])) <= 0.005)
+        assert np.all(np.abs(jobs["sigma_range_rate_mps"][rows]
+                             - np.median(det["sigma_range_rate_mps"][mine])) <= 0.005)
+    assert np.median(det["sigma_range_m"][det["sensor_id"] == 1]) > \
+        3 * np.median(det["sigma_range_m"][det["sensor_id"] == 0])
+    xml = formats.read_xml(tmp_path / "detections.xml")["meta"]
+    assert xml["nominal_slant_range_sigma_m"] == float(np.median(det["sigma_range_m"]))

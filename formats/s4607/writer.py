@@ -48,6 +48,7 @@ DEFAULT_META: dict = {
     "nominal_slant_range_sigma_m": None,  # J21
     "nominal_cross_range_sigma_deg": None,  # J22
     "nominal_range_rate_sigma_mps": None,   # J23
+    "nominal_sigmas_from_reports": False,  # J21-J23 left None: medians of the (sensor's) reports
     "mdv_mps": None,                    # J24 (None = median of the dwells' mdv_mps)
     "pd": None,                         # J25, probability 0..1 for a 10 m^2 target
     "false_alarm_density_per_m2": None,  # J26 = -10 log10(density)
@@ -85,7 +86,10 @@ def resolve_meta(meta: Mapping, dwells: Mapping, detections: Mapping) -> dict:
     ``bounding_area`` None -> the box (clockwise from the north-west corner) around the dwell
     area centres, platform positions and detections; ``revisit_interval_s`` None -> median time
     between revisit starts (0 for a single revisit); ``mdv_mps`` None -> median of the dwells'
-    ``mdv_mps`` (No Statement if they have none).  Adds ``epoch`` (aware datetime).
+    ``mdv_mps`` (No Statement if they have none); with ``nominal_sigmas_from_reports``, J21-J23
+    left None -> medians of the reports' ``sigma_range_m``, ``sigma_azimuth_rad`` (in degrees)
+    and ``sigma_range_rate_mps`` (each sensor's own in a multi-sensor 4607 file).  Adds
+    ``epoch`` (aware datetime).
     """
     m = _meta(meta)
     if m["bounding_area"] is None:
@@ -104,6 +108,15 @@ def resolve_meta(meta: Mapping, dwells: Mapping, detections: Mapping) -> dict:
         m["bounding_area"] = [(n, w), (n, e), (s, e), (s, w)]
     if m["revisit_interval_s"] is None:
         m["revisit_interval_s"] = _median_revisit_s(dwells)
+    if m["nominal_sigmas_from_reports"]:
+        for key, col, in_deg in (("nominal_slant_range_sigma_m", "sigma_range_m", False),
+                                 ("nominal_cross_range_sigma_deg", "sigma_azimuth_rad", True),
+                                 ("nominal_range_rate_sigma_mps", "sigma_range_rate_mps", False)):
+            x = np.asarray(detections.get(col, []), float)
+            x = x[np.isfinite(x)]
+            if m[key] is None and len(x):
+                med = float(np.median(x))
+                m[key] = float(np.degrees(med)) if in_deg else med
     if m["mdv_mps"] is None and "mdv_mps" in dwells and len(dwells["mdv_mps"]):
         mdv = np.asarray(dwells["mdv_mps"], float)
         m["mdv_mps"] = float(np.median(mdv[np.isfinite(mdv)])) if np.isfinite(mdv).any() else None
