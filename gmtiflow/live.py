@@ -240,7 +240,8 @@ class StreamConfig:
 
 class LiveExport:
     """The export stage's live sink: :meth:`append` a chunk of dwells and detections as the
-    simulation produces it; they are adapted as for the file export and sent."""
+    simulation produces it; they are adapted as for the file export (``export.blind``
+    included: a chunk holds whole dwells, so its reports come out as the file's) and sent."""
 
     def __init__(self, stream: StreamConfig, export_cfg, origin, epoch_utc: str,
                  config: Optional[dict] = None):
@@ -259,6 +260,8 @@ class LiveExport:
             return
         run = self._export.RunTables(None, {}, self.origin, self.epoch_utc, self.config,
                                      {"dwells": dwells, "detections": detections})
+        if self.cfg.blind:        # as the file export: no truth, each dwell's reports by range
+            run = self._export.blind_run(run)
         dw, det = self._export.to_4607_tables(run)
         meta = self._export.meta_for(self.cfg, run)
         meta["write_epoch_text"] = self._first

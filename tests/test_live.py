@@ -101,9 +101,11 @@ def test_bad_urls_are_clear_errors():
 
 
 @pytest.mark.slow
-def test_a_run_streams_while_it_simulates_and_convert_receives_it(tmp_path):
+@pytest.mark.parametrize("blind", [False, True])
+def test_a_run_streams_while_it_simulates_and_convert_receives_it(tmp_path, blind):
     """gmtiflow export=stream ...: the run's packets arrive; gmtiflow-convert udp://... --to h5
-    decodes them into the same dwells and detections as the run's own 4607 export."""
+    decodes them into the same dwells and detections as the run's own 4607 export; with
+    export.blind=true, both without truth (the stream used to carry every truth tag)."""
     import socket
     probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     probe.bind(("127.0.0.1", 0))
@@ -118,7 +120,7 @@ def test_a_run_streams_while_it_simulates_and_convert_receives_it(tmp_path):
     cfg = compose_app(["scene.duration_s=30", "fidelity.truth_output_dt_s=1.0",
                        "progress=false", "export=stream",
                        f"export.stream.url=udp://127.0.0.1:{port}", "export.stream.speed=0",
-                       "export.formats=[stanag4607]"])
+                       "export.formats=[stanag4607]", f"export.blind={str(blind).lower()}"])
     run = pipeline.run(cfg, tmp_path / "run")
     out, err = recv.communicate(timeout=120)
     assert recv.returncode == 0, err
@@ -133,6 +135,10 @@ def test_a_run_streams_while_it_simulates_and_convert_receives_it(tmp_path):
     np.testing.assert_array_equal(det["lat_deg"], ref["detections"]["lat_deg"])
     np.testing.assert_array_equal(det["los_velocity_mps"], ref["detections"]["los_velocity_mps"])
     assert det["mti_report_index"].tolist() == ref["detections"]["mti_report_index"].tolist()
+    np.testing.assert_array_equal(det["truth_id"], ref["detections"]["truth_id"])
+    np.testing.assert_array_equal(det["rcs_dbsm"], ref["detections"]["rcs_dbsm"])
+    truth_tagged = int(np.sum(det["truth_id"] >= 0))
+    assert (truth_tagged == 0) if blind else (truth_tagged > 0)
 
 
 def test_a_stream_of_several_sensors_is_refused_before_any_work(tmp_path):
