@@ -92,6 +92,9 @@ def read_tracks(path: Path, epoch_utc: Optional[str] = None) -> dict:
         except StoreError:
             raise
     suffix = path.suffix.lower()
+    if suffix in (".h5", ".hdf5", ".he5"):
+        raise InputFileError(f"{path}: not an HDF5 file (no HDF5 signature); give a track .csv "
+                             f"or an HDF5 file with /tracks")
     if suffix == ".xml":
         raise InputFileError(f"{path}: there is no XML track form (formats' XML carries "
                              "detections); give the tracks as CSV or HDF5")

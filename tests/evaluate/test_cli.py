@@ -145,3 +145,10 @@ def test_times_in_the_wrong_unit_are_one_error_naming_the_unit(run, tracks_csv, 
     code, _, err = cli(path, run, "-o", tmp_path / "m.h5")
     assert code == 1 and needle in err and "time_s" in err, err
     assert not (tmp_path / "m.h5").exists()
+
+
+def test_a_text_file_named_h5_is_called_not_hdf5(run, tmp_path):
+    """It said "expected a track .csv or an .h5 file with /tracks, got suffix '.h5'"."""
+    code, _, err = cli(_bad(tmp_path / "t.h5", "time_s,track_id,x_m,y_m\n"), run)
+    assert code == 1 and "t.h5: not an HDF5 file (no HDF5 signature)" in err, err
+    assert "got suffix" not in err
