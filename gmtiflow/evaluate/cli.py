@@ -65,7 +65,9 @@ def _parser() -> argparse.ArgumentParser:
                     "(OSPA/GOSPA, track errors, identity switches, fragmentation, track loss and "
                     "re-acquisition).")
     p.add_argument("tracks", type=Path, metavar="TRACKS",
-                   help="track file: .csv (formats track CSV) or .h5 with a /tracks table")
+                   help="track file: .csv (formats track CSV), or an .h5 file gmtiflow wrote "
+                        "with a /tracks table (a run file, or gmtiflow-convert tracks.csv "
+                        "--to h5)")
     p.add_argument("run", type=Path, metavar="RUN.h5", help="the gmtiflow run file (truth)")
     p.add_argument("-o", "--output", type=Path, metavar="OUT",
                    help="output file (default: TRACKS with the suffix .metrics.h5, or "
