@@ -67,9 +67,15 @@ def test_blind_exports_carry_no_truth(runs):
                                                                              "truth.geojson"}
     for path in files:
         assert truth_in(path) == [], path.name
-    # the detections themselves are all there, and truth stays in run.h5 for scoring
+    # the detections themselves are all there (each dwell's by measured slant range, the
+    # order export.blind gives them), and truth stays in run.h5 for scoring
     a = formats.read_detections_csv(open_dir / "detections.csv")
     b = formats.read_detections_csv(blind_dir / "detections.csv")
-    assert np.array_equal(a["x_m"], b["x_m"]) and len(b["x_m"]) > 0
+    by_range = np.lexsort((a["azimuth_rad"], a["range_m"], a["dwell_id"]))
+    for c in ("dwell_id", "range_m", "azimuth_rad", "x_m", "y_m", "range_rate_mps"):
+        assert np.array_equal(a[c][by_range], b[c]), c
+    assert len(b["x_m"]) > 0
+    assert np.array_equal(np.sort(a["det_id"]), np.sort(b["det_id"]))
+    assert np.any(by_range != np.arange(len(by_range)))     # the scene has reports to reorder
     assert "truth_id" in store.read_table(blind_dir / "run.h5", "detections")
     assert len(store.read_table(blind_dir / "run.h5", "truth")["time_s"]) > 0
