@@ -12,8 +12,8 @@ have a variance that dips between knots (as the old linear interpolation of grid
 instant, and the result is twice continuously differentiable, so the truth velocity and
 acceleration are the exact derivatives (quotient rule, below).  h = ``position_noise_corr_s``
 (knots one correlation time apart; correlation 0.84 at lag h/2, 0.49 at h, 0.05 at 2h, 0 from
-3h), or the motion step Δt when it is 0 (the paper's independent noise per step, now smooth
-between steps).
+3h), or the motion step Δt when that is longer (0: the paper's independent noise per step,
+now smooth between steps; :func:`knot_spacing_s`).
 The wander's own speed is of order σ/h (0.2 m/s along the road for the default 1 m and 5 s).
 
 Derivatives, with N = Σ B c, Q = Σ B², primes d/dx: n' = N' Q^{-1/2} − ½ N Q' Q^{-3/2},
@@ -39,9 +39,13 @@ _CHUNK = 500_000       # rows per block when evaluating (bounded temporaries)
 
 
 def knot_spacing_s(corr_s, dt_s: float) -> np.ndarray:
-    """h per vehicle: its correlation time, or the motion step where that is 0 (arrays)."""
-    corr_s = np.asarray(corr_s, float)
-    return np.where(corr_s > 0, corr_s, float(dt_s))
+    """h per vehicle: its correlation time, but at least the motion step (arrays).
+
+    The motion step is the finest time the truth resolves: a correlation time shorter than it
+    (0, the paper's independent noise per step, included) gives knots one step apart.  Spacing
+    them ``corr_s`` apart would cost (end - t0)/corr_s knots a vehicle: 1e8 for 1e-6 s, and an
+    overflow for a value such as 1e-300 that the config accepts as > 0."""
+    return np.maximum(np.asarray(corr_s, float), float(dt_s))
 
 
 def n_knots(t0_s, end_s, h_s) -> np.ndarray:

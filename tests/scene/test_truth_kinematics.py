@@ -383,3 +383,25 @@ def test_speed_noise_never_takes_the_acceleration_beyond_the_limits(long_road, d
     acc = (hi["speed_mps"] - lo["speed_mps"]) / (2 * H)
     assert acc.max() <= amax * (1 + 1e-6) + 1e-6, acc.max()
     assert acc.min() >= -dmax * (1 + 1e-6) - 1e-6, acc.min()
+
+
+@pytest.mark.parametrize("corr_s", [1e-300, 1e-6, 0.3])
+def test_a_correlation_shorter_than_the_motion_step_is_the_steps(long_road, corr_s):
+    """position_noise_corr_s below the motion step (down to 1e-300, which config validation
+    accepts as > 0) gives the wander of corr 0: knots one step apart, the finest time the truth
+    resolves. It used to space the knots corr_s apart: 1e-300 overflowed the knot count (numpy's
+    'invalid value encountered in cast', then garbage), 1e-6 asked for 1e8 knots a vehicle."""
+    import warnings
+
+    def noise(c):
+        spec = VehicleSpec(name="v", start="a", end="b", cruise_speed_mps=10.0,
+                           position_noise_m=[2.0, 0.5, 0.1], position_noise_corr_s=c)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            fl = _fleet(long_road, spec, duration_s=100.0, dt_s=1.0, seed=5)
+        st = fl.state_at(np.random.default_rng(2).uniform(0.0, 90.0, 500), 0)
+        return st["y_m"][st["active"]]
+
+    reference = noise(0.0)
+    assert len(reference) > 100
+    assert np.array_equal(noise(corr_s), reference)
