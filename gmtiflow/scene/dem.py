@@ -278,15 +278,17 @@ earth: its surface spans about -430 to 8,849 m and the origin's height is within
 (``roadmap.origin_height_m``).  Beyond them (-1e7 m, 1e30 m, heights in millimetres) the run
 used to end in an unrelated error ("tracker ...: negative variance") or see nothing."""
 
-SRTM_HEIGHT_RANGE_M = (-1000, 9000)
-"""Heights an SRTM tile can hold, voids aside (the Dead Sea shore is -430 m, Everest 8,849 m)."""
+SURFACE_HEIGHT_RANGE_M = (-1000, 9000)
+"""Heights of the earth's surface, above the geoid or the WGS-84 ellipsoid alike (the Dead Sea
+shore is about -430 m, Everest 8,849 m; the two datums differ by at most ~100 m): what an SRTM
+tile can hold, voids aside, and what a GeoJSON road map's heights can be."""
 
 
 def _check_heights(path: Path, raw: np.ndarray) -> None:
-    """InputFileError for a height outside :data:`SRTM_HEIGHT_RANGE_M` (not a void): a tile
+    """InputFileError for a height outside :data:`SURFACE_HEIGHT_RANGE_M` (not a void): a tile
     written little-endian (150 m reads as -27,136 m) or damaged; such tiles used to be used as
     they were, hiding every vehicle behind tens of kilometres of terrain."""
-    lo, hi = SRTM_HEIGHT_RANGE_M
+    lo, hi = SURFACE_HEIGHT_RANGE_M
     bad = ((raw < lo) | (raw > hi)) & (raw != SRTM_VOID)
     if bad.any():
         r, c = np.unravel_index(int(np.argmax(bad)), raw.shape)

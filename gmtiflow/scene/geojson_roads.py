@@ -3,9 +3,10 @@
 * Accepts a FeatureCollection, a single Feature, or a bare (Multi)LineString geometry. Other
   geometry types (points, polygons) are ignored; a file without any line is an error.
 * Coordinates are [lon, lat] or [lon, lat, height] (WGS-84 degrees, metres; heights within
-  :data:`HEIGHT_RANGE_M`). Vertices whose lon/lat agree to ``merge_decimals`` decimals (default
-  7, about 1 cm) are one node, so lines that share an end point or cross at a shared vertex are
-  connected; node names are ``gj<i>`` in order of first appearance.
+  :data:`~gmtiflow.scene.dem.SURFACE_HEIGHT_RANGE_M`). Vertices whose lon/lat agree to
+  ``merge_decimals`` decimals (default 7, about 1 cm) are one node, so lines that share an end
+  point or cross at a shared vertex are connected; node names are ``gj<i>`` in order of first
+  appearance.
 * Properties: ``oneway`` (true/"yes"/"1" along, "-1"/"reverse" against, else both ways),
   ``tunnel`` (true/"yes"/… ⇒ invisible), ``maxspeed`` (a number in km/h or a string as in OSM),
   ``highway`` (if present, filtered by ``drivable_classes``; stored as ``road_class``).
@@ -23,6 +24,7 @@ import numpy as np
 from gmtiflow import frames
 from gmtiflow.errors import InputFileError, RoadMapError
 from gmtiflow.paths import check_input_file
+from gmtiflow.scene.dem import SURFACE_HEIGHT_RANGE_M
 from gmtiflow.scene.osm import parse_maxspeed
 from gmtiflow.scene.road_network import RoadMap
 from gmtiflow.scene.roadmap_config import RoadmapConfig
@@ -30,11 +32,6 @@ from gmtiflow.scene.roadmap_config import RoadmapConfig
 
 MAX_GEOJSON_BYTES = 2 * 2**30
 """GeoJSON is parsed in memory (about 10 times its size): larger files are refused."""
-
-
-HEIGHT_RANGE_M = (-1000.0, 9000.0)
-"""Road heights on the earth (metres above the WGS-84 ellipsoid: the Dead Sea shore is about
--410 m, the highest passes below 6,000 m); 1e9 m or -5e6 m used to be accepted."""
 
 
 def _all_numbers(part: Any) -> bool:
@@ -134,7 +131,7 @@ def load_geojson(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
             if np.any(np.abs(pts[:, 1]) > 90) or np.any(np.abs(pts[:, 0]) > 180):
                 raise RoadMapError(f"{p}: features[{i}]: lon/lat out of range (GeoJSON order is "
                                    f"[lon, lat])")
-            lo, hi = HEIGHT_RANGE_M
+            lo, hi = SURFACE_HEIGHT_RANGE_M      # 1e9 m or -5e6 m used to be accepted
             off = np.flatnonzero((pts[:, 2] < lo) | (pts[:, 2] > hi)) if pts.shape[1] == 3 \
                 else ()
             if len(off):
