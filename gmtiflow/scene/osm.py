@@ -15,8 +15,9 @@
 * ``maxspeed``: a number in km/h, or with a unit ``km/h``, ``mph`` or ``knots``; anything
   else (``none``, ``signals``, ``RU:urban``) is no limit (NaN).
 * Origin: the centre of ``<bounds>``, else of the drivable road nodes (a map across the
-  antimeridian is centred near ±180°), at height 0 (override with ``origin_*``); node heights are the origin's (OSM carries no elevation), so z is 0
-  up to the curvature of the earth (-0.3 m at 2 km).
+  antimeridian is centred near ±180°), at height 0 (override with ``origin_*``); node heights
+  are the origin's (OSM carries no elevation), so z is 0 up to the curvature of the earth
+  (-0.3 m at 2 km).
 * No metadata attributes (version, timestamp, user) are required; elements marked
   ``action="delete"`` or ``visible="false"`` (JOSM files) are ignored.
 * Isolated pieces of road are kept; routes are only possible within connected parts.
