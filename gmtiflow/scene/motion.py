@@ -1,19 +1,10 @@
 r"""Speed-profile kernel: arc length s(t) of every vehicle, vectorised over the fleet (DESIGN §3).
 
 The paper's Alg. 1–2 move a position step by step and patch the overshoot at a crossroad
-(Fig. 1). Here a vehicle is only a speed profile along its route polyline: on a time grid
-:math:`\tau_k = k\,\Delta t` (local time since the profile's start) each step stores the arc length
-:math:`s_k`, the speed :math:`v_k` at the step start, a constant acceleration :math:`a_k` that acts
-for :math:`\tau'_k \le \Delta t` (the exact in-step instant at which a braking vehicle reaches
-:math:`v = 0`; afterwards the speed stays :math:`v_{k+1}`), and a mode label. Hence for
-:math:`u = \tau - \tau_k`
-
-.. math::
-    s(\tau) = s_k + v_k u + \tfrac12 a_k u^2 \quad (u < \tau'_k), \qquad
-    s(\tau) = s_{k+1} - v_{k+1} (\Delta t - u) \quad (u \ge \tau'_k),
-
-exact at any instant, so the position on the route polyline needs no overshoot correction and
-no interpolation error.
+(Fig. 1). Here a vehicle is only a speed profile along its route polyline
+(:class:`~gmtiflow.scene.profiles.Profiles`: per step of a time grid the arc length, the speed
+and a constant acceleration, exact at any instant), so the position on the route polyline needs
+no overshoot correction and no interpolation error.
 
 Every operation is numpy over profiles (and, in windows, over steps): there is no per-vehicle
 Python loop and, for driving profiles, no per-step one either (below).  Per profile a small
@@ -51,25 +42,12 @@ state machine (the corrected Alg. 2, DESIGN §3):
 
 Speed noise between grid points.  In a *free cruise* step (tracking, unclipped, not at the
 speed floor or the braking cap, and the step's start speed the free target c + σξ_k of the
-same cruise c) the speed is not the straight line between c + σξ_k and c + σξ_{k+1}: that
-line's variance, σ²q(f) with :math:`q(f) = 1 - \kappa f(1-f)`, :math:`\kappa = 2(1-\rho)`,
-f = u/Δt, dips to σ²(1+ρ)/2 mid-step (0.71 σ with T_c = 0).  Instead
-
-.. math::
-    v(u) = c + \sigma\,\frac{(1-f)\xi_k + f\xi_{k+1}}{\sqrt{q(f)}} ,
-
-the linear interpolation normalised by its own standard deviation: exactly N(c, σ²) at every
-instant, equal to the grid values at f = 0 and 1, and smooth inside the step.  The difference
-from the straight line, δ(f) = L(f)(q^{-1/2} − 1) with L = σ((1-f)ξ_k + fξ_{k+1}), is a bridge
-(zero at both ends) carried per step as ``bridge``/``noise_mps``; its integral (closed form, see
-:func:`_bridge`) is added to s, and its derivative to the acceleration, so v = ds/dt and
-a = dv/dt still hold exactly.  The bridge is applied only where it keeps v ≥ 0
-(min(v_k, v_{k+1}) ≥ (√2 − 1) max |σξ|) and the acceleration within the vehicle's limits at
-every instant of the step: with g = f − ½, A = σ(ξ_k + ξ_{k+1})/2, B = σ(ξ_{k+1} − ξ_k) and
-m = 1 − κ/4 the bridged speed's rate is dv/du = (Bm − Aκg)/((κg² + m)^{3/2} Δt), whose
-extremes over the step are at its ends or where 2Aκg² − 3Bmg − Am = 0
-(:func:`_bridge_within_limits`); a step near a limit whose bridge would cross it keeps its
-constant acceleration, as do the steps that accelerate, brake or are capped.
+same cruise c) the speed between the grid values c + σξ_k and c + σξ_{k+1} follows the bridge of
+:mod:`gmtiflow.scene.speed_bridge` (exactly N(c, σ²) at every instant, not the straight line),
+carried per step as ``bridge``/``noise_mps``.  It is applied only where it keeps v ≥ 0 and the
+acceleration within the vehicle's limits at every instant of the step
+(:func:`~gmtiflow.scene.speed_bridge.drop_past_limits`); a step near a limit whose bridge would
+cross it keeps its constant acceleration, as do the steps that accelerate, brake or are capped.
 
 Randomness enters only through per-profile noise blocks (speed normals, stop uniforms, wait
 uniforms) that the caller draws from each vehicle's own stream on demand (:class:`NoiseSource`),
@@ -109,114 +87,18 @@ profiles are stored flat, one run of steps per profile (:class:`Profiles`).
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Optional, Tuple
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from gmtiflow import bars
+from gmtiflow.scene import speed_bridge
+from gmtiflow.scene.profiles import MODE_ACCEL, MODE_CRUISE, MODE_DECEL, MODE_STOPPED, Profiles
 
 TRACK, BRAKE_RANDOM, STOPPED, BRAKE_POINT = 0, 1, 2, 4
-MODE_CRUISE, MODE_DECEL, MODE_STOPPED, MODE_ACCEL = 0, 1, 2, 3
-_BRIDGE_GUARD = np.sqrt(2.0) - 1.0     # max of q^{-1/2} - 1 (kappa <= 2)
 
-
-def _asinh_ratio(z):
-    """asinh(z)/z, 1 at z = 0 (series below 1e-4)."""
-    z = np.asarray(z, float)
-    small = np.abs(z) < 1e-4
-    safe = np.where(small, 1.0, z)
-    return np.where(small, 1.0 - z * z / 6.0, np.arcsinh(safe) / safe)
-
-
-def _bridge_constants(kappa):
-    """The parts of :func:`_bridge` that depend on κ alone, per profile: m, √m, √(κ/m) and
-    asinh(z)/z at z = −½√(κ/m) (the lower end of the integral)."""
-    m = 1.0 - 0.25 * kappa
-    rk = np.sqrt(kappa / m)
-    return m, np.sqrt(m), rk, _asinh_ratio(-0.5 * rk)
-
-
-def _bridge_within_limits(a, x0, x1, kappa, dt, amax, dmax):
-    """Whether a step of constant acceleration ``a`` (its straight line from σξ_k = ``x0`` to
-    σξ_{k+1} = ``x1``, slope (x1 − x0)/Δt) stays within [−dmax, amax] at every instant once
-    the bridge is added (module doc): the bridged speed's rate in f is
-    N(g) = (Bm − Aκg)(κg² + m)^{-3/2}, g = f − ½ (the derivative of (A + Bg) q^{-1/2}), whose
-    extremes on [−½, ½] are at the ends (N = Bm ∓ Aκ/2) or at the roots of
-    N' ∝ 2Aκg² − 3Bmg − Am (taken in the cancellation-free form, clipped to the step)."""
-    aa = 0.5 * (x0 + x1)
-    b = x1 - x0
-    m = 1.0 - 0.25 * kappa
-
-    def n_of(g):
-        return (b * m - aa * kappa * g) / (kappa * g * g + m) ** 1.5
-
-    qa, qb, qc = 2.0 * aa * kappa, -3.0 * b * m, -aa * m
-    root = np.sqrt(qb * qb - 4.0 * qa * qc)
-    qq = -0.5 * (qb + np.where(qb < 0, -root, root))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r1 = np.where(qa != 0, qq / qa, 0.0)
-        r2 = np.where(qq != 0, qc / qq, 0.0)
-    r1 = np.clip(np.nan_to_num(r1), -0.5, 0.5)
-    r2 = np.clip(np.nan_to_num(r2), -0.5, 0.5)
-    ends = (n_of(-0.5), n_of(0.5), n_of(r1), n_of(r2))
-    hi = np.maximum(np.maximum(ends[0], ends[1]), np.maximum(ends[2], ends[3]))
-    lo = np.minimum(np.minimum(ends[0], ends[1]), np.minimum(ends[2], ends[3]))
-    return (a + (hi - b) / dt <= amax) & (a + (lo - b) / dt >= -dmax)
-
-
-def _bridge_rate_bounds(kappa):
-    """(e₁, e₂) per profile: |N − B| ≤ |B| e₁ + max(|x0|, |x1|) e₂ over a whole step, N the
-    bridged speed's rate in f (:func:`_bridge_within_limits`), e₁ = m^{-1/2} − 1,
-    e₂ = κ/(2m^{3/2}) (|g| ≤ ½, q ≥ m)."""
-    m = 1.0 - 0.25 * kappa
-    return 1.0 / np.sqrt(m) - 1.0, 0.5 * kappa / (m * np.sqrt(m))
-
-
-def _drop_bridges_past_limits(free, a, x0, x1, kappa, e1, e2, dt, amax, dmax):
-    """``free`` without the steps whose bridge would cross a limit (arrays broadcast to
-    ``free``'s shape; ``e1``, ``e2`` of :func:`_bridge_rate_bounds`).  The bound screens: only
-    the free steps it does not keep inside the limits get the exact test of
-    :func:`_bridge_within_limits` (the same answers, for a few steps)."""
-    beta = (np.abs(x1 - x0) * e1 + np.maximum(np.abs(x0), np.abs(x1)) * e2) / dt
-    idx = np.nonzero(free & ((a + beta > amax) | (a - beta < -dmax)))
-    if idx[0].size:
-        a, x0, x1, kappa, amax, dmax = (np.broadcast_to(v, free.shape)[idx]
-                                        for v in (a, x0, x1, kappa, amax, dmax))
-        ok = _bridge_within_limits(a, x0, x1, kappa, dt, amax, dmax)
-        free = free.copy()
-        free[tuple(i[~ok] for i in idx)] = False
-    return free
-
-
-def _bridge(x0, x1, kappa, f, const=None):
-    """The free-cruise speed bridge of a step (module doc): δ(f), dδ/df and ∫_0^f δ df'.
-
-    ``x0``, ``x1`` = σξ_k, σξ_{k+1} (m/s), ``kappa`` = 2(1 − ρ) in [0, 2], ``f`` in [0, 1].
-    With g = f − ½, q = κg² + m (m = 1 − κ/4), L = A + Bg (A = (x0 + x1)/2, B = x1 − x0):
-    ∫ L q^{-1/2} dg = A asinh(g√(κ/m))/√κ + (B/κ)√q, written stably for κ → 0 as
-    A g m^{-1/2} asinh(z)/z and B(g² − ¼)/(√q + 1) from g = −½.
-    ``const``: :func:`_bridge_constants` of ``kappa`` (the same values, computed once per
-    profile instead of per row).
-    """
-    g = f - 0.5
-    if const is None:
-        const = _bridge_constants(kappa)
-    m, sm, rk, ratio_low = const
-    q = kappa * g * g + m
-    rq = 1.0 / np.sqrt(q)
-    a = 0.5 * (x0 + x1)
-    b = x1 - x0
-    lin = a + b * g
-    delta = lin * (rq - 1.0)
-    d_delta = b * (rq - 1.0) - lin * kappa * g * rq ** 3
-    prim_g = a * g / sm * _asinh_ratio(g * rk)
-    prim_low = a * -0.5 / sm * ratio_low
-    integral_n = prim_g - prim_low + b * (g * g - 0.25) / (np.sqrt(q) + 1.0)
-    integral_l = x0 * f + 0.5 * b * f * f
-    return delta, d_delta, integral_n - integral_l
 
 #: Steps of noise drawn per block for the active profiles (bounded temporaries), and of a
 #: window; up to 64 profiles (with trips of 256 steps or more) get longer blocks and windows
@@ -268,273 +150,6 @@ class ProfileInputs:
     max_wait_steps: np.ndarray    # int
     horizon_steps: np.ndarray     # (P,) int >= 1
     noise: NoiseSource
-
-
-@dataclass
-class Profiles:
-    """Speed profiles on the grid tau_k = k dt, stored flat per profile (P profiles).
-
-    Profile p has ``n_steps_p[p]`` steps (until it is done or reaches its horizon): its step
-    values (``a_flat``, ``tau_flat``, ``mode_flat``) are at ``step_offset[p] + k`` and its grid
-    values (``s_flat``, ``v_flat``, ``noise_flat``, one more) at ``step_offset[p] + p + k``;
-    ``bridge_flat`` marks the free-cruise steps that carry the speed bridge (module doc) and
-    ``kappa`` is 2(1 − ρ) per profile.  The dense (K+1, P) / (K, P) views ``s_m``, ``v_mps``,
-    ``noise_mps``, ``a_mps2``, ``tau_s``, ``mode``, ``bridge`` (K = the longest horizon) are for
-    inspection and tests: after its last step a profile holds its end position at rest (a = 0,
-    tau = dt, mode cruise, no noise).
-    """
-
-    dt_s: float
-    n_steps_p: np.ndarray      # (P,) steps stored
-    horizon_steps: np.ndarray  # (P,) steps of each profile's horizon
-    step_offset: np.ndarray    # (P+1,)
-    s_flat: np.ndarray
-    v_flat: np.ndarray
-    a_flat: np.ndarray
-    tau_flat: np.ndarray       # (Δt as one read-only value where no step stops inside)
-    mode_flat: np.ndarray
-    noise_flat: np.ndarray     # σξ_k at the grid points (+0, read-only, if none is bridged)
-    bridge_flat: np.ndarray    # bool per step
-    kappa: np.ndarray          # (P,)
-    _dense: dict = field(default_factory=dict, repr=False)
-    _bconst: Optional[tuple] = field(default=None, repr=False)    # _bridge_constants(kappa)
-
-    @property
-    def n_steps(self) -> int:
-        """Steps of the longest horizon (the dense views' K)."""
-        return int(self.horizon_steps.max()) if self.horizon_steps.size else 0
-
-    def _view(self, name: str) -> np.ndarray:
-        if name not in self._dense:
-            P, K = len(self.n_steps_p), self.n_steps
-            p = np.repeat(np.arange(P), self.n_steps_p)
-            k = np.arange(len(p)) - self.step_offset[p]
-            last = self.step_offset[1:] + np.arange(P)      # each profile's last grid value
-            if name in ("s_m", "v_mps", "noise_mps"):
-                flat = {"s_m": self.s_flat, "v_mps": self.v_flat,
-                        "noise_mps": self.noise_flat}[name]
-                out = (np.broadcast_to(flat[last], (K + 1, P)).copy() if name == "s_m"
-                       else np.zeros((K + 1, P)))
-                out[0] = flat[self.step_offset[:-1] + np.arange(P)]
-                out[k + 1, p] = flat[self.step_offset[p] + p + k + 1]
-            else:
-                flat, fill, dtype = {"a_mps2": (self.a_flat, 0.0, float),
-                                     "tau_s": (self.tau_flat, self.dt_s, float),
-                                     "mode": (self.mode_flat, MODE_CRUISE, np.uint8),
-                                     "bridge": (self.bridge_flat, False, bool)}[name]
-                out = np.full((K, P), fill, dtype=dtype)
-                out[k, p] = flat
-            self._dense[name] = out
-        return self._dense[name]
-
-    s_m = property(lambda self: self._view("s_m"))          # (K+1, P)
-    v_mps = property(lambda self: self._view("v_mps"))      # (K+1, P)
-    a_mps2 = property(lambda self: self._view("a_mps2"))    # (K, P)
-    tau_s = property(lambda self: self._view("tau_s"))      # (K, P) duration of a_k in the step
-    mode = property(lambda self: self._view("mode"))        # (K, P) uint8 label of the step
-    noise_mps = property(lambda self: self._view("noise_mps"))  # (K+1, P) σξ_k
-    bridge = property(lambda self: self._view("bridge"))    # (K, P) bool
-
-    def evaluate(self, tau_s, p):
-        """(s, v, a, mode) of profiles ``p`` at local times ``tau_s`` (broadcast arrays).
-
-        Times are clipped to the profile's stored steps; beyond them its last state holds.
-        """
-        dt = self.dt_s
-        tau, p = np.broadcast_arrays(np.asarray(tau_s, float), np.asarray(p, dtype=np.int64))
-        n = self.n_steps_p[p]
-        tau = np.clip(tau, 0.0, n * dt)
-        k = np.clip(np.floor(tau / dt).astype(np.int64), 0, n - 1)
-        u = tau - k * dt
-        i = self.step_offset[p] + k
-        g = i + p
-        s0 = self.s_flat[g]
-        v0 = self.v_flat[g]
-        a = self.a_flat[i]
-        tk = self.tau_flat[i]
-        early = u < tk
-        # rows past the in-step instant τ'_k (at rest after a stop within the step): few
-        late = np.flatnonzero(~early) if early.ndim == 1 else None
-        if late is not None and 4 * late.size < early.size:
-            # each row's value is that of its branch below, computed for the rows it picks
-            s = s0 + v0 * u + 0.5 * a * u * u
-            v = np.maximum(v0 + a * u, 0.0)
-            acc = a                          # (a gathered copy of its own)
-            if late.size:
-                g1 = g[late] + 1
-                v1 = self.v_flat[g1]
-                s[late] = self.s_flat[g1] - v1 * (dt - u[late])
-                v[late] = v1
-                acc[late] = 0.0
-        else:
-            s1 = self.s_flat[g + 1]
-            v1 = self.v_flat[g + 1]
-            s = np.where(early, s0 + v0 * u + 0.5 * a * u * u, s1 - v1 * (dt - u))
-            v = np.where(early, np.maximum(v0 + a * u, 0.0), v1)
-            acc = np.where(early, a, 0.0)
-        br = self.bridge_flat[i] & early      # at u = Δt the grid value s_{k+1} holds
-        nb = np.count_nonzero(br)
-        if 2 * nb > br.size:
-            # most rows bridged (free cruise with speed noise): the bridge of every row
-            # (finite for any grid values) and a select, instead of gathers and scatters
-            if self._bconst is None:
-                self._bconst = _bridge_constants(self.kappa)
-            d, dd, integral = _bridge(self.noise_flat[g], self.noise_flat[g + 1],
-                                      self.kappa[p], u / dt,
-                                      tuple(c[p] for c in self._bconst))
-            s, v, acc = np.broadcast_arrays(s, v, acc)
-            s = np.where(br, s + integral * dt, s)
-            v = np.where(br, v + d, v)
-            acc = np.where(br, acc + dd / dt, acc)
-        elif nb:
-            j = np.flatnonzero(br)
-            gb = g[br]
-            d, dd, integral = _bridge(self.noise_flat[gb], self.noise_flat[gb + 1],
-                                      self.kappa[p[br]], u[br] / dt)
-            s, v, acc = (np.array(x, float, copy=True) for x in np.broadcast_arrays(s, v, acc))
-            s.flat[j] += integral * dt
-            v.flat[j] += d
-            acc.flat[j] += dd / dt
-        mode = self.mode_flat[i]
-        if late is not None:    # only rows past τ'_k can be at rest (a gathered copy of its own)
-            rest = late[(v[late] == 0.0) & (mode[late] == MODE_DECEL)]
-            mode[rest] = MODE_STOPPED
-            return s, v, acc, mode.astype(np.uint8, copy=False)
-        mode = np.where((v == 0.0) & (mode == MODE_DECEL) & ~early, MODE_STOPPED, mode)
-        return s, v, acc, mode.astype(np.uint8)
-
-    def time_at(self, p: int, s_target: float) -> float:
-        """First local time at which profile ``p`` reaches arc length ``s_target`` (inf: never
-        within its stored steps); :meth:`times_at` of one pair."""
-        return float(self.times_at(np.asarray([p], np.int64), np.asarray([s_target], float))[0])
-
-    def times_at(self, p, s_target) -> np.ndarray:
-        """First local times at which profiles ``p`` (n,) reach arc lengths ``s_target`` (n,)
-        (inf: never within their stored steps), all pairs at once.
-
-        The step is found by a binary search in each profile's own run of grid values; within
-        it, s(τ) is inverted in closed form (constant acceleration, then rest), in a bridged
-        step (:func:`_bridge`) by Newton's method from u = Δt/2 with bisection as a fallback
-        (:meth:`_bridged_times`)."""
-        p = np.asarray(p, np.int64).ravel()
-        x = np.asarray(s_target, float).ravel()
-        dt = self.dt_s
-        i0 = self.step_offset[p]
-        g0 = i0 + p                              # each profile's first grid value
-        n_col = self.n_steps_p[p] + 1
-        # leftmost i with s[i] >= x (numpy's searchsorted 'left' on the profile's column)
-        lo = np.zeros(p.size, np.int64)
-        hi = n_col.copy()
-        while True:
-            open_ = lo < hi
-            if not open_.any():
-                break
-            mid = lo + ((hi - lo) >> 1)
-            below = open_ & (self.s_flat[g0 + np.minimum(mid, n_col - 1)] < x)
-            above = open_ & ~below
-            lo = np.where(below, mid + 1, lo)
-            hi = np.where(above, mid, hi)
-        i = lo
-        out = np.zeros(p.size)
-        out[i >= n_col] = np.inf
-        r = np.flatnonzero((i > 0) & (i < n_col))
-        if not r.size:
-            return out
-        k = i[r] - 1
-        ks = i0[r] + k
-        gs = g0[r] + k
-        xr = x[r]
-        s0, v0 = self.s_flat[gs], self.v_flat[gs]
-        a, tk = self.a_flat[ks], self.tau_flat[ks]
-        br = self.bridge_flat[ks]
-        u = np.empty(r.size)
-        plain = np.flatnonzero(~br)
-        if plain.size:
-            s0p, v0p, ap, tkp, xp = s0[plain], v0[plain], a[plain], tk[plain], xr[plain]
-            s_tau = s0p + v0p * tkp + 0.5 * ap * tkp * tkp
-            d = xp - s0p
-            early = xp <= s_tau
-            with np.errstate(divide="ignore", invalid="ignore"):
-                root = np.sqrt(np.maximum(v0p * v0p + 2.0 * ap * d, 0.0))
-                den = v0p + root
-                u_early = np.where(den <= 0, 0.0, 2.0 * d / den)
-                v1 = self.v_flat[gs[plain] + 1]
-                u_late = np.where(v1 > 0, tkp + (xp - s_tau) / v1, dt)
-            u[plain] = np.minimum(np.maximum(np.where(early, u_early, u_late), 0.0), dt)
-        bridged = np.flatnonzero(br)
-        if bridged.size:
-            u[bridged] = self._bridged_times(gs[bridged], ks[bridged], p[r[bridged]],
-                                             xr[bridged])
-        out[r] = k * dt + u
-        return out
-
-    def _bridged_times(self, g, i, p, s_target) -> np.ndarray:
-        """Times into bridged steps (grid index ``g``, step index ``i``, profile ``p``) at
-        which s reaches ``s_target``: Newton on s(u) from u = Δt/2 (s is increasing and smooth
-        there, v > 0), bisection as a fallback; per element the scalar iteration, its
-        operations in its order (so the result does not depend on the other elements)."""
-        dt = self.dt_s
-        s0, v0, a = self.s_flat[g], self.v_flat[g], self.a_flat[i]
-        x0, x1 = self.noise_flat[g], self.noise_flat[g + 1]
-        kap = self.kappa[p]
-        n = len(g)
-        lo = np.zeros(n)
-        hi = np.full(n, dt)
-        u = np.full(n, 0.5 * dt)
-        tol = 1e-12 * np.where(np.abs(s_target) > 1.0, np.abs(s_target), 1.0)
-        act = np.arange(n)
-        for _ in range(60):
-            if not act.size:
-                break
-            ua = u[act]
-            d, integral = _bridge_exact(x0[act], x1[act], kap[act], ua / dt)
-            a_ = a[act]
-            su = s0[act] + v0[act] * ua + 0.5 * a_ * ua * ua + integral * dt
-            vu = v0[act] + a_ * ua + d
-            err = su - s_target[act]
-            conv = np.abs(err) <= tol[act]
-            low = err < 0
-            lo_a = np.where(low, ua, lo[act])
-            hi_a = np.where(low, hi[act], ua)
-            mid = 0.5 * (lo_a + hi_a)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                nxt = np.where(vu > 0, ua - err / vu, mid)
-            u_new = np.where((lo_a < nxt) & (nxt < hi_a), nxt, mid)
-            go = ~conv
-            lo[act] = np.where(go, lo_a, lo[act])
-            hi[act] = np.where(go, hi_a, hi[act])
-            u[act] = np.where(go, u_new, ua)
-            act = act[go & ~(hi_a - lo_a < 1e-12 * dt)]
-        return u
-
-
-def _bridge_exact(x0, x1, kappa, f):
-    """:func:`_bridge` for :meth:`Profiles.times_at`'s Newton steps, bit for bit the same as
-    the one-float form written with the math module (kept as the oracle in
-    tests/scene/test_truth_kinematics.py): the same operations in the same order, asinh from
-    the math module."""
-    g = f - 0.5
-    m = 1.0 - 0.25 * kappa
-    q = kappa * g * g + m
-    rq = 1.0 / np.sqrt(q)
-    a, b = 0.5 * (x0 + x1), x1 - x0
-    lin = a + b * g
-    rk = np.sqrt(kappa / m)
-    sm = np.sqrt(m)
-
-    def prim(gg):
-        z = gg * rk
-        ratio = 1.0 - z * z / 6.0
-        big = np.flatnonzero(~(np.abs(z) < 1e-4))
-        if big.size:
-            zb = z[big].tolist()
-            ratio[big] = np.asarray([math.asinh(v) for v in zb]) / z[big]
-        return a * gg / sm * ratio
-
-    half = np.full_like(g, -0.5)
-    integral = (prim(g) - prim(half) + b * (g * g - 0.25) / (np.sqrt(q) + 1.0)
-                - (x0 * f + 0.5 * b * f * f))
-    return lin * (rq - 1.0), integral
 
 
 def _flatten(P: int, dt: float, v0: np.ndarray, horizon: np.ndarray, kappa: np.ndarray,
@@ -808,9 +423,9 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
     rho = np.asarray(inp.noise_rho, float)
     kappa = 2.0 * (1.0 - rho)
     rho_c = np.sqrt(1.0 - rho * rho)
-    # ∫_0^1 δ df = (σξ_k + σξ_{k+1})/2 · c1 (_bridge at f = 1: q = 1, the B term is 0)
-    c1 = _bridge(np.ones(P), np.ones(P), kappa, 1.0)[2]
-    e1_all, e2_all = _bridge_rate_bounds(kappa)
+    # ∫_0^1 δ df = (σξ_k + σξ_{k+1})/2 · c1 (the bridge at f = 1: q = 1, B term 0)
+    c1 = speed_bridge.bridge(np.ones(P), np.ones(P), kappa, 1.0)[2]
+    e1_all, e2_all = speed_bridge.rate_bounds(kappa)
     amax_all, dmax_all = inp.max_accel_mps2, inp.max_decel_mps2
     sigma_all, p_stop_all = inp.speed_noise_mps, inp.p_stop
     first_seg, last_seg = inp.seg_offset[:-1], inp.seg_offset[1:] - 1
@@ -1002,11 +617,11 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
             if noise:
                 free = ((raw <= amx) & (raw >= -dmx) & (v_des == noisy) & (sig > 0)
                         & (np.abs(V - (target + x0)) <= 1e-9 * np.maximum(V, 1.0))
-                        & (np.minimum(V, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
-                                                                              np.abs(x1)))
+                        & (np.minimum(V, v_des)
+                           >= speed_bridge.GUARD * np.maximum(np.abs(x0), np.abs(x1)))
                         & (step > 0))
-                free = _drop_bridges_past_limits(free, raw, x0, x1, c["kappa"], c["e1"],
-                                                 c["e2"], dt, amx, dmx)
+                free = speed_bridge.drop_past_limits(free, raw, x0, x1, c["kappa"], c["e1"],
+                                                     c["e2"], dt, amx, dmx)
                 bridged = np.where(free, 0.5 * (x0 + x1) * c["c1"] * dt, 0.0)
             else:
                 free = np.zeros(V.shape, bool)
@@ -1267,11 +882,11 @@ def simulate_profiles(inp: ProfileInputs, dt_s: float, progress: bool = False,
         x0, x1 = sigma * xi_prev, sigma * xi
         free = (tr & (label == MODE_CRUISE) & (v_des == noisy) & (sigma > 0)
                 & ~stops & (np.abs(v - (target + x0)) <= 1e-9 * np.maximum(v, 1.0))
-                & (np.minimum(v, v_des) >= _BRIDGE_GUARD * np.maximum(np.abs(x0),
-                                                                      np.abs(x1)))
+                & (np.minimum(v, v_des)
+                   >= speed_bridge.GUARD * np.maximum(np.abs(x0), np.abs(x1)))
                 & (kk > 0))
-        free = _drop_bridges_past_limits(free, raw, x0, x1, kappa[ids], e1_all[ids],
-                                         e2_all[ids], dt, amax, dmax)
+        free = speed_bridge.drop_past_limits(free, raw, x0, x1, kappa[ids], e1_all[ids],
+                                             e2_all[ids], dt, amax, dmax)
         if free.any():
             s_end = np.where(free, s_end + 0.5 * (x0 + x1) * c1[ids] * dt, s_end)
         still = state == STOPPED

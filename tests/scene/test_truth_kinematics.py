@@ -180,8 +180,8 @@ def test_road_frames_of_all_routes_at_once_are_each_routes_own():
 
 
 def _bridge_scalar(x0, x1, kappa, f):
-    """The speed bridge (``motion._bridge``) for one float, with the math module: the form the
-    one-pair inversion used, which ``motion._bridge_exact`` must match bit for bit."""
+    """The speed bridge (``speed_bridge.bridge``) for one float, with the math module: the form the
+    one-pair inversion used, which ``speed_bridge.bridge_exact`` must match bit for bit."""
     g = f - 0.5
     m = 1.0 - 0.25 * kappa
     q = kappa * g * g + m
@@ -323,13 +323,13 @@ def test_bridge_with_per_profile_constants_is_the_bridge():
     """Profiles.evaluate passes the κ-only parts of the speed bridge computed once per
     profile; the bridge (δ, dδ/df, its integral) is the one computed row by row, bit for bit,
     including κ = 0 (independent noise) and κ near 2."""
-    from gmtiflow.scene.motion import _bridge, _bridge_constants
+    from gmtiflow.scene.speed_bridge import bridge, bridge_constants
     g = np.random.default_rng(12)
     kappa_p = np.concatenate([[0.0, 2.0, 1e-9], g.uniform(0.0, 2.0, 20)])
     p = g.integers(0, kappa_p.size, 5000)
     x0, x1, f = g.normal(0, 0.5, 5000), g.normal(0, 0.5, 5000), g.uniform(0, 1, 5000)
-    want = _bridge(x0, x1, kappa_p[p], f)
-    got = _bridge(x0, x1, kappa_p[p], f, tuple(c[p] for c in _bridge_constants(kappa_p)))
+    want = bridge(x0, x1, kappa_p[p], f)
+    got = bridge(x0, x1, kappa_p[p], f, tuple(c[p] for c in bridge_constants(kappa_p)))
     for w, o in zip(want, got):
         assert np.isfinite(w).all() and w.tobytes() == o.tobytes()
 
