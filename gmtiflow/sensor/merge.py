@@ -72,7 +72,6 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from gmtiflow import rng
 from gmtiflow.sensor import fastnp
@@ -391,6 +390,7 @@ def _near_pairs_tree(pts: np.ndarray, rank: np.ndarray, radius: float):
         return z, z, np.zeros(0)
     span = np.ptp(pts, axis=0).max()
     sep = span + 2.0 * radius + 1.0  # larger than any within-dwell distance + the radius
+    from scipy.spatial import cKDTree     # imported here: scipy.spatial is slow to import
     tree = cKDTree(np.column_stack([pts, rank * sep]))
     pairs = tree.query_pairs(radius * (1.0 + 1e-9) + 1e-12, output_type="ndarray")
     if len(pairs) == 0:
