@@ -68,6 +68,9 @@ def test_a_run_without_tracker_and_metrics_does_not_load_them(tmp_path):
                                                 "gmtiflow.evaluate.stage"))] == []
     # The default scene routes its vehicles on RoadMap.arcs(): networkx (~0.15 s) stays out.
     assert [m for m in modules if m.split(".")[0] == "networkx"] == []
+    # Merging builds its kd-tree only when many reports share a range: not in this scene, so
+    # scipy.spatial (qhull, distance, the kd-tree) is not imported.
+    assert [m for m in modules if m.startswith("scipy.spatial")] == []
 
 
 def test_checking_a_run_files_columns_loads_no_simulation(tmp_path):
