@@ -137,12 +137,15 @@ def dwell_table(run: SensorRun, poses: Poses) -> Table:
 
 def _mdv_per_dwell(cfg, poses, beam, el_rad):
     """The clutter notch's half-width per dwell (m/s): ``mdv_mps``, or with ``auto``: with STAP
-    half the main-beam clutter spread across the 3-dB beam (:func:`gain.mainlobe_clutter_halfwidth_mps`,
-    Δu = half a beamwidth in sine space).  Without STAP the Doppler filter must reject the
+    half the main-beam clutter spread across the 3-dB beam
+    (:func:`gain.mainlobe_clutter_halfwidth_mps`, Δu = half a beamwidth in sine space, v_p the
+    platform's true velocity).  Without STAP the Doppler filter must reject the
     whole main-lobe clutter band, to the first nulls (Δu = the footprint, one beamwidth): its
     half-width, twice the STAP value, centred on the beam centre's clutter."""
     if not cfg.mdv_auto:     # a fixed width (without STAP, 0 = no clutter: the paper's case)
         return np.full(len(beam), float(cfg.mdv_mps))
     half = (0.5 if cfg.stap else cfg.footprint_beamwidths) * cfg.beamwidth_sine
-    return gain.mainlobe_clutter_halfwidth_mps(poses.vel, beam, el_rad, poses.b, poses.h,
-                                                poses.u, half)
+    # the true platform velocity, as in every range rate (map rates are (R + z)/R slower)
+    vel = geometry.true_velocity(poses.vel, poses.pos[2], poses.radius_m)
+    return gain.mainlobe_clutter_halfwidth_mps(vel, beam, el_rad, poses.b, poses.h, poses.u,
+                                                half)

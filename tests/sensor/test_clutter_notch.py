@@ -7,14 +7,19 @@ import pytest
 from gmtiflow.sensor import gain, scan
 from gmtiflow.sensor.config import SensorConfig
 from gmtiflow.sensor.outcome import Outcome
-from sensor_fakes import LevelPlatform, LineFleet, ground_angles, run, still
+from sensor_fakes import RADIUS_M, LevelPlatform, LineFleet, ground_angles, run, still
+
+# The platform flies at 6 km: its states hold map rates, its true speed is (R + z)/R faster
+# (gmtiflow.sensor.geometry.true_velocity), and the clutter spread follows the true speed.
+TRUE_PER_MAP = 1.0 + 6000.0 / RADIUS_M
 
 
 @pytest.mark.parametrize("speed, aperture", [(200.0, 1.2), (100.0, 1.2), (200.0, 0.6),
                                              (0.0, 1.2), (300.0, 1.2)])
 def test_auto_mdv_is_half_the_main_beam_clutter_spread(speed, aperture):
     """Side-looking, level: ½ v_p cos(el) k λ / d_a at every scan angle (el of the range
-    window's middle): 2.44 m/s for the default at 200 m/s, ∝ speed, ∝ 1/aperture."""
+    window's middle, v_p the true speed): 2.44 m/s for the default at 200 m/s, ∝ speed,
+    ∝ 1/aperture.  (Before 2026-11-28 the map rate: 0.094 % less at 6 km.)"""
     cfg = SensorConfig(mdv_mps="auto", aperture_m=aperture)
     assert cfg.problems() == []
     plat = LevelPlatform(speed_mps=speed)
@@ -22,8 +27,8 @@ def test_auto_mdv_is_half_the_main_beam_clutter_spread(speed, aperture):
     d = out["dwells"]
     r_mid = 0.5 * (cfg.range_min_m + cfg.range_max_m)
     cos_el = math.cos(ground_angles(6000.0, slant_m=r_mid)[1])     # round earth
-    expected = 0.5 * speed * cos_el * cfg.beamwidth_sine
-    assert np.allclose(d["mdv_mps"], expected, rtol=1e-6, atol=1e-12)
+    expected = 0.5 * speed * TRUE_PER_MAP * cos_el * cfg.beamwidth_sine
+    assert np.allclose(d["mdv_mps"], expected, rtol=1e-7, atol=1e-12)
     if speed == 200.0 and aperture == 1.2:
         assert 2.4 < d["mdv_mps"][0] < 2.5
 
@@ -60,8 +65,9 @@ def test_no_stap_keeps_main_lobe_clutter():
     cfg = SensorConfig(stap=False, mdv_mps="auto")
     out = run(cfg, still([[0.0, 0.0]] * 20), duration_s=20.0)
     d = out["dwells"]
-    expected = 200.0 * math.cos(ground_angles(6000.0, slant_m=28000.0)[1]) * cfg.beamwidth_sine
-    assert np.allclose(d["mdv_mps"], expected, rtol=1e-6)
+    expected = (200.0 * TRUE_PER_MAP * math.cos(ground_angles(6000.0, slant_m=28000.0)[1])
+                * cfg.beamwidth_sine)
+    assert np.allclose(d["mdv_mps"], expected, rtol=1e-7)
     lk = out["looks"]
     seen = lk["outcome"] != Outcome.OUTSIDE_FOV
     assert seen.sum() > 20 and np.all(lk["outcome"][seen] == Outcome.DOPPLER_BLIND)
