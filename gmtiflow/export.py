@@ -31,7 +31,9 @@ Adapting the tables (docs/exports.md has the user-facing version):
   dwells' ``mdv_mps``; false-alarm density J26 = ``clutter.fov_density_per_km2`` (per dwell)
   when > 0, else No Statement; Pd J25 only when the user states one (``export.pd``): it is
   defined for a 10 m² target and a run has no single value; nominal accuracies J21–J23 = medians
-  of the written reports' σ (each sensor's own) when ``export.nominal_accuracies``.
+  of the written reports' σ (each sensor's own) when ``export.nominal_accuracies``; bounding
+  area J6–J13 = the writer's box around the dwells, or for a run without dwells the box around
+  the scene origin and the /platform positions (:func:`scene_bounding_area`).
 * **GeoJSON**: truth and road nodes get ``lat_deg lon_deg height_m`` through
   :func:`gmtiflow.frames.enu_to_geodetic` with the run's origin; clutter regions of the run's
   config are drawn as polygons (circles and rings as 72-gons; a ring is its outer circle with
@@ -391,7 +393,31 @@ def meta_for(cfg: ExportConfig, run: RunTables) -> dict:
         meta["pd"] = float(cfg.pd)
     # J21-J23: the writer takes the medians of the reports it writes, each sensor's own
     meta["nominal_sigmas_from_reports"] = bool(cfg.nominal_accuracies)
+    area = scene_bounding_area(run)
+    if area is not None:
+        meta["bounding_area"] = area
     return meta
+
+
+def scene_bounding_area(run: RunTables) -> Optional[list]:
+    """J6-J13 of a run whose dwells give no position (a run without dwells), else None (the
+    writer's box around the dwells and detections).
+
+    The box around the scene origin (where the sensor looks) and the /platform positions
+    (where it flew), as the writer's box spans the dwell area centres and platform positions:
+    the job's area is where the scene is, not 0 deg N 0 deg E."""
+    dw = run.tables.get("dwells", {})
+    for lat, lon in (("area_lat_deg", "area_lon_deg"), ("platform_lat_deg", "platform_lon_deg")):
+        if lat in dw and lon in dw and np.any(np.isfinite(np.asarray(dw[lat], float))
+                                              & np.isfinite(np.asarray(dw[lon], float))):
+            return None
+    plat = run.tables.get("platform", {})
+    lats = np.r_[run.origin.lat_deg, np.asarray(plat.get("lat_deg", []), float)]
+    lons = np.r_[run.origin.lon_deg, np.asarray(plat.get("lon_deg", []), float)]
+    ok = np.isfinite(lats) & np.isfinite(lons)
+    s, n = float(lats[ok].min()), float(lats[ok].max())
+    w, e = float(lons[ok].min()), float(lons[ok].max())
+    return [(n, w), (n, e), (s, e), (s, w)]
 
 
 # ---------------------------------------------------------------------------------------------

@@ -84,7 +84,8 @@ def resolve_meta(meta: Mapping, dwells: Mapping, detections: Mapping) -> dict:
     """The meta dict with defaults applied and the data-derived defaults filled in.
 
     ``bounding_area`` None -> the box (clockwise from the north-west corner) around the dwell
-    area centres, platform positions and detections; ``revisit_interval_s`` None -> median time
+    area centres, platform positions and detections (ValueError when there is none: the
+    caller states the area of a run without dwells); ``revisit_interval_s`` None -> median time
     between revisit starts (0 for a single revisit); ``mdv_mps`` None -> median of the dwells'
     ``mdv_mps`` (No Statement if they have none); with ``nominal_sigmas_from_reports``, J21-J23
     left None -> medians of the reports' ``sigma_range_m``, ``sigma_azimuth_rad`` (in degrees)
@@ -100,11 +101,14 @@ def resolve_meta(meta: Mapping, dwells: Mapping, detections: Mapping) -> dict:
                                np.asarray(dwells.get("platform_lon_deg", []), float),
                                np.asarray(detections.get("lon_deg", []), float)])
         ok = np.isfinite(lats) & np.isfinite(lons)
-        if ok.any():
-            s, n = float(lats[ok].min()), float(lats[ok].max())
-            w, e = float(lons[ok].min()), float(lons[ok].max())
-        else:
-            s = n = w = e = 0.0
+        if not ok.any():
+            # 0 deg N 0 deg E would be a real place (the Gulf of Guinea) to every consumer
+            raise ValueError("4607 meta: bounding_area is None and the tables have no dwell, "
+                             "platform or detection position to put the box around (a run "
+                             "without dwells?): pass meta['bounding_area'], the job's area as "
+                             "4 (lat, lon) corners")
+        s, n = float(lats[ok].min()), float(lats[ok].max())
+        w, e = float(lons[ok].min()), float(lons[ok].max())
         m["bounding_area"] = [(n, w), (n, e), (s, e), (s, w)]
     if m["revisit_interval_s"] is None:
         m["revisit_interval_s"] = _median_revisit_s(dwells)
@@ -249,7 +253,9 @@ def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nd
             metas.append(m)
             continue
         sel = sensor == s
-        ms = resolve_meta(meta, {k: v[sel] for k, v in dw.items()},
+        # a sensor without dwells sends no packet; its area is the file's, not made up
+        ms = resolve_meta(meta if sel.any() else dict(meta, bounding_area=m["bounding_area"]),
+                          {k: v[sel] for k, v in dw.items()},
                           {k: v[sel[row]] for k, v in det.items()})
         metas.append(sensor_meta(ms, s, n_sensors))
 

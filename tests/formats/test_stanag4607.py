@@ -491,12 +491,38 @@ def test_writer_rejects_bad_input():
         s4607.encode_4607(dwells, bad, META)
 
 
+def test_a_job_area_is_never_made_up_at_0_n_0_e():
+    """No dwell or detection position to put a box around (a run without dwells): the writers
+    ask for ``bounding_area`` instead of sending 0 deg N 0 deg E (the Gulf of Guinea)."""
+    from gmtiflow.formats import xmldoc
+    for encode in (s4607.encode_4607, xmldoc.encode_xml):
+        with pytest.raises(ValueError, match="bounding_area"):
+            encode({}, {}, META)
+    dwells, dets = synthetic.tables(3, 0)
+    for c in ("area_lat_deg", "platform_lat_deg"):
+        dwells[c] = np.full(3, np.nan)
+    with pytest.raises(ValueError, match="bounding_area"):
+        s4607.encode_4607(dwells, dets, META)
+
+
+def test_a_sensor_without_dwells_gets_the_files_area():
+    """Two sensors, the second without dwells (sensor ids 0 and 2: sensor 1 has none): no job
+    of the file is at 0 deg N 0 deg E."""
+    dwells, dets = synthetic.tables(4, 20)
+    dwells["sensor_id"] = np.array([0, 2, 0, 2])
+    r = s4607.read_4607(s4607.encode_4607(dwells, dets, META))
+    assert np.all(np.abs(r["jobs"]["a_lat_deg"]) > 1.0)
+
+
 def test_no_detections_and_empty_tables():
     dwells, dets = synthetic.tables(3, 0)
     r = s4607.read_4607(s4607.encode_4607(dwells, dets, META))
     assert r["dwells"]["target_count"].tolist() == [0, 0, 0]
-    r = s4607.read_4607(s4607.encode_4607({}, {}, META))
+    area = [(43.8, 7.3), (43.8, 7.5), (43.7, 7.5), (43.7, 7.3)]
+    r = s4607.read_4607(s4607.encode_4607({}, {}, dict(META, bounding_area=area)))
     assert len(r["dwells"]["dwell_id"]) == 0 and len(r["missions"]["packet"]) == 1
+    assert r["jobs"]["a_lat_deg"][0] == pytest.approx(43.8, abs=1e-7)
+    assert 2 not in r["segments"]["seg_type"].tolist()            # no Dwell segment
     assert s4607.decode_4607(b"")["packets"]["offset"].size == 0
     # an empty file is not a 4607 file (it would convert to an empty run file posing as one)
     with pytest.raises(FormatError, match="empty"):

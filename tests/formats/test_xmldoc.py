@@ -135,5 +135,7 @@ def test_malformed_and_invalid_documents_name_line_and_column(tmp_path):
 
 
 def test_empty_run():
-    r = xmldoc.read_xml(xmldoc.encode_xml({}, {}, META))
+    area = [(43.8, 7.3), (43.8, 7.5), (43.7, 7.5), (43.7, 7.3)]
+    r = xmldoc.read_xml(xmldoc.encode_xml({}, {}, dict(META, bounding_area=area)))
     assert r["dwells"] == {} and len(r["detections"]["det_id"]) == 0
+    assert r["meta"]["bounding_area"] == area

@@ -1,0 +1,68 @@
+"""Exports of runs with nothing in them, checked with software we did not write: a scene too
+short for one scan (``scene.duration_s=0.2``: no dwell, no detection, no track), which the
+CLI accepts and exports."""
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from gmtiflow import formats, pipeline, store
+from tests.conftest import compose_app
+from gmtiflow.formats import stanag4607 as s4607
+from tests.external_tools import TSHARK, needs_tshark, tshark_fields
+
+EMPTY = ["scene.duration_s=0.2", "progress=false", "report=none", "export=all",
+         "export.csv_tables=[detections,dwells,truth,tracks]", "cache.enabled=false"]
+
+
+@pytest.fixture(scope="module")
+def empty_run(tmp_path_factory):
+    """run.h5 of a scene shorter than one scan (14 dwells x 32 ms): no dwell at all."""
+    run = pipeline.run(compose_app(EMPTY), tmp_path_factory.mktemp("empty"))
+    assert len(store.read_table(run, "dwells")["dwell_id"]) == 0
+    return run
+
+
+def _scene_box(run):
+    """(south, north, west, east) of the scene origin and the platform's positions."""
+    with store.open_run(run) as f:
+        attrs = store.read_attrs(f)
+    plat = store.read_table(run, "platform")
+    lat = np.r_[attrs["origin_lat_deg"], plat["lat_deg"]]
+    lon = np.r_[attrs["origin_lon_deg"], plat["lon_deg"]]
+    return lat.min(), lat.max(), lon.min(), lon.max()
+
+
+def test_4607_of_a_run_without_dwells_has_no_dwell_and_its_job_area_is_the_scene(empty_run):
+    got = formats.read_4607(empty_run.parent / "detections.4607")
+    assert len(got["dwells"]["dwell_id"]) == 0 and len(got["detections"]["det_id"]) == 0
+    assert 2 not in got["segments"]["seg_type"].tolist()          # no Dwell segment
+    s, n, w, e = _scene_box(empty_run)
+    jobs = got["jobs"]
+    q = 180.0 / 2**32                                                # SA32 / BA32 quanta
+    for c in "abcd":
+        lat, lon = jobs[f"{c}_lat_deg"][0], jobs[f"{c}_lon_deg"][0]
+        assert s - 2 * q <= lat <= n + 2 * q and w - 4 * q <= lon <= e + 4 * q, (c, lat, lon)
+    lats = [jobs[f"{c}_lat_deg"][0] for c in "abcd"]
+    assert max(lats) - min(lats) > 0.1        # the platform (30 km south) and the town
+    xml = formats.read_xml(empty_run.parent / "detections.xml")["meta"]["bounding_area"]
+    assert [p[0] for p in xml] == pytest.approx(lats, abs=1e-6)
+
+
+@needs_tshark
+def test_tshark_finds_nothing_wrong_in_the_4607_of_a_run_without_dwells(empty_run):
+    path = empty_run.parent / "detections.4607"
+    out = subprocess.run([TSHARK, "-r", str(path), "-q", "-z", "expert"], capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert not any(w in out.stdout for w in ("Errors", "Warns", "Malformed")), out.stdout
+    # the area tshark decodes is ours, and is where the scene is (not 0 deg N 0 deg E)
+    jobs = formats.read_4607(path)["jobs"]
+    fields = [f"s4607.job.ba.{ll}.{c}" for c in "abcd" for ll in ("lat", "lon")]
+    got = tshark_fields(path, *fields)
+    for c in "abcd":
+        assert got[f"s4607.job.ba.lat.{c}"].tolist() == s4607.enc_sa32(jobs[f"{c}_lat_deg"]).tolist()
+        assert got[f"s4607.job.ba.lon.{c}"].tolist() == s4607.enc_ba32(jobs[f"{c}_lon_deg"]).tolist()
+        assert np.all(got[f"s4607.job.ba.lat.{c}"] != 0)
