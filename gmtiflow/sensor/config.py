@@ -26,6 +26,12 @@ K_BOLTZMANN = 1.380649e-23
 
 SNR_FORMS = ("radar_equation", "reference")
 
+FREQ_RANGE_HZ = (3.0e7, 3.0e11)
+"""Carrier frequencies ``freq_hz`` accepts: VHF to millimetre wave (IEEE radar bands, λ 10 m
+to 1 mm).  Airborne GMTI radars work from UHF (foliage-penetrating, ~0.4 GHz) to Ku/Ka band
+(~17 / 35 GHz), most at X band (10 GHz); a value outside is a unit slip (``freq_hz=10`` for
+10 GHz), which used to be blamed on ``aperture_m`` (a beamwidth λ/d_a of 2.5e7)."""
+
 
 @dataclass
 class RcsConfig:
@@ -106,6 +112,21 @@ class MergeConfig:
 
     def problems(self) -> List[Problem]:
         return schema.in_range(self, "threshold", 0.0, 1.0, lo_open=True)
+
+
+def _freq_problems(freq_hz) -> List[Problem]:
+    """``freq_hz`` outside :data:`FREQ_RANGE_HZ` (when it is a positive number at all: the
+    positivity check names it otherwise), with the GHz reading when that one is in range."""
+    lo, hi = FREQ_RANGE_HZ
+    if not (isinstance(freq_hz, (int, float)) and math.isfinite(freq_hz) and freq_hz > 0) \
+            or lo <= freq_hz <= hi:
+        return []
+    hint = ""
+    if lo <= freq_hz * 1e9 <= hi:
+        hint = f"; in hertz: {freq_hz:g} GHz = {freq_hz * 1e9:g}"
+    return [Problem("freq_hz", f"must be a radar carrier frequency in [{lo:g}, {hi:g}] Hz "
+                               f"(VHF to millimetre wave; GMTI radars use ~0.4-35 GHz, X band "
+                               f"10e9), got {freq_hz!r}{hint}")]
 
 
 @dataclass
@@ -311,6 +332,7 @@ class SensorConfig:
         if _value(self.snr_form) not in SNR_FORMS:
             p.append(Problem("snr_form", f"must be one of {', '.join(SNR_FORMS)}, got "
                                          f"{self.snr_form!r}"))
+        p += _freq_problems(self.freq_hz)
         if p:  # the cross-field checks below need sane numbers
             return p
         if self.pri_s is not None:
@@ -326,7 +348,8 @@ class SensorConfig:
                                              f"{self.pulse_width_s * self.bandwidth_hz!r}"))
         if self.beamwidth_sine >= 1.0:
             p.append(Problem("aperture_m", f"beamwidth k*lambda/d_a = {self.beamwidth_sine:.3g} "
-                                           "must be < 1 (aperture too small for the wavelength)"))
+                                           f"must be < 1 (aperture too small for the wavelength "
+                                           f"lambda = c/freq_hz = {self.wavelength_m:.3g} m)"))
         if self.stap and not self.mdv_auto and self.mdv_mps <= 0:
             p.append(Problem("mdv_mps", f"must be > 0 when stap is true, got {self.mdv_mps!r}"))
         if self.stap and not self.mdv_auto and self.blind_speed_mps is not None and \

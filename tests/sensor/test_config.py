@@ -77,3 +77,23 @@ def test_derived_quantities():
 def test_an_unknown_dwell_mode_is_refused_by_the_schedule():
     with pytest.raises(ValueError, match="dwell_mode"):
         scan.build_schedule(SensorConfig(), 10.0, "fast")
+
+
+@pytest.mark.parametrize("freq_hz", [10.0, 1e6, 2e7, 1e12, 3.1e11])
+def test_a_carrier_frequency_outside_radar_bands_is_refused_by_its_own_key(freq_hz):
+    # sensor.freq_hz=10 (GHz meant) used to be blamed on aperture_m (the beamwidth λ/d_a > 1)
+    problems = replace(SensorConfig(), freq_hz=freq_hz).problems()
+    assert [p.key for p in problems] == ["freq_hz"]
+    assert "3e+07" in problems[0].message and "3e+11" in problems[0].message
+
+
+def test_a_frequency_given_in_ghz_gets_a_hint():
+    (problem,) = replace(SensorConfig(), freq_hz=10.0).problems()
+    assert "10 GHz = 1e+10" in problem.message
+
+
+@pytest.mark.parametrize("freq_hz", [3e7, 4.5e8, 1e10, 3.5e10, 3e11])
+def test_carrier_frequencies_of_radar_bands_are_accepted(freq_hz):
+    # the other settings follow the band (VHF needs a wider aperture than 1.2 m, mm-wave a
+    # longer revisit): only freq_hz itself is checked here
+    assert "freq_hz" not in keys(replace(SensorConfig(), freq_hz=freq_hz, aperture_m=12.0))
