@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import logging
 import math
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -42,6 +43,8 @@ from gmtiflow.scene.vehicles_config import VehiclesConfig, VehiclesGroupConfig
 from gmtiflow.schema import MAX_MAGNITUDE, Problem, positive
 from gmtiflow.sensor.clutter import ClutterConfig
 from gmtiflow.sensor.config import SensorConfig
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -298,6 +301,8 @@ def to_object(cfg: DictConfig) -> AppConfig:
                                                          for p in unknown))
     obj, file_path = resolved(obj)
     validate(obj, vehicles_file=file_path)
+    for message in late_start_warnings(obj, vehicles_file=file_path):
+        log.warning("%s", message)
     return obj
 
 
@@ -405,6 +410,37 @@ def validate(obj: AppConfig, vehicles_file: Optional[str] = None) -> None:
     if found:
         lines = [f"{_file_key(p.key, vehicles_file)}: {p.message}" for p in found]
         raise ConfigError("invalid config: " + "; ".join(lines))
+
+
+_LATE_LISTED_SHOWN = 5
+"""Late vehicles named in the warning (the rest are counted)."""
+
+
+def late_start_warnings(obj: AppConfig, vehicles_file: Optional[str] = None) -> List[str]:
+    """Warnings (not errors) for vehicles that start after the scene's end and so never
+    appear: listed ones (a vehicles file reused for a shorter scene is a legitimate use) named
+    by index and name, in ``vehicles_file`` when they came from one, and a random fleet whose
+    ``start_time_max_s`` is after the end, with the share of it that never appears."""
+    duration_s = float(obj.scene.duration_s)
+    out = []
+    late = obj.vehicles.starting_after(duration_s)
+    if late:
+        where = f"vehicles.file {vehicles_file}" if vehicles_file else "vehicles.vehicles"
+        shown = ", ".join(f"vehicles[{i}] {name!r} at {t:g} s"
+                          for i, name, t in late[:_LATE_LISTED_SHOWN])
+        more = len(late) - _LATE_LISTED_SHOWN
+        out.append(f"{where}: {len(late)} vehicle(s) start after the scene's end "
+                   f"(scene.duration_s = {duration_s:g} s) and never appear: {shown}"
+                   + (f" and {more} more" if more > 0 else ""))
+    random = obj.vehicles.random
+    share = random.share_starting_after(duration_s)
+    if share > 0:
+        amount = "all" if share == 1.0 else f"{100 * share:.2g}%"
+        out.append(f"vehicles.random.start_time_max_s = {random.start_time_max_s:g} s is after "
+                   f"the scene's end (scene.duration_s = {duration_s:g} s): {amount} of the "
+                   f"random vehicles (start times uniform in [{random.start_time_min_s:g}, "
+                   f"{random.start_time_max_s:g}] s) start after it and never appear")
+    return out
 
 
 _LISTED = "vehicles.vehicles["

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 from gmtiflow import schema
 
@@ -166,6 +166,17 @@ class RandomFleetSpec:
                                                           f"got {list(self.position_noise_m)!r}"))
         return out
 
+    def share_starting_after(self, duration_s: float) -> float:
+        """The share of the fleet whose start time, uniform in [start_time_min_s,
+        start_time_max_s], is after ``duration_s`` (0 without vehicles): valid, but those
+        vehicles never appear in a scene that short."""
+        lo, hi = float(self.start_time_min_s), float(self.start_time_max_s)
+        if self.count <= 0 or hi <= duration_s:
+            return 0.0
+        if lo >= duration_s:        # lo == duration_s: all but a start at the last instant
+            return 1.0
+        return (hi - duration_s) / (hi - lo)
+
 
 @dataclass
 class VehiclesConfig:
@@ -191,6 +202,13 @@ class VehiclesConfig:
             seen.add(spec.name)
         out += schema.prefixed("random", self.random.problems())
         return out
+
+    def starting_after(self, duration_s: float) -> List[Tuple[int, str, float]]:
+        """(index, name, start_time_s) of the listed vehicles that start after ``duration_s``:
+        valid (a vehicles list reused for a shorter scene), but they never appear in it.  A
+        start at ``duration_s`` itself appears at the scene's last instant."""
+        return [(i, spec.name, float(spec.start_time_s)) for i, spec in enumerate(self.vehicles)
+                if spec.start_time_s > duration_s]
 
 
 @dataclass

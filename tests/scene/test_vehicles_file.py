@@ -378,3 +378,53 @@ def test_cache_keys_follow_the_file_content_not_its_path(tmp_path, caplog):
     pipeline.run(edited, tmp_path / "r3")
     assert "cache miss truth" in caplog.text and "cache hit truth" not in caplog.text
     assert math.isclose(edited.vehicles.vehicles[0].cruise_speed_mps, 9.0)
+
+
+def test_vehicles_starting_after_the_scene_are_named_in_one_warning(tmp_path, caplog):
+    """A vehicles file reused for a shorter scene is accepted, with one warning naming the file
+    and each late entry (index, name, start time): those vehicles never appear."""
+    path = write(tmp_path, """\
+        vehicles:
+          - {name: a, start: g_0_0, end: g_6_2}
+          - {name: late, start: g_0_0, end: g_6_2, start_time_s: 500}
+          - {name: edge, start: g_0_0, end: g_6_2, start_time_s: 60}
+          - {name: later, start: g_0_0, end: g_6_2, start_time_s: 61.5}
+        """)
+    caplog.set_level(logging.WARNING, logger="gmtiflow")
+    cfg = compose_file(path, "scene.duration_s=60")
+    assert [v.name for v in cfg.vehicles.vehicles] == ["a", "late", "edge", "later"]
+    (record,) = [r for r in caplog.records if r.levelno == logging.WARNING]
+    message = record.getMessage()
+    assert message.startswith(f"vehicles.file {path}: 2 vehicle(s) start after the scene's end"), \
+        message
+    assert "scene.duration_s = 60 s" in message
+    assert "vehicles[1] 'late' at 500 s" in message and "vehicles[3] 'later' at 61.5 s" in message
+    assert "'edge'" not in message          # at the last instant: it appears there
+    caplog.clear()
+    compose_file(path, "scene.duration_s=600")
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+def test_listed_vehicles_starting_after_the_scene_are_named_by_key(caplog):
+    caplog.set_level(logging.WARNING, logger="gmtiflow")
+    compose(["scene.duration_s=60", "vehicles.vehicles.2.start_time_s=90"])
+    (record,) = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert record.getMessage().startswith("vehicles.vehicles: 1 vehicle(s) start after the "
+                                          "scene's end (scene.duration_s = 60 s)")
+    assert "vehicles[2] " in record.getMessage()
+
+
+@pytest.mark.parametrize("lo, hi, share", [(0, 120, "50%"), (70, 80, "all")])
+def test_a_random_fleet_starting_after_the_scene_is_warned_of(caplog, lo, hi, share):
+    caplog.set_level(logging.WARNING, logger="gmtiflow")
+    compose(["vehicles=random", "vehicles.random.count=5", "scene.duration_s=60",
+             f"vehicles.random.start_time_min_s={lo}", f"vehicles.random.start_time_max_s={hi}"])
+    (record,) = [r for r in caplog.records if r.levelno == logging.WARNING]
+    message = record.getMessage()
+    assert message.startswith(f"vehicles.random.start_time_max_s = {hi} s is after the scene's "
+                              f"end (scene.duration_s = 60 s)"), message
+    assert f"{share} of the random vehicles" in message
+    caplog.clear()
+    compose(["vehicles=random", "vehicles.random.count=5", "scene.duration_s=60",
+             "vehicles.random.start_time_max_s=60"])
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
