@@ -9,13 +9,15 @@ Document::
       <JobDefinition jobId="1" ... revisitInterval_s="3.5">       J1-J28
         <BoundingArea><Point lat_deg=".." lon_deg=".."/> x4 </BoundingArea>
       </JobDefinition>
+      <Columns dwell="dwell_id time_s ..." targetReport="det_id lat_deg ..."/>  the columns written
       <Dwell dwell_id="0" time_s="0.013" timeUtc="..." revisit_id="0" ...>   D2-D31 + /dwells
         <TargetReport det_id="0" lat_deg=".." lon_deg=".." range_m=".." .../>  D32 + /detections
       </Dwell>
     </GmtiDocument>
 
 Attribute names of Dwell and TargetReport are the table column names (docs/tables.md); an absent
-attribute is NaN (float) or -1 (ids).  Doubles are written column-wise by :mod:`formats._text` in
+attribute is NaN (float) or -1 (ids).  ``Columns`` lists the columns written, so a column with no
+known value (absent on every element) and the columns of an empty table read back too.  Doubles are written column-wise by :mod:`formats._text` in
 digits that read back exactly, so the XML form is lossless for every float64 column (quantum:
 none); the document is written a block of dwells at a time (:func:`iter_xml`).  The meta keys are those of
 :data:`formats.stanag4607.DEFAULT_META` (``epoch_utc`` required).
@@ -205,6 +207,10 @@ def iter_xml(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.ndarr
     for lat, lon in m["bounding_area"]:
         w(f'<Point lat_deg="{_fmt(lat)}" lon_deg="{_fmt(lon)}"/>')
     w('</BoundingArea>\n  </JobDefinition>\n')
+    # every column written, also those absent on every element (all NaN) and those of an
+    # empty table, so that a reader gets back the tables it was given
+    w(f'  <Columns dwell="{" ".join(c for c in DWELL_COLUMNS if c in dwells)}"'
+      f' targetReport="{" ".join(c for c in DETECTION_COLUMNS if c in detections)}"/>\n')
     yield out.getvalue().encode("utf-8")
 
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
@@ -302,14 +308,17 @@ def _float(v):
     return np.nan if v is None else float(v)
 
 
-def _columns(elements, columns: dict, name) -> dict:
+def _columns(elements, columns: dict, name, declared=None) -> dict:
+    """The ``columns`` the elements carry: those some element has an attribute of, and every
+    column of ``declared`` (the document's ``Columns`` list: all NaN or an empty table)."""
     elements = list(elements)
     attrs = [dict(el.items()) for el in elements]
     n = len(attrs)
+    declared = set(declared or ())
     out = {}
     for col, kind in columns.items():
         vals = [a.get(col) for a in attrs]
-        if vals.count(None) == n:
+        if vals.count(None) == n and col not in declared:
             continue
         try:
             out[col] = _column(vals, kind, n)
@@ -376,17 +385,21 @@ def read_xml(source) -> dict:
     }
     for attr, key in _JOB_ATTRS:
         meta[key] = float(ja[attr]) if attr in ja else None
+    listed = root.find("g:Columns", ns)     # absent in documents written before it
     dwell_els = root.findall("g:Dwell", ns)
-    dwells = _columns(dwell_els, DWELL_COLUMNS, name)
+    dwells = _columns(dwell_els, DWELL_COLUMNS, name,
+                      None if listed is None else listed.get("dwell").split())
     counts = [len(el) for el in dwell_els]
     target_els = [t for el in dwell_els for t in el]
-    dets = _columns(target_els, DETECTION_COLUMNS, name)
+    dets = _columns(target_els, DETECTION_COLUMNS, name,
+                    None if listed is None else listed.get("targetReport").split())
     dwell_ids = dwells.get("dwell_id", np.zeros(0, np.int64))
-    dets["dwell_id"] = np.repeat(dwell_ids, counts)
+    dets["dwell_id"] = np.repeat(dwell_ids, counts).astype(np.int64)
     if "time_s" not in dets and len(target_els):
         dets["time_s"] = np.repeat(dwells["time_s"], counts)
-    if not target_els:
+    if not target_els and listed is None:
         dets = {"det_id": np.zeros(0, np.int64), "dwell_id": np.zeros(0, np.int64)}
+    dets.setdefault("det_id", np.zeros(0, np.int64))    # required on every TargetReport
     return {"dwells": dwells, "detections": dets, "meta": meta,
             "attrs": {"edition": root.get("edition"), "scene_epoch_utc": root.get("sceneEpochUtc"),
                       "format_version": int(root.get("formatVersion"))}}

@@ -3,6 +3,7 @@ short for one scan (``scene.duration_s=0.2``: no dwell, no detection, no track),
 CLI accepts and exports."""
 from __future__ import annotations
 
+import shutil
 import subprocess
 
 import numpy as np
@@ -66,3 +67,47 @@ def test_tshark_finds_nothing_wrong_in_the_4607_of_a_run_without_dwells(empty_ru
         assert got[f"s4607.job.ba.lat.{c}"].tolist() == s4607.enc_sa32(jobs[f"{c}_lat_deg"]).tolist()
         assert got[f"s4607.job.ba.lon.{c}"].tolist() == s4607.enc_ba32(jobs[f"{c}_lon_deg"]).tolist()
         assert np.all(got[f"s4607.job.ba.lat.{c}"] != 0)
+
+
+NO_PRF = ["scene.duration_s=20", "sensor.pri_s=null", "sensor.integration_gain_db=21",
+          "progress=false", "report=none", "export=all",
+          "export.csv_tables=[detections,dwells,truth,tracks]", "cache.enabled=false"]
+
+
+@pytest.fixture(scope="module")
+def no_prf_run(tmp_path_factory):
+    """run.h5 of a radar without PRF: ``wrap_velocity_mps`` is NaN on every dwell and report."""
+    run = pipeline.run(compose_app(NO_PRF), tmp_path_factory.mktemp("no_prf"))
+    det = store.read_table(run, "detections")
+    assert len(det["det_id"]) > 0 and np.isnan(det["wrap_velocity_mps"]).all()
+    return run
+
+
+def _assert_same_columns(ref, got, columns, what):
+    """Every column of the run table that the format carries comes back: dtype and values."""
+    for c in ref:
+        if c not in columns:
+            continue
+        assert c in got, (what, c)
+        a, b = np.asarray(ref[c]), np.asarray(got[c])
+        assert b.dtype == a.dtype and len(b) == len(a), (what, c, a.dtype, b.dtype, len(b))
+
+
+@pytest.mark.parametrize("which", ["empty", "no_prf"])
+def test_xml_of_the_run_gives_back_every_table_and_column(which, request):
+    run = request.getfixturevalue(f"{which}_run")
+    path = run.parent / "detections.xml"
+    formats.validate_xml(path)
+    if shutil.which("xmllint"):
+        out = subprocess.run(["xmllint", "--noout", "--schema", str(formats.xmldoc.XSD_PATH),
+                              str(path)], capture_output=True, text=True, timeout=60)
+        assert out.returncode == 0, out.stderr
+    got = formats.read_xml(path)
+    for table, columns in (("dwells", formats.xmldoc.DWELL_COLUMNS),
+                           ("detections", formats.xmldoc.DETECTION_COLUMNS)):
+        ref = store.read_table(run, table)
+        _assert_same_columns(ref, got[table], columns, table)
+        order = np.argsort(got[table]["det_id" if table == "detections" else "dwell_id"])
+        for c in ref:
+            if c in columns and np.asarray(ref[c]).dtype.kind == "f":
+                np.testing.assert_array_equal(got[table][c][order], ref[c], err_msg=c)

@@ -139,3 +139,99 @@ def test_empty_run():
     r = xmldoc.read_xml(xmldoc.encode_xml({}, {}, dict(META, bounding_area=area)))
     assert r["dwells"] == {} and len(r["detections"]["det_id"]) == 0
     assert r["meta"]["bounding_area"] == area
+
+
+AREA = [(43.8, 7.3), (43.8, 7.5), (43.7, 7.5), (43.7, 7.3)]
+
+
+def _assert_same_table(written, got, columns, what):
+    """Every carried column of ``written`` comes back with its dtype and values (NaN as NaN)."""
+    carried = [c for c in written if c in columns]
+    assert set(carried) <= set(got), (what, sorted(set(carried) - set(got)))
+    for c in carried:
+        a, b = np.asarray(written[c]), got[c]
+        assert b.dtype == a.dtype and b.shape == a.shape, (what, c, a.dtype, b.dtype, b.shape)
+        np.testing.assert_array_equal(b, a, err_msg=f"{what}.{c}")
+
+
+def _xmllint_valid(path):
+    import shutil
+    import subprocess
+    if shutil.which("xmllint") is None:
+        return True
+    out = subprocess.run(["xmllint", "--noout", "--schema", str(xmldoc.XSD_PATH), str(path)],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    return True
+
+
+def test_round_trip_keeps_all_nan_columns(tmp_path):
+    """A column with no known value (``wrap_velocity_mps`` of a run without PRF, the SNR and RCS
+    of reports nobody measured) is written as absent attributes; it comes back as NaN, not
+    dropped."""
+    dwells, dets = synthetic.tables(5, 30, seed=2)
+    dwells["wrap_velocity_mps"][:] = np.nan
+    for c in ("wrap_velocity_mps", "snr_db", "rcs_dbsm", "lat_deg", "lon_deg", "height_m"):
+        dets[c][:] = np.nan
+    path = tmp_path / "nan.xml"
+    xmldoc.write_xml(path, dwells, dets, dict(META, bounding_area=AREA))
+    assert _xmllint_valid(path)
+    r = xmldoc.read_xml(path)
+    _assert_same_table(dwells, r["dwells"], xmldoc.DWELL_COLUMNS, "dwells")
+    _assert_same_table(dets, r["detections"], xmldoc.DETECTION_COLUMNS, "detections")
+    assert xmldoc.encode_xml(r["dwells"], r["detections"], r["meta"]) == path.read_bytes()
+
+
+def test_round_trip_keeps_empty_tables_and_their_columns(tmp_path):
+    """No dwells and no reports (a run shorter than one scan): both tables come back with every
+    column written, zero rows and the dtypes written."""
+    dwells, dets = synthetic.tables(3, 4)
+    for table in (dwells, dets):
+        for c in table:
+            table[c] = table[c][:0]
+    path = tmp_path / "empty.xml"
+    xmldoc.write_xml(path, dwells, dets, dict(META, bounding_area=AREA))
+    assert _xmllint_valid(path)
+    r = xmldoc.read_xml(path)
+    _assert_same_table(dwells, r["dwells"], xmldoc.DWELL_COLUMNS, "dwells")
+    _assert_same_table(dets, r["detections"], xmldoc.DETECTION_COLUMNS, "detections")
+    assert r["detections"]["dwell_id"].dtype == np.int64
+    # dwells without reports: the reports' columns are still known
+    dwells, dets = synthetic.tables(3, 4)
+    dets = {c: v[:0] for c, v in dets.items()}
+    r = xmldoc.read_xml(xmldoc.encode_xml(dwells, dets, META))
+    _assert_same_table(dets, r["detections"], xmldoc.DETECTION_COLUMNS, "detections")
+
+
+def test_documents_without_a_column_list_still_read():
+    """Documents written before the column list (formatVersion 1 without <Columns>) validate and
+    read as before: a column is there when some element has its attribute."""
+    dwells, dets = synthetic.tables(3, 6)
+    dets["snr_db"][:] = np.nan
+    data = xmldoc.encode_xml(dwells, dets, META)
+    root = etree.fromstring(data)
+    for el in root.findall(f"{{{xmldoc.NAMESPACE}}}Columns"):
+        root.remove(el)
+    old = etree.tostring(root, xml_declaration=True, encoding="UTF-8")
+    r = xmldoc.read_xml(old)
+    assert "snr_db" not in r["detections"]
+    _assert_tables_equal(dets, r["detections"], set(xmldoc.DETECTION_COLUMNS) - {"snr_db"})
+    _assert_tables_equal(dwells, r["dwells"], xmldoc.DWELL_COLUMNS)
+
+
+def test_a_column_list_naming_an_unknown_column_is_invalid():
+    dwells, dets = synthetic.tables(2, 2)
+    data = xmldoc.encode_xml(dwells, dets, META)
+    assert b'<Columns dwell="dwell_id ' in data
+    with pytest.raises(FormatError, match="not valid against gmti.xsd"):
+        xmldoc.read_xml(data.replace(b'<Columns dwell="dwell_id ', b'<Columns dwell="colour ', 1))
+
+
+def test_the_xsd_column_names_are_the_writers():
+    xsd = etree.parse(str(xmldoc.XSD_PATH))
+    ns = {"xs": "http://www.w3.org/2001/XMLSchema"}
+    for name, columns in (("DwellColumn", xmldoc.DWELL_COLUMNS),
+                          ("TargetReportColumn", xmldoc.DETECTION_COLUMNS)):
+        values = xsd.xpath(f"//xs:simpleType[@name='{name}']//xs:enumeration/@value",
+                           namespaces=ns)
+        assert values == list(columns), name
