@@ -26,6 +26,7 @@ import numpy as np
 from gmtiflow.evaluate.assignment import sparse_gated_assignment
 from gmtiflow.evaluate.identity import unique_pairs
 from gmtiflow.evaluate.neighbours import step_pairs
+from gmtiflow.evaluate.order import dense_ids
 
 
 def _matched_distance(truth_at, tracks_at, assigned: np.ndarray) -> np.ndarray:
@@ -34,12 +35,13 @@ def _matched_distance(truth_at, tracks_at, assigned: np.ndarray) -> np.ndarray:
     if not len(rows):
         return np.zeros(0)
     steps_k = np.asarray(tracks_at["step"], np.int64)
-    ids_k = np.asarray(tracks_at["track_id"], np.int64)
-    span = int(ids_k.max() - min(ids_k.min(), 0)) + 1
-    key_k = steps_k * span + (ids_k - min(ids_k.min(), 0))
+    # (step, track) as one integer key from the tracks' dense index: the ids themselves may be
+    # anywhere in 0 .. 2^63 - 1, where step * span + id overflowed
+    uniq, dense = dense_ids(tracks_at["track_id"])
+    key_k = steps_k * len(uniq) + dense
     order = np.argsort(key_k, kind="stable")
-    want = np.asarray(truth_at["step"], np.int64)[rows] * span + (assigned[rows]
-                                                                   - min(ids_k.min(), 0))
+    want = (np.asarray(truth_at["step"], np.int64)[rows] * len(uniq)
+            + np.searchsorted(uniq, assigned[rows]))
     j = order[np.searchsorted(key_k[order], want)]
     return np.hypot(np.asarray(truth_at["x_m"], float)[rows] - tracks_at["x_m"][j],
                     np.asarray(truth_at["y_m"], float)[rows] - tracks_at["y_m"][j])
@@ -64,10 +66,11 @@ def idtp(truth_at: Mapping[str, np.ndarray], tracks_at: Mapping[str, np.ndarray]
     # maximise the matched co-occurrences: minimise −count, every pair "inside" a gate of 0;
     # solved per connected component of the (vehicle, track) pairs (sparse, linear in them)
     rr, cc = sparse_gated_assignment(pairs[:, 0], pairs[:, 1], -counts.astype(float), 0.0)
-    lo, span = pairs.min(axis=0), int(np.ptp(pairs[:, 1])) + 1
+    lo = pairs[:, 0].min()
+    tracks = np.unique(pairs[:, 1])      # dense track index: ids may span all of 64 bits
 
     def key(v, t):      # the pairs' order (vehicle, then track) as one sortable integer
-        return (v - lo[0]) * span + (t - lo[1])
+        return (v - lo) * len(tracks) + np.searchsorted(tracks, t)
     return int(counts[np.searchsorted(key(pairs[:, 0], pairs[:, 1]), key(rr, cc))].sum())
 
 

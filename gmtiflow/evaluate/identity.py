@@ -46,7 +46,14 @@ def unique_pairs(a: np.ndarray, b: np.ndarray, return_counts: bool = False):
         empty = np.zeros((0, 2), np.int64)
         return (empty, np.zeros(0, np.int64)) if return_counts else empty
     a0, b0 = a.min(), b.min()
-    span = int(b.max() - b0) + 1
+    span = int(b.max()) - int(b0) + 1
+    if (int(a.max()) - int(a0) + 1) * span >= 2 ** 63:    # the key would overflow int64: the
+        ua, ia = dense_ids(a)                             # pairs of dense indices, mapped back
+        ub, ib = dense_ids(b)
+        out = unique_pairs(ia, ib, return_counts)
+        pairs = out[0] if return_counts else out
+        pairs = np.stack([ua[pairs[:, 0]], ub[pairs[:, 1]]], axis=1)
+        return (pairs, out[1]) if return_counts else pairs
     # one sortable key per pair, sorted (a plain sort: which row of equal keys is kept does not
     # matter, the key gives the pair back) and cut into runs
     key = np.sort((a - a0) * span + (b - b0))

@@ -23,6 +23,7 @@ import numpy as np
 
 from gmtiflow import frames
 from gmtiflow.evaluate.align import interpolate_truth
+from gmtiflow.evaluate.order import dense_ids
 from gmtiflow.tables import Table
 
 MIN_SPEED_FOR_HEADING_MPS = 0.5
@@ -51,11 +52,14 @@ def track_errors(tracks: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarra
         step = np.where(np.abs(grid[np.minimum(k, len(grid) - 1)] - tt) < np.abs(grid[k0] - tt),
                         np.minimum(k, len(grid) - 1), k0)
     has = assoc_track >= 0
-    # lookup (track, step) -> vehicle
-    pair_key = assoc_track[has] * (len(grid) + 1) + assoc_step[has]
+    # lookup (track, step) -> vehicle, keyed by the tracks' dense index (ids may be anywhere
+    # in 0 .. 2^63 - 1, where id * (steps + 1) overflowed)
+    uniq, dense = dense_ids(tid)
+    known = np.searchsorted(uniq, assoc_track[has])    # every associated id is a track's
+    pair_key = known * (len(grid) + 1) + assoc_step[has]
     o = np.argsort(pair_key)
     pk, pv = pair_key[o], assoc_vehicle[has][o]
-    q = tid * (len(grid) + 1) + step
+    q = dense * (len(grid) + 1) + step
     j = np.searchsorted(pk, q)
     found = (j < len(pk)) & (pk[np.minimum(j, max(len(pk) - 1, 0))] == q) if len(pk) else \
         np.zeros(len(q), bool)

@@ -10,7 +10,8 @@ A track table (docs/tables.md, /tracks) is a dict of equal-length numpy columns:
 
 :func:`validate_tracks` raises one :class:`~gmtiflow.errors.InputFileError` naming the column and
 the (0-based) data row for: an unknown or missing column, columns of different lengths, a value
-that is not a finite number (NaN, inf, text), a non-integer track id, the same track id twice at
+that is not a finite number (NaN, inf, text), a non-integer or negative track id (ids are
+0 .. 2^63 - 1), the same track id twice at
 one time, and times that do not increase within a track (in the order given).  It returns the
 table normalised: ``x_m y_m`` (lat/lon replaced), canonical dtypes, rows sorted by
 (track_id, time_s).
@@ -75,7 +76,20 @@ _FLOAT_EXACT_INT = 2 ** 53
 def _track_ids(table, source: str) -> np.ndarray:
     """The ``track_id`` column as int64, exactly: integers (and integer text, as a CSV reader
     gives it) as they are, a float column only where it holds integers below 2^53.  Ids used to
-    go through float64, which merged the tracks 2^60 and 2^60 + 1 into one without a word."""
+    go through float64, which merged the tracks 2^60 and 2^60 + 1 into one without a word.
+    Negative ids are refused: the metrics tables write -1 for "no track", and the scorer read
+    every negative id as none (a tracker numbering its tracks -1, -2, ... scored coverage 0)."""
+    ids = _track_ids_int64(table, source)
+    neg = np.flatnonzero(ids < 0)
+    if len(neg):
+        i = int(neg[0])
+        raise _fail(source, f"column 'track_id' row {i}: {int(ids[i])} is negative; track ids are "
+                            f"0 .. 2^63 - 1 (-1 stands for 'no track' in the metrics tables)")
+    return ids
+
+
+def _track_ids_int64(table, source: str) -> np.ndarray:
+    """:func:`_track_ids` before the sign check."""
     raw = np.asarray(table["track_id"])
     if raw.dtype.kind == "u" and len(raw) and raw.max() > np.iinfo(np.int64).max:
         i = int(np.argmax(raw > np.iinfo(np.int64).max))
