@@ -18,6 +18,9 @@
   antimeridian is centred near ±180°), at height 0 (override with ``origin_*``); node heights
   are the origin's (OSM carries no elevation), so z is 0 up to the curvature of the earth
   (-0.3 m at 2 km).
+* Ids: a node repeated at the same position, or a way repeated with the same nodes and tags,
+  is read once; a node or way id used twice with different content is refused (way ids are
+  checked over all ways, node ids over the nodes the drivable ways use).
 * No metadata attributes (version, timestamp, user) are required; elements marked
   ``action="delete"`` or ``visible="false"`` (JOSM files) are ignored.
 * Isolated pieces of road are kept; routes are only possible within connected parts.
@@ -88,6 +91,24 @@ def _refuse_other_encodings(p: Path) -> None:
                            f"osmium cat {p.name} -o map.osm")
 
 
+def _check_repeated_way(p: Path, first, again) -> None:
+    """RoadMapError unless ``again`` repeats way ``first`` exactly (the same nodes in the same
+    order and the same tags), as a node repeated at the same position is the same node."""
+    def content(way):
+        return ([nd.get("ref") for nd in way.iterfind("nd")],
+                {t.get("k"): t.get("v") for t in way.iterfind("tag")})
+
+    (refs_a, tags_a), (refs_b, tags_b) = content(first), content(again)
+    differ = [what for what, a, b in (("nodes", refs_a, refs_b), ("tags", tags_a, tags_b))
+              if a != b]
+    if differ:
+        raise RoadMapError(f"{p}: way {first.get('id')} appears twice with different "
+                           f"{' and '.join(differ)} (lines {first.sourceline} and "
+                           f"{again.sourceline}); way ids must be unique (several versions of "
+                           f"one way: a history file or overlapping extracts concatenated? "
+                           f"osmium merge gives one of each)")
+
+
 def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
     """Road map of the drivable highways in an OSM XML file."""
     cfg = cfg or RoadmapConfig()
@@ -110,15 +131,20 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         raise RoadMapError(f"{p}: root element is <{root.tag}>, expected <osm> (OSM XML 0.6)")
     drivable = set(cfg.drivable_classes)
     ways = []
+    first: Dict[str, object] = {}
     for way in root.iterfind("way"):
         if _deleted(way):
             continue
+        wid = way.get("id")
+        if first.setdefault(wid, way) is not way:
+            _check_repeated_way(p, first[wid], way)
+            continue        # the same way again: read once
         tags = {t.get("k"): t.get("v") for t in way.iterfind("tag")}
         hw = tags.get("highway")
         if hw is None or hw not in drivable:
             continue
         refs = [nd.get("ref") for nd in way.iterfind("nd")]
-        ways.append((way.get("id"), hw, tags, refs))
+        ways.append((wid, hw, tags, refs))
     if not ways:
         raise RoadMapError(f"{p}: no drivable highway ways (classes {sorted(drivable)}) in the "
                            f"file; it holds no road network")

@@ -367,3 +367,41 @@ def test_an_osm_pbf_file_is_named_as_such(tmp_path):
     p.write_bytes(b"\x00\x00\x00\x0d\x0a\x09OSMHeader\x18\x7f" + bytes(200))
     with pytest.raises(RoadMapError, match=r"map\.osm\.pbf: OSM PBF .*osmium cat"):
         load_osm(p)
+
+
+# ---- <bounds> and the origin; duplicate ids --------------------------------------------------
+ROADS = ('<node id="1" lat="43.700" lon="7.400"/><node id="2" lat="43.705" lon="7.410"/>'
+         '<node id="3" lat="43.710" lon="7.420"/>'
+         '<way id="10"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way>'
+         '<way id="11"><nd ref="2"/><nd ref="3"/><tag k="highway" v="residential"/></way>')
+
+
+@pytest.mark.parametrize("second", [
+    '<way id="10"><nd ref="2"/><nd ref="3"/><tag k="highway" v="primary"/></way>',
+    '<way id="10"><nd ref="1"/><nd ref="2"/><tag k="highway" v="secondary"/></way>',
+    '<way id="10"><nd ref="1"/><nd ref="3"/><tag k="highway" v="footway"/></way>',
+])
+def test_a_way_id_used_twice_for_different_ways_is_refused(tmp_path, second):
+    p = write(tmp_path, osm_text(ROADS + "\n" + second))
+    with pytest.raises(RoadMapError) as err:
+        load_osm(p)
+    message = str(err.value)
+    assert message.startswith(f"{p}: way 10 appears twice with different ")
+    assert "(lines 1 and 2)" in message and "\n" not in message
+
+
+def test_a_way_repeated_identically_is_read_once(tmp_path):
+    # as a node repeated at the same position: the same element twice (concatenated extracts)
+    again = '<way id="10"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way>'
+    once = load_osm(write(tmp_path, osm_text(ROADS), "once.osm"))
+    twice = load_osm(write(tmp_path, osm_text(ROADS + again), "twice.osm"))
+    for table in ("nodes", "edges"):
+        for column, values in once.__getattribute__(table).items():
+            np.testing.assert_array_equal(getattr(twice, table)[column], values)
+
+
+def test_a_deleted_copy_of_a_way_is_not_a_duplicate(tmp_path):
+    gone = ('<way id="10" action="delete"><nd ref="2"/><nd ref="3"/>'
+            '<tag k="highway" v="primary"/></way>')
+    rm = load_osm(write(tmp_path, osm_text(ROADS + gone)))
+    assert len(rm.edges["edge_id"]) == 2
