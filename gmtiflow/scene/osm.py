@@ -17,7 +17,8 @@
 * Origin: the centre of ``<bounds>``, else of the drivable road nodes (a map across the
   antimeridian is centred near ±180°), at height 0 (override with ``origin_*``); node heights
   are the origin's (OSM carries no elevation), so z is 0 up to the curvature of the earth
-  (-0.3 m at 2 km).
+  (-0.3 m at 2 km).  A ``<bounds>`` box that does not meet the box of the drivable road nodes
+  is refused (its centre would be away from the roads), unless ``origin_*`` are given.
 * Ids: a node repeated at the same position, or a way repeated with the same nodes and tags,
   is read once; a node or way id used twice with different content is refused (way ids are
   checked over all ways, node ids over the nodes the drivable ways use).
@@ -107,6 +108,25 @@ def _check_repeated_way(p: Path, first, again) -> None:
                            f"{again.sourceline}); way ids must be unique (several versions of "
                            f"one way: a history file or overlapping extracts concatenated? "
                            f"osmium merge gives one of each)")
+
+
+def _check_bounds_meet_roads(p: Path, line: int, b: Dict[str, float],
+                             latlon: np.ndarray) -> None:
+    """RoadMapError if the ``<bounds>`` box and the box of the drivable road nodes are disjoint:
+    its centre would put the scene's origin away from the roads.  An export's bounds are the
+    area asked for, and ways crossing its edge bring nodes outside it; a box touching the
+    roads' box, or crossed by a way with no node inside, still meets it."""
+    lat_lo, lat_hi = float(latlon[:, 0].min()), float(latlon[:, 0].max())
+    lon_lo, lon_hi = float(latlon[:, 1].min()), float(latlon[:, 1].max())
+    if (b["minlat"] <= lat_hi and lat_lo <= b["maxlat"]
+            and b["minlon"] <= lon_hi and lon_lo <= b["maxlon"]):
+        return
+    raise RoadMapError(f"{p}: <bounds> (line {line}) lat {b['minlat']:g} .. {b['maxlat']:g}, "
+                       f"lon {b['minlon']:g} .. {b['maxlon']:g} holds none of the drivable roads "
+                       f"(lat {lat_lo:g} .. {lat_hi:g}, lon {lon_lo:g} .. {lon_hi:g}): its centre "
+                       f"would put the scene's origin away from them; correct or delete <bounds> "
+                       f"(the roads' centre is then the origin), or set roadmap.origin_lat_deg "
+                       f"and roadmap.origin_lon_deg")
 
 
 def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
@@ -223,6 +243,8 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
             raise RoadMapError(f"{p}: <bounds> (line {bounds.sourceline}) out of range: "
                                f"need -90 <= minlat <= maxlat <= 90 and -180 <= minlon <= "
                                f"maxlon <= 180 degrees")
+        if cfg.origin_lat_deg is None or cfg.origin_lon_deg is None:
+            _check_bounds_meet_roads(p, bounds.sourceline, b, latlon)
         lat0 = 0.5 * (b["minlat"] + b["maxlat"])
         lon0 = 0.5 * (b["minlon"] + b["maxlon"])
     else:

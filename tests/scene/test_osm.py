@@ -376,6 +376,43 @@ ROADS = ('<node id="1" lat="43.700" lon="7.400"/><node id="2" lat="43.705" lon="
          '<way id="11"><nd ref="2"/><nd ref="3"/><tag k="highway" v="residential"/></way>')
 
 
+def bounds(minlat, minlon, maxlat, maxlon):
+    return f'<bounds minlat="{minlat}" minlon="{minlon}" maxlat="{maxlat}" maxlon="{maxlon}"/>'
+
+
+@pytest.mark.parametrize("box, origin", [
+    ((43.69, 7.39, 43.72, 7.43), (43.705, 7.41)),        # an export's box around the roads
+    ((43.704, 7.405, 43.706, 7.415), (43.705, 7.41)),    # a small box: ways cross it
+    ((43.702, 7.404, 43.703, 7.406), (43.7025, 7.405)),  # no node inside, a way crosses it
+    ((43.71, 7.42, 43.80, 7.50), (43.755, 7.46)),        # touching the roads' corner
+])
+def test_bounds_that_meet_the_roads_give_the_origin(tmp_path, box, origin):
+    rm = load_osm(write(tmp_path, osm_text(bounds(*box) + ROADS)))
+    assert (rm.origin.lat_deg, rm.origin.lon_deg) == pytest.approx(origin, abs=1e-12)
+
+
+@pytest.mark.parametrize("box", [
+    (44.70, 8.40, 44.72, 8.43),          # a degree away (the audit's file: origin 110 km off)
+    (43.70, 7.421, 43.71, 7.45),         # beside the roads, east
+    (43.60, 7.39, 43.699, 7.43),         # beside the roads, south
+])
+def test_bounds_away_from_the_roads_are_refused_naming_file_and_line(tmp_path, box):
+    p = write(tmp_path, osm_text(bounds(*box) + ROADS))
+    with pytest.raises(RoadMapError) as err:
+        load_osm(p)
+    message = str(err.value)
+    assert message.startswith(f"{p}: <bounds> (line 1) ")
+    assert "none of the drivable roads" in message
+    assert "lat 43.7 .. 43.71, lon 7.4 .. 7.42" in message             # where the roads are
+    assert "roadmap.origin_lat_deg" in message and "\n" not in message
+
+
+def test_bounds_away_from_the_roads_are_unused_when_the_origin_is_given(tmp_path):
+    p = write(tmp_path, osm_text(bounds(44.70, 8.40, 44.72, 8.43) + ROADS))
+    rm = load_osm(p, RoadmapConfig(origin_lat_deg=43.7, origin_lon_deg=7.4))
+    assert (rm.origin.lat_deg, rm.origin.lon_deg) == (43.7, 7.4)
+
+
 @pytest.mark.parametrize("second", [
     '<way id="10"><nd ref="2"/><nd ref="3"/><tag k="highway" v="primary"/></way>',
     '<way id="10"><nd ref="1"/><nd ref="2"/><tag k="highway" v="secondary"/></way>',
