@@ -23,7 +23,8 @@ ellipsoid), no ``crs`` member (RFC 7946 §4).  Every feature has ``properties.ki
 
 Floats are written column-wise by :mod:`formats._text` in digits that read back exactly, so
 positions and values round-trip exactly, a block of features at a time (:func:`iter_geojson`);
-NaN is written as ``null`` (RFC 8259 has no NaN) and read back as NaN.  The geometry needs geodetic
+NaN is written as ``null`` (RFC 8259 has no NaN) and read back as NaN.  A table given without
+rows is listed with its columns in the foreign member ``empty_tables``, so it reads back with them.  The geometry needs geodetic
 columns: ``lat_deg lon_deg height_m`` on detections, truth and road nodes (the caller converts
 ENU with ``gmtiflow.frames``; formats never imports gmtiflow).
 """
@@ -308,6 +309,12 @@ def iter_geojson(*, detections=None, truth=None, road_nodes=None, road_edges=Non
     head = '{"type":"FeatureCollection"'
     if epoch is not None:
         head += f',"scene_epoch_utc":"{epoch.strftime("%Y-%m-%dT%H:%M:%S.%fZ")}"'
+    # a table without rows has no feature to carry its property names: list its columns
+    empty = {name: list(table) for name, table in (("detections", detections), ("truth", truth),
+                                                   ("tracks", tracks))
+             if table is not None and not n_rows(table, name)}
+    if empty:
+        head += f',"empty_tables":{dumps(empty)}'
     yield (head + ',"features":[\n').encode()
 
     def blocks():
@@ -533,4 +540,30 @@ def read_geojson(source) -> dict:
         regions.append(reg)
     out["clutter_regions"] = regions
     out["attrs"] = {"scene_epoch_utc": doc.get("scene_epoch_utc")}
+    _add_empty_tables(out, doc.get("empty_tables"), name)
     return out
+
+
+_DTYPES = {"float": np.float64, "int": np.int64, "bool": bool, "u8": np.uint8, "str": str}
+
+
+def _add_empty_tables(out: dict, listed, name) -> None:
+    """The columns of the tables written without rows (the ``empty_tables`` member), as
+    zero-row arrays of their types (:data:`formats.csvtable.COLUMNS`)."""
+    if listed is None:
+        return
+    if not isinstance(listed, dict) or not all(
+            isinstance(cols, list) and all(isinstance(c, str) for c in cols)
+            for cols in listed.values()):
+        raise FormatError(f"{where(name)}'empty_tables' must map table names to lists of "
+                          "column names")
+    for table, cols in listed.items():
+        if table not in ("detections", "truth", "tracks"):
+            continue
+        got = out[table]
+        if got and len(next(iter(got.values()))):
+            raise FormatError(f"{where(name)}'empty_tables' lists {table!r}, which has "
+                              "features")
+        for c in cols:
+            kind = COLUMNS[table].get(c, "float")
+            got.setdefault(c, np.zeros(0, _DTYPES.get(kind, np.float64)))

@@ -1,6 +1,7 @@
-"""Exports of runs with nothing in them, checked with software we did not write: a scene too
-short for one scan (``scene.duration_s=0.2``: no dwell, no detection, no track), which the
-CLI accepts and exports."""
+"""Exports of runs with nothing in them, checked with software we did not write (tshark,
+xmllint, GDAL, Stone Soup) and read back with our readers: a scene too short for one scan
+(``scene.duration_s=0.2``: no dwell, no detection, no track), which the CLI accepts and exports,
+and a radar without PRF (``sensor.pri_s=null``: ``wrap_velocity_mps`` NaN on every row)."""
 from __future__ import annotations
 
 import shutil
@@ -12,7 +13,7 @@ import pytest
 from gmtiflow import formats, pipeline, store
 from tests.conftest import compose_app
 from gmtiflow.formats import stanag4607 as s4607
-from tests.external_tools import TSHARK, needs_tshark, tshark_fields
+from tests.external_tools import TSHARK, gdal_read, needs_tshark, tshark_fields
 
 EMPTY = ["scene.duration_s=0.2", "progress=false", "report=none", "export=all",
          "export.csv_tables=[detections,dwells,truth,tracks]", "cache.enabled=false"]
@@ -84,7 +85,7 @@ def no_prf_run(tmp_path_factory):
 
 
 def _assert_same_columns(ref, got, columns, what):
-    """Every column of the run table that the format carries comes back: dtype and values."""
+    """Every column of the run table that the format carries comes back: name, dtype, rows."""
     for c in ref:
         if c not in columns:
             continue
@@ -111,3 +112,55 @@ def test_xml_of_the_run_gives_back_every_table_and_column(which, request):
         for c in ref:
             if c in columns and np.asarray(ref[c]).dtype.kind == "f":
                 np.testing.assert_array_equal(got[table][c][order], ref[c], err_msg=c)
+
+
+@pytest.mark.parametrize("which", ["empty", "no_prf"])
+def test_geojson_of_the_run_gives_back_every_column_and_gdal_opens_it(which, request):
+    run = request.getfixturevalue(f"{which}_run")
+    det = store.read_table(run, "detections")
+    located = np.isfinite(det["lat_deg"]) & np.isfinite(det["lon_deg"])
+    got = formats.read_geojson(run.parent / "scene.geojson")["detections"]
+    _assert_same_columns({c: v[located] for c, v in det.items()}, got, det, "detections")
+    tracks = store.read_table(run, "tracks")
+    got = formats.read_geojson(run.parent / "tracks.geojson")["tracks"]
+    _assert_same_columns(tracks, got, tracks, "tracks")
+    for name in ("scene.geojson", "tracks.geojson", "truth.geojson"):
+        gdal_read(run.parent / name)                 # GDAL opens it (an empty layer too)
+
+
+@pytest.mark.parametrize("which", ["empty", "no_prf"])
+@pytest.mark.parametrize("table", ["detections", "dwells", "truth", "tracks"])
+def test_csv_of_the_run_gives_back_every_column(which, table, request):
+    run = request.getfixturevalue(f"{which}_run")
+    ref = store.read_table(run, table)
+    got = formats.read_csv(run.parent / f"{table}.csv", table)
+    _assert_same_columns(ref, got, formats.csvtable.COLUMNS[table], table)
+
+
+@pytest.mark.parametrize("which", ["empty", "no_prf"])
+def test_stone_soup_reads_the_csv_of_the_run(which, request):
+    generic = pytest.importorskip("stonesoup.reader.generic")
+    run = request.getfixturevalue(f"{which}_run")
+    n_det = len(store.read_table(run, "detections")["det_id"])
+    reader = generic.CSVDetectionReader(run.parent / "detections.csv",
+                                        state_vector_fields=("x_m", "y_m"),
+                                        time_field="time_utc")
+    assert sum(len(d) for _, d in reader) == n_det
+    n_tracks = len(store.read_table(run, "tracks")["track_id"])
+    reader = generic.CSVGroundTruthReader(run.parent / "tracks.csv",
+                                          state_vector_fields=("x_m", "vx_mps", "y_m", "vy_mps"),
+                                          time_field="time_utc", path_id_field="track_id")
+    assert sum(len(p) for _, p in reader) == n_tracks
+
+
+@pytest.mark.parametrize("which", ["empty", "no_prf"])
+def test_4607_reader_gives_the_same_columns_for_an_empty_and_a_full_run(which, request,
+                                                                         no_prf_run):
+    run = request.getfixturevalue(f"{which}_run")
+    got = formats.read_4607(run.parent / "detections.4607")
+    full = formats.read_4607(no_prf_run.parent / "detections.4607")
+    for table in ("dwells", "detections", "jobs", "missions"):
+        assert {c: v.dtype for c, v in got[table].items()} == \
+            {c: v.dtype for c, v in full[table].items()}, table
+    if which == "no_prf":                 # D32.8 absent: no wrap velocity, read as NaN
+        assert np.isnan(got["detections"]["wrap_velocity_mps"]).all()

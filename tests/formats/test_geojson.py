@@ -152,3 +152,45 @@ def test_tracks_file_reads_back_exactly_and_stays_apart_from_detections():
     _, dets = synthetic.tables(2, 4)
     with pytest.raises(ValueError, match="tracks.geojson"):
         geojson.encode_geojson(tracks=t, detections=dets)
+
+
+def _check_same_columns(written, got, what):
+    """Every column written comes back with its dtype and values (NaN as NaN)."""
+    assert set(written) <= set(got), (what, sorted(set(written) - set(got)))
+    for c, v in written.items():
+        v = np.asarray(v)
+        assert got[c].dtype == v.dtype and got[c].shape == v.shape, (what, c, v.dtype, got[c].dtype)
+        np.testing.assert_array_equal(got[c], v, err_msg=f"{what}.{c}")
+
+
+def _empty(table):
+    return {k: np.asarray(v)[:0] for k, v in table.items()}
+
+
+def test_empty_tables_come_back_with_their_columns():
+    """A run without detections, vehicles or tracks: the tables come back with every column
+    written and no rows (there is no feature to carry the property names)."""
+    _, dets = synthetic.tables(2, 4)
+    dets = _empty(dets)
+    back = geojson.read_geojson(geojson.encode_geojson(detections=dets, epoch_utc=EPOCH))
+    _check_same_columns(dets, back["detections"], "detections")
+    t = synthetic.tracks(2, 3)
+    t = _empty(dict(t, lat_deg=43.7 + t["y_m"] / 111e3, lon_deg=7.4 + t["x_m"] / 80e3))
+    _check_same_columns(t, geojson.read_geojson(geojson.encode_geojson(tracks=t))["tracks"],
+                        "tracks")
+    truth = synthetic.truth(2, 3)
+    truth = _empty(dict(truth, lat_deg=43.7 + truth["y_m"] / 111e3,
+                        lon_deg=7.4 + truth["x_m"] / 80e3, height_m=truth["x_m"] * 0))
+    _check_same_columns(truth, geojson.read_geojson(geojson.encode_geojson(truth=truth))["truth"],
+                        "truth")
+    # documents with rows are as before: no list of columns
+    _, dets = synthetic.tables(2, 4)
+    assert b"empty_tables" not in geojson.encode_geojson(detections=dets, epoch_utc=EPOCH)
+
+
+def test_a_column_without_any_value_comes_back_as_nan():
+    _, dets = synthetic.tables(3, 9)
+    for c in ("wrap_velocity_mps", "snr_db", "rcs_dbsm"):
+        dets[c][:] = np.nan
+    back = geojson.read_geojson(geojson.encode_geojson(detections=dets, epoch_utc=EPOCH))
+    _check_same_columns(dets, back["detections"], "detections")
