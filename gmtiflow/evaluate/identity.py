@@ -6,8 +6,10 @@ At every grid step, in two passes:
 1. *Keep.*  A truth whose last associated track id (from any earlier step) is present at this
    step and closer than the gate ``g`` = ``assoc_gate_m`` stays with that track.  When two truths
    claim one track, the closer pair keeps it.
-2. *Assign.*  The truths and tracks left over are paired by one optimal assignment
-   (``linear_sum_assignment`` on ``min(d, g)²``); pairs at or beyond the gate stay unassociated.
+2. *Assign.*  The truths and tracks left over are paired by one optimal assignment of the
+   pairs closer than the gate: as many pairs as can be matched, and among those matchings the
+   least total distance Σd (Munkres with the pairs at or beyond the gate forbidden, as
+   py-motmetrics solves it; :func:`_pass2`).
 
 Without pass 1 the association is a fresh nearest-pair choice at every step, and two tracks that
 both sit within the gate of one vehicle (or one track between two close vehicles, e.g. a convoy
@@ -125,15 +127,24 @@ def _closest_claims(r: np.ndarray, k: np.ndarray, d2: np.ndarray, n_tracks: int)
 
 
 def _pass2(X: np.ndarray, Y: np.ndarray, g2: float):
-    """Pairs (rows of X, rows of Y) of one optimal assignment on ``min(D², g2)`` that are inside
-    the gate: dense for small steps, else the candidate pairs (a cell grid) assigned per
-    component (the same optimum: a pair at or beyond the gate costs what leaving both unpaired
-    costs)."""
+    """Pairs (rows of X, rows of Y) inside the gate: as many as can be matched, and of those
+    matchings the one of least total distance Σd (CLEAR-MOT's Munkres with the pairs beyond the
+    gate forbidden, as py-motmetrics solves it).  Each pair inside costs ``d − big`` with
+    ``big`` = g·(min(m, n) + 1), more than any matching's total distance, so one more pair
+    always wins; a pair beyond costs 0 (dense) or is not offered (sparse).  Dense for small
+    steps, else the candidate pairs (a cell grid) assigned per connected component (the same
+    optimum: components share no pair inside the gate).
+
+    Until 2026-11-28 this minimised Σ min(d, g)², which can leave a pair inside the gate
+    unmatched for a closer one (A–1 at 14 m alone rather than A–2 and B–1 at 37 m each): a
+    miss and a false positive that py-motmetrics does not count."""
+    big = np.sqrt(g2) * (min(len(X), len(Y)) + 1)
     if len(X) * len(Y) <= DENSE_PAIRS:
         sub = (X[:, None, 0] - Y[None, :, 0]) ** 2 + (X[:, None, 1] - Y[None, :, 1]) ** 2
-        r, k = linear_sum_assignment(np.minimum(sub, g2))
-        inside = sub[r, k] < g2
-        return r[inside], k[inside]
+        inside = sub < g2
+        r, k = linear_sum_assignment(np.where(inside, np.sqrt(sub) - big, 0.0))
+        keep = inside[r, k]
+        return r[keep], k[keep]
     from gmtiflow.evaluate.assignment import sparse_gated_assignment
     from gmtiflow.evaluate.neighbours import close_pairs
     # candidates a hair beyond the gate (every pair with d2 < g2 among them), sorted by
@@ -143,7 +154,7 @@ def _pass2(X: np.ndarray, Y: np.ndarray, g2: float):
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     d2 = (X[r, 0] - Y[k, 0]) ** 2 + (X[r, 1] - Y[k, 1]) ** 2
     inside = d2 < g2
-    return sparse_gated_assignment(r[inside], k[inside], d2[inside], g2)
+    return sparse_gated_assignment(r[inside], k[inside], np.sqrt(d2[inside]) - big, 0.0)
 
 
 def identity_metrics(truth_at: Mapping[str, np.ndarray], assigned: np.ndarray,

@@ -98,9 +98,12 @@ def _reference_associate(truth_at, tracks_at, n_steps, gate_m):
                 out[a + r] = ids[k]
                 free_r[r] = free_k[k] = False
         rr, kk = np.flatnonzero(free_r), np.flatnonzero(free_k)
-        if len(rr) and len(kk):
-            sub = D2[np.ix_(rr, kk)]
-            r, k = linear_sum_assignment(np.minimum(sub, g2))
+        if len(rr) and len(kk):     # most pairs inside the gate, then least Σd: the pairs
+            sub = D2[np.ix_(rr, kk)]  # beyond cost more than any matching (py-motmetrics' lap)
+            inside_all = sub < g2
+            d = np.sqrt(sub)
+            forbidden = 2 * min(sub.shape) * (np.sqrt(g2) + 1) + 1
+            r, k = linear_sum_assignment(np.where(inside_all, d, forbidden))
             inside = sub[r, k] < g2
             out[a + rr[r[inside]]] = ids[kk[k[inside]]]
         for r in np.flatnonzero(out[a:b] >= 0):
