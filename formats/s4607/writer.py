@@ -247,6 +247,9 @@ def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nd
     row, det = attach_detections(dw, detections, nd, nt)
     sensor = _sensor_ids(dw, nd)
     n_sensors = int(sensor.max()) + 1 if nd else 1
+    if platform is not None and "sensor_id" in platform and n_rows(platform, "platform"):
+        # a sensor may have platform rows and no dwell (a run shorter than its first scan)
+        n_sensors = max(n_sensors, int(np.max(np.asarray(platform["sensor_id"]))) + 1)
     metas = []
     for s in range(n_sensors):
         if n_sensors == 1:
@@ -273,10 +276,12 @@ def encode_4607(dwells: Mapping[str, np.ndarray], detections: Mapping[str, np.nd
     heads = [(_single_segment_packet(ms, edition, MISSION, _mission_body(ms)),
               _single_segment_packet(ms, edition, JOB_DEFINITION, job_body(ms))) for ms in metas]
     out: list = []
-    if n_sensors == 1 or not nd:
+    if n_sensors == 1:
         out += heads[0]
+    elif not nd:                            # no dwell to send them before: every platform's now
+        out += [p for pair in heads for p in pair]
     if m["write_epoch_text"] and (n_sensors == 1 or not nd):
-        out.append(_epoch_text_packet(m, edition))
+        out.append(_epoch_text_packet(metas[0], edition))
 
     plat_times = np.zeros(0)
     plat_bytes = None

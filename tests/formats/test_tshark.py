@@ -183,3 +183,29 @@ def test_platform_locations_of_two_sensors_carry_each_sensors_platform_id(tmp_pa
                               "-e", "s4607.platform"], capture_output=True, text=True).stdout
         plats = {line.split("\t")[1].strip() for line in got.splitlines()}
         assert plats == {"GMTIFLOW0", "GMTIFLOW1"}
+
+
+def test_platform_locations_of_two_sensors_without_dwells_keep_each_sensors_platform(tmp_path):
+    """The same two-sensor /platform table and no dwell (``experiment=two_orbits
+    scene.duration_s=0.2 export.platform_location_packets=true``): each aircraft is still its
+    own platform, with its own Mission and Job Definition; they were both sent as GMTIFLOW,
+    mission 1, one platform in two places at the same instant."""
+    n = 4
+    platform = {"time_s": np.repeat([0.0, 1.0], 2), "sensor_id": np.tile([0, 1], 2),
+                "lat_deg": np.tile([43.7, 43.9], 2), "lon_deg": np.tile([7.4, 7.6], 2),
+                "height_m": np.full(n, 7000.0), "vx_mps": np.full(n, 100.0),
+                "vy_mps": np.zeros(n), "vz_mps": np.zeros(n)}
+    area = [(44.0, 7.3), (44.0, 7.7), (43.6, 7.7), (43.6, 7.3)]
+    data = s4607.encode_4607({}, {}, dict(META, bounding_area=area), platform=platform)
+    r = s4607.read_4607(data)
+    pk = r["packets"]
+    rows = r["platform_locations"]["packet"]
+    assert [str(p).strip() for p in pk["platform_id"][rows]] == ["GMTIFLOW0", "GMTIFLOW1"] * 2
+    assert pk["mission_id"][rows].tolist() == [1, 2] * 2
+    assert sorted(r["jobs"]["job_id"].tolist()) == [1, 2]
+    assert np.allclose(r["jobs"]["a_lat_deg"], 44.0, atol=1e-6)
+    assert len(r["dwells"]["dwell_id"]) == 0
+    if TSHARK is not None:
+        path = tmp_path / "two_empty.4607"
+        path.write_bytes(data)
+        assert tshark_expert_errors(path) == []
