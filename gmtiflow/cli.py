@@ -3,7 +3,9 @@
 The Hydra wrapper only converts the config and calls :func:`gmtiflow.pipeline.run` with the run
 directory Hydra chose; errors a user can cause are printed as one line naming what is wrong and
 exit with status 1, leaving no run file behind (and no empty run directory,
-:func:`gmtiflow.console.discard_failed_run_dir`).  Ctrl-C prints one line and exits with 130; the
+:func:`gmtiflow.console.discard_failed_run_dir`).  Hydra's composition errors (an unknown group
+option or key, a malformed override) are one line too, and at most a hint line
+(:func:`_report_composition_errors`).  Ctrl-C prints one line and exits with 130; the
 run directory's ``outputs.json`` then still says ``complete: false``.
 
 The run directory (:mod:`gmtiflow.rundir`) is locked for the run, refused if Hydra's outputs in
@@ -19,6 +21,7 @@ errors and a summary at the end; INFO lines go to the run's ``gmtiflow.log`` (``
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from pathlib import Path
 from typing import Dict
@@ -118,6 +121,74 @@ def _say(message: str) -> None:
         print(f"gmtiflow: error: {message}", file=sys.stderr)
 
 
+def _report_composition_errors() -> None:
+    """One line (and at most a hint line) for Hydra's composition errors, exit 1.
+
+    Hydra printed an unknown group option (``sensor=wide_fvo``), an unknown key, a value of the
+    wrong type or an override it cannot parse in 6-12 lines (its message, OmegaConf's
+    ``full_key`` block, the config search path, "Set the environment variable
+    HYDRA_FULL_ERROR=1 ...").  Its reporter ``hydra._internal.utils.run_and_report`` (it runs
+    the job, the sweep and ``--cfg``; hydra-core is pinned below 1.4) is wrapped: those errors
+    are said as :mod:`gmtiflow.compose_errors` words them; anything else (a sweep job's error,
+    a bug) goes to Hydra's reporter as before, and so does everything with
+    ``HYDRA_FULL_ERROR=1``."""
+    from hydra._internal import utils as hydra_utils
+
+    report = hydra_utils.run_and_report
+    if getattr(report, "gmtiflow_composition", False):
+        return
+
+    def run_and_report(func):
+        return report(lambda: _composed(func))
+
+    run_and_report.gmtiflow_composition = True
+    hydra_utils.run_and_report = run_and_report
+
+
+def _composed(func):
+    """``func()``; a composition error said in one line (and a hint), exit 1."""
+    from gmtiflow.compose_errors import COMPOSITION_ERRORS, composition_error
+    try:
+        return func()
+    except COMPOSITION_ERRORS as exc:
+        error = composition_error(exc)
+        if error is None or os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        _discard_empty_sweep_dir(exc)
+        print(f"gmtiflow: error: {error}", file=sys.stderr)
+        if error.hint:
+            print(f"gmtiflow: hint: {error.hint}", file=sys.stderr)
+        sys.exit(1)
+
+
+def _discard_empty_sweep_dir(exc: BaseException) -> None:
+    """A sweep refused when its jobs are composed leaves the sweep directory holding only the
+    ``multirun.yaml`` Hydra wrote before composing them: removed (and Hydra's
+    ``multirun/<date>`` when that became empty), as :func:`gmtiflow.console.
+    discard_failed_run_dir` removes a run directory that did no work.  The directory is the
+    sweeper's (its ``sweep_dir`` on ``exc``'s stack: the launching process has no HydraConfig);
+    one holding anything else is left alone."""
+    import re
+
+    tb, sweep = exc.__traceback__, None
+    while tb is not None:
+        found = tb.tb_frame.f_locals.get("sweep_dir") if tb.tb_frame.f_code.co_name == "sweep" \
+            else None
+        sweep = Path(found) if isinstance(found, (str, Path)) else sweep
+        tb = tb.tb_next
+    if sweep is None:
+        return
+    try:
+        if [p.name for p in sweep.iterdir()] != ["multirun.yaml"]:
+            return
+        (sweep / "multirun.yaml").unlink()
+        sweep.rmdir()
+        if re.fullmatch(r"\d{4}-\d{2}-\d{2}", sweep.parent.name):     # multirun/<date>
+            sweep.parent.rmdir()                                     # only when empty
+    except OSError:
+        pass
+
+
 def _hydra_app():
     """The Hydra-decorated job (built on first use: importing Hydra and the config schema takes
     a second that ``--help`` should not pay)."""
@@ -139,6 +210,7 @@ def main() -> None:
     from gmtiflow import allocator, interrupts
     allocator.tune()        # before the run allocates: large temporaries reused, not faulted
     interrupts.install()
+    _report_composition_errors()
     try:
         _hydra_app()()
     except KeyboardInterrupt:

@@ -5,7 +5,10 @@
 >>> path = run(cfg, "outputs/my-run")                                # -> outputs/my-run/run.h5
 
 Overrides are exactly what the CLI takes (Hydra syntax); bad ones raise
-:class:`~gmtiflow.errors.ConfigError` (or Hydra's composition errors) before anything runs.
+:class:`~gmtiflow.errors.ConfigError` before anything runs: an unknown group option or key, a
+value of the wrong type or an override Hydra cannot parse as its subclass
+:class:`~gmtiflow.errors.CompositionError` (one line naming the override and the choices,
+:mod:`gmtiflow.compose_errors`; Hydra's own exception is its ``__cause__``).
 """
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ from hydra.core.global_hydra import GlobalHydra
 from omegaconf import DictConfig
 
 from gmtiflow import config
+from gmtiflow.compose_errors import COMPOSITION_ERRORS, composition_error
 from gmtiflow.pipeline import run
 
 __all__ = ["compose", "compose_dictconfig", "run"]
@@ -34,5 +38,10 @@ def compose_dictconfig(overrides: Iterable[str] = ()) -> DictConfig:
     try:
         with initialize_config_module(config_module="gmtiflow.conf", version_base="1.3"):
             return hydra_compose(config_name="config", overrides=list(overrides))
+    except COMPOSITION_ERRORS as exc:
+        error = composition_error(exc)
+        if error is None:
+            raise
+        raise error from exc
     finally:
         GlobalHydra.instance().clear()

@@ -26,3 +26,13 @@ class RoadMapError(InputFileError):
 
 class StoreError(InputFileError):
     """An HDF5 run file is missing, truncated, incomplete or of another layout version."""
+
+
+class CompositionError(ConfigError):
+    """Hydra could not compose the config from the overrides: an unknown group option or key,
+    a value of the wrong type, an override it cannot parse (:mod:`gmtiflow.compose_errors`).
+    The message is one line; ``hint`` at most one more (None without)."""
+
+    def __init__(self, message: str, hint=None):
+        super().__init__(message)
+        self.hint = hint

@@ -35,7 +35,7 @@ CASES = {
                        ["roadmap=tiny", "vehicles=slow"], "cruise_speed_mps"),
     "malformed_osm": ({"bad.osm": "<osm><way id='1'>"}, ["roadmap=osm", "roadmap.path={dir}/bad.osm"],
                       "bad.osm"),
-    "unknown_option": ({}, ["terrain=everest"], "terrain/everest"),
+    "unknown_option": ({}, ["terrain=everest"], "terrain has no option 'everest'"),
     "negative_power": ({}, ["sensor.peak_power_w=-1"], "sensor.peak_power_w"),
     "elevation_reversed": ({}, ["sensor.el_min_deg=-2", "sensor.el_max_deg=-20"], "sensor.el_min_deg"),
     "missing_rcs_file": ({}, ["sensor.rcs.truck.table={dir}/nope.csv"], "nope.csv"),

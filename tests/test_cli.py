@@ -58,7 +58,7 @@ def test_same_config_and_seed_give_identical_datasets(tmp_path):
 
 @pytest.mark.parametrize("overrides, needle", [
     (["sensr=wide"], "sensr"),                                  # unknown group
-    (["platform=nowhere"], "platform/nowhere"),                 # unknown option
+    (["platform=nowhere"], "platform has no option 'nowhere'"),  # unknown option
     (["platform.speed=3"], "speed"),                            # unknown key
     (["+platform.speed=3"], "platform.speed: unknown config key"),  # ... added with +
     (["platform.speed_mps=fast"], "speed_mps"),                 # wrong type
@@ -71,6 +71,53 @@ def test_bad_config_is_one_clear_error_and_no_output(tmp_path, overrides, needle
     assert needle in proc.stderr
     assert "Traceback" not in proc.stderr
     assert not list(tmp_path.rglob("*.h5"))
+
+
+@pytest.mark.parametrize("overrides, line", [
+    (["sensor=wide_fvo"], "config group sensor has no option 'wide_fvo'; did you mean "
+                          "sensor=wide_fov? (options: default, no_stap, wide_fov)"),
+    (["experiment=challenge/tunel"], "config group experiment has no option 'challenge/tunel'; "
+                                     "did you mean experiment=challenge/tunnel? (options: "),
+    (["sensr=wide_fov"], "invalid config: sensr: unknown config group or key; did you mean "
+                         "sensor?"),
+    (["sensor.freq_hzz=1e10"], "invalid config: sensor.freq_hzz: unknown config key; did you "
+                               "mean sensor.freq_hz?"),
+    (["sensor.freq_hz=abc"], "invalid config: sensor.freq_hz: Value 'abc' of type 'str' could "
+                             "not be converted to Float"),
+    (["sensor.freq_hz=[1"], "cannot parse the override 'sensor.freq_hz=[1': "),
+    (["sensor.freq_hz"], "cannot parse the override 'sensor.freq_hz': missing EQUAL"),
+    (["+sensor.freq_hz=1e10"], "Could not append to config. An item is already at "
+                               "'sensor.freq_hz'."),
+    (["sensor=1"], "cannot use the override 'sensor=1': Config group override must be a string "
+                   "or a list. Got int"),
+    (["-m", "sensor=default,wide_fvo"], "config group sensor has no option 'wide_fvo'"),
+    (["--cfg", "job", "sensor=wide_fvo"], "config group sensor has no option 'wide_fvo'"),
+])
+def test_composition_errors_are_one_line_and_a_hint_at_most(tmp_path, overrides, line):
+    """Hydra's own report of these was 6-12 lines (its message, OmegaConf's full_key block, the
+    config search path, 'Set the environment variable HYDRA_FULL_ERROR=1 ...')."""
+    flags = [o for o in overrides if o.startswith("-") or o == "job"]   # before the overrides
+    rest = [o for o in overrides if o not in flags]
+    proc = subprocess.run([sys.executable, "-m", "gmtiflow.cli", *flags,
+                           f"hydra.run.dir={tmp_path / 'run'}", f"hydra.sweep.dir={tmp_path / 'run'}",
+                           "scene.duration_s=60", *rest], capture_output=True, text=True,
+                          env=dict(os.environ, HYDRA_FULL_ERROR="0"), timeout=300, cwd=tmp_path)
+    assert proc.returncode == 1
+    lines = proc.stderr.splitlines()
+    assert 1 <= len(lines) <= 2, proc.stderr
+    assert lines[0].startswith(f"gmtiflow: error: {line}"), proc.stderr
+    assert all(x.startswith("gmtiflow: hint: ") for x in lines[1:]), proc.stderr
+    assert proc.stdout == ""
+    assert not (tmp_path / "run").exists()
+
+
+def test_hydra_full_error_still_gives_hydras_own_report(tmp_path):
+    env = dict(os.environ, HYDRA_FULL_ERROR="1")
+    proc = subprocess.run([sys.executable, "-m", "gmtiflow.cli", f"hydra.run.dir={tmp_path}/run",
+                           "sensor=wide_fvo"], capture_output=True, text=True, env=env,
+                          timeout=300, cwd=tmp_path)
+    assert proc.returncode == 1
+    assert "Traceback" in proc.stderr and "Could not find 'sensor/wide_fvo'" in proc.stderr
 
 
 def many_vehicles_text(copies: int = 8) -> str:
