@@ -50,6 +50,7 @@ from typing import Dict, List, Optional
 import numpy as np
 
 from gmtiflow import frames
+from gmtiflow.blind import TRUTH_DETECTION_COLUMNS, truth_free_order
 from gmtiflow.console import progress
 from gmtiflow.errors import InputFileError
 from gmtiflow.live import StreamConfig
@@ -486,38 +487,12 @@ def _csv_table(run: RunTables, name: str) -> Optional[Table]:
 
 def blind_run(run: RunTables) -> RunTables:
     """``run`` without truth (``export.blind``): no /truth, detections without truth columns,
-    and each dwell's reports in a truth-free order (:func:`truth_free_order`)."""
-    from gmtiflow.evaluate.protocol import TRUTH_DETECTION_COLUMNS
+    and each dwell's reports in a truth-free order (:func:`gmtiflow.blind.truth_free_order`)."""
     tables = {k: v for k, v in run.tables.items() if k != "truth"}
     if "detections" in tables:
         tables["detections"] = truth_free_order({c: v for c, v in tables["detections"].items()
                                                  if c not in TRUTH_DETECTION_COLUMNS})
     return RunTables(run.path, run.attrs, run.origin, run.epoch_utc, run.config, tables)
-
-
-def truth_free_order(detections: Table) -> Table:
-    """The detections by dwell and, within a dwell, by measured slant range (then azimuth),
-    with the dwell's ``det_id`` values reassigned in that order.
-
-    run.h5 numbers a dwell's reports target by target in vehicle id order, then its false
-    alarms: the order (and ``det_id``, which every format writes and sorts by) would tell a
-    tracker under test which reports are false alarms and which vehicle is which.  A real
-    processor lists a dwell's reports by range cell.  The set of ``det_id`` values is kept."""
-    det = {k: np.asarray(v) for k, v in detections.items()}
-    n = len(det.get("det_id", ()))
-    if n < 2 or "dwell_id" not in det:
-        return det
-    keys = [np.arange(n)]                   # ties (same range and azimuth): as they were
-    for c in ("azimuth_rad", "range_m"):
-        if c in det:
-            keys.append(np.nan_to_num(np.asarray(det[c], float), nan=np.inf))
-    keys.append(np.asarray(det["dwell_id"], np.int64))
-    order = np.lexsort(keys)
-    out = {k: v[order] for k, v in det.items()}
-    # each dwell keeps its own ids, handed out in the new order
-    ids = np.asarray(det["det_id"])[np.lexsort((det["det_id"], det["dwell_id"]))]
-    out["det_id"] = ids
-    return out
 
 
 def write_format(fmt: str, run: RunTables, cfg: ExportConfig, dest) -> None:

@@ -12,7 +12,10 @@ its working directory:
 
 ``{detections}``  ``detections.csv``: the formats detection CSV (docs/exports.md) restricted to
                   :data:`BLIND_COLUMNS` (the tracker protocol's blind columns: no ``truth_id``,
-                  ``true_*``, ``merged``, folding/wrapping flags or RCS);
+                  ``true_*``, ``merged``, folding/wrapping flags or RCS), each dwell's reports
+                  by measured slant range with the dwell's ``det_id`` values handed out in
+                  that order (:func:`gmtiflow.blind.truth_free_order`, as the batches of the
+                  tracker protocol and ``export.blind`` files);
 ``{dwells}``      ``dwells.csv``: the /dwells table (time, beam, footprint, platform state);
 ``{scene}``       ``scene.json``: ENU origin, epoch, scenario and seed;
 ``{tracks}``      where to write the track CSV (``time_s track_id x_m y_m`` + optional columns);
@@ -33,8 +36,8 @@ from typing import Dict, Tuple
 import numpy as np
 
 from gmtiflow import formats, store
+from gmtiflow.blind import BLIND_DETECTION_COLUMNS, truth_free_order
 from gmtiflow.errors import GmtiflowError
-from gmtiflow.evaluate.protocol import BLIND_DETECTION_COLUMNS
 from gmtiflow.formats import write_atomic
 
 from .collect import EXTERNAL_FILE, RUN_FILE, collect
@@ -76,7 +79,8 @@ def write_blind_inputs(run_file: Path, folder: Path, scenario: str, seed: int) -
     epoch = str(attrs.get("scene_epoch_utc", "2000-01-01T00:00:00Z"))
     paths = {"detections": folder / "detections.csv", "dwells": folder / "dwells.csv",
              "scene": folder / "scene.json", "tracks": folder / "tracks.csv"}
-    formats.write_csv(paths["detections"], {c: det[c] for c in BLIND_COLUMNS if c in det},
+    formats.write_csv(paths["detections"],
+                      truth_free_order({c: det[c] for c in BLIND_COLUMNS if c in det}),
                       "detections", epoch_utc=epoch)
     write_atomic(paths["dwells"], _table_csv(dwells))
     scene = {"origin_lat_deg": float(attrs["origin_lat_deg"]),

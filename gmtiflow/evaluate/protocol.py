@@ -29,7 +29,10 @@ consecutive dwells of one sensor's revisit) with:
   batch), ordered by dwell, :data:`BLIND_DETECTION_COLUMNS` only — the measurement, its σ's
   and the processor's flags, never truth (``truth_id``, ``true_*``, ``merged``, the
   ambiguity flags and the target RCS are dropped); ``sensor_id`` is 0 when the run has one
-  sensor;
+  sensor.  Within a dwell, by measured slant range (then azimuth), with the dwell's
+  ``det_id`` values handed out in that order (:func:`gmtiflow.blind.truth_free_order`, as
+  ``export.blind`` files): not run.h5's order, which lists targets by vehicle id, then false
+  alarms;
 * ``time_s`` (its last dwell's time) and ``index`` (0, 1, ...).
 
 Several sensors: batches of all sensors come in one time order, each detection with its own
@@ -52,6 +55,7 @@ from typing import Any, Dict, Iterable, Iterator, Mapping, Optional, Tuple
 import numpy as np
 
 from gmtiflow import frames
+from gmtiflow.blind import BLIND_DETECTION_COLUMNS, TRUTH_DETECTION_COLUMNS, truth_free_order
 from gmtiflow.errors import ConfigError, GmtiflowError, InputFileError
 from gmtiflow.tables import Table
 
@@ -62,16 +66,6 @@ except ImportError:                     # pragma: no cover
 
     def runtime_checkable(cls):         # type: ignore
         return cls
-
-BLIND_DETECTION_COLUMNS = (
-    "det_id", "dwell_id", "sensor_id", "time_s", "range_m", "azimuth_rad", "range_rate_mps",
-    "snr_db", "sigma_range_m", "sigma_azimuth_rad", "sigma_range_rate_mps", "x_m", "y_m", "z_m",
-    "lat_deg", "lon_deg", "height_m", "implausible", "wrap_velocity_mps")
-"""What a tracker sees of a detection (docs/tables.md /detections, less every truth column)."""
-
-TRUTH_DETECTION_COLUMNS = ("truth_id", "true_range_m", "true_azimuth_rad", "true_range_rate_mps",
-                           "merged", "range_folded", "doppler_wrapped", "rcs_dbsm")
-"""/detections columns that carry truth: never in a batch nor in a blind export."""
 
 DWELL_FIELDS = (
     "dwell_id", "sensor_id", "revisit_id", "revisit_end", "time_s", "cpi_s",
@@ -214,12 +208,13 @@ class _Prepared:
                                  f"{int(np.asarray(detections['dwell_id'])[i])} is not in "
                                  f"/dwells")
         det_dwell_pos = key_order[pos] if n_det else np.zeros(0, np.int64)
-        det_order = np.argsort(det_dwell_pos, kind="stable")
-        det: Table = {}
-        for name in BLIND_DETECTION_COLUMNS:
-            if name in detections:
-                det[name] = np.asarray(detections[name])[det_order]
-        det["sensor_id"] = det_sensor[det_order]
+        # Grouped by dwell position, each dwell's reports in a truth-free order (by measured
+        # slant range, det_ids handed out in that order; gmtiflow.blind): run.h5's order
+        # (targets by vehicle id, then false alarms) would give truth away.
+        det: Table = {name: np.asarray(detections[name]) for name in BLIND_DETECTION_COLUMNS
+                      if name in detections}
+        det["sensor_id"] = det_sensor
+        det = truth_free_order(det, group=det_dwell_pos)
         counts = np.bincount(det_dwell_pos, minlength=n_dw).astype(np.int64)
         dw["n_detections"] = counts
         self.dwells, self.detections = dw, det

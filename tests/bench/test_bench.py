@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from gmtiflow.bench import challenges, collect, scenarios
@@ -106,6 +107,28 @@ def test_external_command_tracker_is_scored_like_the_same_tracker_in_process(tmp
     for metric, row in ext.items():
         assert row["values"] == ref[metric]["values"], metric
         assert row["verdict"] == "tie"
+
+
+def test_external_command_gets_each_dwells_reports_by_range_not_by_truth(tmp_path):
+    """run.h5 lists a dwell's reports by vehicle id, then its false alarms; the blind
+    detections.csv an external tracker reads lists them by measured slant range, det_ids
+    handed out in that order, as the tracker protocol's batches do."""
+    from gmtiflow import formats, pipeline, store
+    from gmtiflow.bench import external
+    from gmtiflow.evaluate.protocol import batches
+    from tests.evaluate.helpers import check_truth_free_order
+    run = pipeline.run(compose(["scene.duration_s=60", "export=none", "report=none",
+                                "progress=false", "cache.enabled=false", "tracker=none",
+                                "metrics.enabled=false"]), tmp_path / "run")
+    paths = external.write_blind_inputs(run, tmp_path / "in", "default", 1)
+    seen = formats.read_detections_csv(paths["detections"])
+    ref = store.read_table(run, "detections")
+    mixed, truth_ordered = check_truth_free_order(seen, ref)
+    assert mixed > 10 and truth_ordered < mixed / 2, (mixed, truth_ordered)
+    # the same reports, order and det_ids as the protocol's batches
+    got = [b.detections for b in batches(ref, store.read_table(run, "dwells"))]
+    for c in ("det_id", "dwell_id", "range_m", "azimuth_rad", "x_m", "y_m"):
+        assert np.array_equal(seen[c], np.concatenate([b[c] for b in got])), c
 
 
 def test_failing_external_command_is_one_clear_error(tmp_path):

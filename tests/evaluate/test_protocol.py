@@ -14,8 +14,9 @@ from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import TrackerConfig
 from gmtiflow.evaluate.protocol import (BLIND_DETECTION_COLUMNS, TRUTH_DETECTION_COLUMNS,
                                         TrackerError, batches, load_tracker, stream)
-from gmtiflow.evaluate.synthetic import gmti_scene
+from gmtiflow.evaluate.synthetic import gmti_scene, straight_scene
 from gmtiflow.evaluate.tracker import track
+from tests.evaluate.helpers import check_truth_free_order
 
 ROOT = Path(__file__).resolve().parents[2]
 USER = "tests.evaluate.user_trackers"
@@ -50,9 +51,29 @@ def test_batches_are_blind_in_time_order_and_include_empty_dwells(scene):
         assert np.all(b.detections["sensor_id"] == 0)
         k = np.flatnonzero(dw["dwell_id"] == b.dwells["dwell_id"][0])[0]
         assert b.dwells["platform_x_m"][0] == dw["platform_x_m"][k]
-        # the detections of a dwell keep their order in the table
+        # the detections of a dwell are the table's, by measured slant range
         mine = np.flatnonzero(det["dwell_id"] == b.dwells["dwell_id"][0])
+        mine = mine[np.argsort(det["range_m"][mine], kind="stable")]
         assert np.array_equal(b.detections["x_m"], det["x_m"][mine])
+
+
+def test_a_dwells_reports_come_by_range_not_by_truth():
+    """The synthetic table (like run.h5) lists a dwell's reports by truth (false alarms, then
+    targets by vehicle id) with det_ids to match; a tracker must see neither that order nor
+    det_ids that follow it."""
+    scene = straight_scene(n_vehicles=4, n_revisits=20, clutter_per_dwell=3.0,
+                           clutter_half_width_m=1500.0, seed=3)
+    det, dw = scene["detections"], scene["dwells"]
+    seen = [b.detections for b in batches(det, dw)]
+    seen = {k: np.concatenate([s[k] for s in seen]) for k in seen[0]}
+    mixed, truth_ordered = check_truth_free_order(seen, det)
+    assert mixed >= 15 and truth_ordered < mixed / 2, (mixed, truth_ordered)
+    # the baseline gets the same batches: its tracks whichever order the table had
+    shuffled = {k: v[::-1] for k, v in det.items()}
+    a, b = track(TrackerConfig(), det, dw), track(TrackerConfig(), shuffled, dw)
+    assert len(a["track_id"]) > 50
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k
 
 
 def test_revisit_batches_hold_whole_revisits_and_give_the_baseline_the_same_tracks(scene):
@@ -99,6 +120,12 @@ def test_stream_of_a_run_file_equals_the_in_memory_batches(tmp_path):
     assert len(streamed) == len(dw["dwell_id"]) > 0
     assert sum(b.n_detections for b in streamed) == len(det["det_id"])
     assert all(not set(b.detections) & set(TRUTH_DETECTION_COLUMNS) for b in streamed)
+    # each dwell's reports by measured range, det_ids not following run.h5's order (targets
+    # by vehicle id, then false alarms)
+    seen = {k: np.concatenate([b.detections[k] for b in streamed])
+            for k in streamed[0].detections}
+    mixed, truth_ordered = check_truth_free_order(seen, det)
+    assert mixed > 0 and truth_ordered < mixed, (mixed, truth_ordered)
     assert "area_range_m" in streamed[0].dwells          # footprint centre from the origin
     again = list(stream(run, per="revisit"))
     assert sum(b.n_dwells for b in again) == len(streamed)

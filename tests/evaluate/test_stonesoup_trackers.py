@@ -46,6 +46,12 @@ def test_each_vehicle_is_held_by_one_track_and_results_repeat(scene, kind):
     again = run(scene, kind)
     for k in tracks:
         assert np.array_equal(tracks[k], again[k]), k
+    # a tracker sees each dwell's reports by measured range (det_ids in that order), whatever
+    # the order of the table's rows: the same tracks, track ids included
+    backwards = dict(scene, detections={k: v[::-1] for k, v in scene["detections"].items()})
+    again = run(backwards, kind)
+    for k in tracks:
+        assert np.array_equal(tracks[k], again[k]), k
 
 
 def test_each_detection_carries_its_own_covariance(scene):
