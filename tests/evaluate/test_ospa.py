@@ -88,9 +88,10 @@ def _brute_ospa(X, Y, c, p):
 
 @pytest.mark.parametrize("p", [1.0, 2.0, 3.0])
 def test_exact_minimum_and_how_stone_soup_differs_on_random_sets(p):
-    """Ours is the exact minimum over pairings of Σ min(d, c)^p.  Stone Soup 1.9 picks the
-    pairing minimising Σ min(d, c) and then takes the p-th powers, so its OSPA is >= ours and
-    equal whenever both pairings agree (always for p = 1); GOSPA likewise."""
+    """Ours is the exact minimum over pairings of Σ min(d, c)^p.  Stone Soup 1.9's GOSPAMetric
+    minimises the same sum: its GOSPA and its three components equal ours for every p.  Its
+    OSPAMetric picks the pairing minimising Σ min(d, c) and then takes the p-th powers, so its
+    OSPA is >= ours and equal whenever both pairings agree (always for p = 1)."""
     import datetime
     GOSPAMetric, OSPAMetric, State, StateVector = _stonesoup()
     rng = np.random.default_rng(int(p))
@@ -110,11 +111,12 @@ def test_exact_minimum_and_how_stone_soup_differs_on_random_sets(p):
         ss_ospa = OSPAMetric(c=c, p=p).compute_OSPA_distance(tracks, truths).value
         ss_gospa = GOSPAMetric(c=c, p=p).compute_gospa_metric(tracks, truths)[0].value
         assert ours["ospa"] <= ss_ospa + 1e-9
-        assert ours["gospa"] <= ss_gospa["distance"] + 1e-9
+        assert ours["gospa"] == pytest.approx(ss_gospa["distance"], rel=1e-12, abs=1e-9)
+        for part in ("localisation", "missed", "false"):
+            assert ours[part] == pytest.approx(ss_gospa[part], rel=1e-12, abs=1e-9), part
         equal += abs(ours["ospa"] - ss_ospa) < 1e-9
         if p == 1.0:
             assert ours["ospa"] == pytest.approx(ss_ospa, rel=1e-9, abs=1e-9)
-            assert ours["gospa"] == pytest.approx(ss_gospa["distance"], rel=1e-9, abs=1e-9)
     assert equal >= 20
 
 
@@ -131,6 +133,12 @@ def test_stone_soup_pairs_on_d_not_d_to_the_p():
         [State(StateVector(x), timestamp=now) for x in X]).value
     assert ours == pytest.approx(np.sqrt(88.0 / 2.0), rel=1e-12)       # 6.633
     assert ss == pytest.approx(np.sqrt(96.0 / 2.0), rel=1e-12)         # 6.928
+    # Stone Soup's GOSPAMetric takes the Σd² pairs, as ours does
+    ss_gospa = GOSPAMetric(c=100.0, p=2.0).compute_gospa_metric(
+        [State(StateVector(y), timestamp=now) for y in Y],
+        [State(StateVector(x), timestamp=now) for x in X])[0].value
+    assert ss_gospa["localisation"] == pytest.approx(88.0, rel=1e-12)
+    assert ospa_gospa(X, Y, c=100.0, p=2.0)["gospa"] == pytest.approx(np.sqrt(88.0), rel=1e-12)
 
 
 from hypothesis import given, settings, strategies as st  # noqa: E402
