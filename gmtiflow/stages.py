@@ -358,13 +358,15 @@ def evaluate(state: RunState):
     first = np.asarray(platform["sensor_id"]) == 0
     looks = state.table("looks", {**LOOK_COLUMNS, **SENSOR_ID})
     dwells = state.table("dwells", {**DWELL_COLUMNS, **SENSOR_ID})
-    # Scored up to the last dwell of any sensor (docs/evaluation.md, "Time base").
+    # Scored from the first dwell of any sensor to the last (docs/evaluation.md, "Time base").
     last_dwell_s = float(np.max(dwells["time_s"])) if len(dwells["time_s"]) else None
+    first_dwell_s = float(np.min(dwells["time_s"])) if len(dwells["time_s"]) else None
     from gmtiflow.evaluate import evaluate as evaluate_tracks   # scipy: only when scored
     metrics = evaluate_tracks(cfg.metrics, state.values["truth_table"], state.values["track"],
                               looks, state.values["truth"].vehicles,
                               {c: np.asarray(v)[first] for c, v in platform.items()},
-                              origin=state.values["scene"][0].origin, until_s=last_dwell_s)
+                              origin=state.values["scene"][0].origin, until_s=last_dwell_s,
+                              since_s=first_dwell_s)
     window_s = 2.0 * max(slot.sensor.revisit_s for slot in state.slots)
     metrics["metrics/sensors"] = sensors_table(
         [slot.name for slot in state.slots], state.values["truth_table"], dwells,

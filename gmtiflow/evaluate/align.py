@@ -10,7 +10,7 @@ Two alignments, both vectorised (one ``searchsorted`` over a combined (object, t
   part at grid time ``t`` when it has a row at or before ``t`` no older than
   ``max_extrapolation_s``; its position is that row's, extrapolated to ``t`` at the row's
   velocity (held when the table has no velocity).  A track ends with its last row: it is absent
-  before its first row and more than ``end_hold_s`` after its last one (a tracker stops reporting
+  before its first row and ``end_hold_s`` or more after its last one (a tracker stops reporting
   a track when it deletes it; without this, a deleted track would linger next to its successor
   and make the association flip between the two).  Used for OSPA/GOSPA and identity.
 
@@ -78,13 +78,49 @@ def interpolate_truth(truth: Mapping[str, np.ndarray], vehicle_id, time_s) -> Ta
     return out
 
 
-def evaluation_grid(truth: Mapping[str, np.ndarray], eval_dt_s=None) -> np.ndarray:
-    """The evaluation instants: the truth sample times, or a regular grid over their span."""
+def evaluation_grid(truth: Mapping[str, np.ndarray], eval_dt_s=None, since_s=None,
+                    until_s=None) -> np.ndarray:
+    """The evaluation instants: the truth sample times, or a regular grid of ``eval_dt_s`` from
+    the first of them.
+
+    ``since_s``, ``until_s``: the tracker's window (its first and last dwell).  The grid then
+    covers it on its own step, whether or not a vehicle is on the road: /truth has rows only for
+    vehicles on the road, so the truth's instants alone leave out the time before the first
+    vehicle starts, after the last one leaves and between, where a tracker's false tracks
+    would cost nothing.  The truth's step is that of its instants (all on one lattice
+    ``t0 + k·dt``); truth instants that do not lie on one lattice (or a single instant) are not
+    extended.  The window only adds instants: truth instants outside it stay."""
     times = np.unique(np.asarray(truth["time_s"], float))
-    if eval_dt_s is None or len(times) == 0:
+    if len(times) == 0:
         return times
-    n = int(np.floor((times[-1] - times[0]) / eval_dt_s + 1e-9)) + 1
-    return times[0] + np.arange(n) * float(eval_dt_s)
+    lo = times[0] if since_s is None else min(times[0], float(since_s))
+    hi = times[-1] if until_s is None else max(times[-1], float(until_s))
+    if eval_dt_s is not None:
+        dt = float(eval_dt_s)
+        k0 = int(np.ceil((lo - times[0]) / dt - 1e-9))
+        n = int(np.floor((hi - times[0]) / dt + 1e-9)) + 1
+        return times[0] + np.arange(k0, n) * dt
+    dt = _lattice_step(times)
+    if dt is None or (lo == times[0] and hi == times[-1] and
+                      len(times) == int(round((times[-1] - times[0]) / dt)) + 1):
+        return times
+    k0 = int(np.ceil((lo - times[0]) / dt - 1e-9))
+    k1 = int(np.floor((hi - times[0]) / dt + 1e-9))
+    lattice = times[0] + np.arange(k0, k1 + 1) * dt
+    # the truth's own instants bit for bit, the lattice's where no vehicle is on the road
+    j = np.clip(np.searchsorted(times, lattice), 1, len(times) - 1)
+    near = np.minimum(np.abs(times[j] - lattice), np.abs(times[j - 1] - lattice)) < 1e-6 * dt
+    return np.union1d(times, lattice[~near])
+
+
+def _lattice_step(times: np.ndarray):
+    """The step dt of sorted distinct instants that all lie on one lattice ``t0 + k·dt``
+    (to 1e-6 of a step), else None (fewer than two instants, or irregular ones)."""
+    if len(times) < 2:
+        return None
+    dt = float(np.min(np.diff(times)))
+    k = (times - times[0]) / dt
+    return dt if np.all(np.abs(k - np.round(k)) < 1e-6) else None
 
 
 def truth_at_grid(truth: Mapping[str, np.ndarray], grid: np.ndarray) -> Table:
@@ -92,7 +128,8 @@ def truth_at_grid(truth: Mapping[str, np.ndarray], grid: np.ndarray) -> Table:
     tt = np.asarray(truth["time_s"], float)
     step = np.searchsorted(grid, tt - _EPS_S)
     on_grid = (step < len(grid)) & (np.abs(grid[np.minimum(step, len(grid) - 1)] - tt) <= _EPS_S)
-    if on_grid.all() and len(np.unique(tt)) == len(grid):
+    if on_grid.all() and (len(np.unique(tt)) == len(grid) or not _inside_a_span(
+            step, np.asarray(truth["vehicle_id"], np.int64), len(grid))):
         out = {"step": step.astype(np.int64),
                "vehicle_id": np.asarray(truth["vehicle_id"], np.int64)}
         for k in ("x_m", "y_m", "vx_mps", "vy_mps"):
@@ -108,6 +145,21 @@ def truth_at_grid(truth: Mapping[str, np.ndarray], grid: np.ndarray) -> Table:
             out[k] = it[k][ok]
     order = lexorder(out["step"], out["vehicle_id"])
     return {k: v[order] for k, v in out.items()}
+
+
+def _inside_a_span(step: np.ndarray, vid: np.ndarray, n_steps: int) -> bool:
+    """Whether a grid step without any truth row lies strictly inside a vehicle's span of steps
+    (the vehicle would be interpolated there); grid steps added only where no vehicle is on the
+    road (:func:`evaluation_grid` with a window) do not."""
+    empty = np.flatnonzero(np.bincount(step, minlength=n_steps) == 0)
+    if not len(empty) or not len(step):
+        return False
+    ids, dense = np.unique(vid, return_inverse=True)
+    first = np.full(len(ids), n_steps, np.int64)
+    last = np.full(len(ids), -1, np.int64)
+    np.minimum.at(first, dense, step)
+    np.maximum.at(last, dense, step)
+    return bool(np.any(np.searchsorted(empty, last) > np.searchsorted(empty, first, "right")))
 
 
 def tracks_at_grid(tracks: Mapping[str, np.ndarray], grid: np.ndarray,
@@ -138,10 +190,18 @@ def tracks_at_grid(tracks: Mapping[str, np.ndarray], grid: np.ndarray,
     last = np.searchsorted(dense, np.arange(len(uniq)), side="right") - 1
     lo = np.searchsorted(grid, tt[first] - _EPS_S)
     hold = np.full(len(uniq), min(float(max_extrapolation_s), float(end_hold_s)))
+    alive = np.zeros(len(uniq), bool)
     if open_end_s is not None:
         alive = tt[last] >= float(open_end_s) - float(max_extrapolation_s) - _EPS_S
         hold[alive] = float(max_extrapolation_s)
     hi = np.searchsorted(grid, tt[last] + hold + _EPS_S, side="right")
+    # a track that ended is held to instants *less* than end_hold_s after its last row (and at
+    # that row's own instant): a vehicle that left the road at its track's last row is not
+    # followed by a false track at the next truth instant end_hold_s later
+    ended = ~alive & (float(end_hold_s) < float(max_extrapolation_s))
+    hi[ended] = np.maximum(
+        np.searchsorted(grid, tt[last][ended] + _EPS_S, side="right"),
+        np.searchsorted(grid, tt[last][ended] + hold[ended] - _EPS_S, side="left"))
     counts = np.maximum(hi - lo, 0)
     qk = np.repeat(np.arange(len(uniq)), counts)
     starts = np.repeat(lo - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)

@@ -143,16 +143,16 @@ def score(tracks_path: Path, run_path: Path, include_unconfirmed: bool = False) 
         looks = read_table(f, "looks") if "looks" in f else None
         vehicles = read_table(f, "vehicles") if "vehicles" in f else None
         platform = read_table(f, "platform") if "platform" in f else None
-        last_dwell_s = None          # scored up to the last dwell (docs/evaluation.md)
+        first_dwell_s = last_dwell_s = None     # scored over the dwells (docs/evaluation.md)
         if "dwells" in f:
             dwell_t = read_table(f, "dwells").get("time_s")
             if dwell_t is not None and len(dwell_t):
-                last_dwell_s = float(np.max(dwell_t))
+                first_dwell_s, last_dwell_s = float(np.min(dwell_t)), float(np.max(dwell_t))
     tt = np.asarray(truth["time_s"], float)
     if len(tt):
         check_times(tracks, float(tt.min()), float(tt.max()), epoch, str(tracks_path))
     return evaluate(cfg, truth, tracks, looks, vehicles, platform, origin=origin,
-                    source=str(tracks_path), until_s=last_dwell_s)
+                    source=str(tracks_path), until_s=last_dwell_s, since_s=first_dwell_s)
 
 
 def summary_text(summary: dict) -> str:

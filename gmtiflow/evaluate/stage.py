@@ -75,14 +75,18 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
              vehicles: Optional[Mapping[str, np.ndarray]] = None,
              platform: Optional[Mapping[str, np.ndarray]] = None, *,
              origin: Optional[frames.Origin] = None, source: str = "tracks",
-             until_s: Optional[float] = None) -> Dict[str, Table]:
+             until_s: Optional[float] = None,
+             since_s: Optional[float] = None) -> Dict[str, Table]:
     """Score ``tracks`` against ``truth``; returns the tables listed in the module docstring.
 
     ``looks`` enables the blind-gap events, ``vehicles`` (or truth's ``convoy_id``) the convoy
     confusions, ``platform`` the range-rate errors; ``origin`` converts lat/lon track tables.
     ``until_s`` is the time of the tracker's last dwell: the grid stops there, and a track
     reported within ``max_extrapolation_s`` of it is taken as alive to the end (without it, the
-    end of the truth).  ``cfg.min_truth_speed_mps`` gates slow truth out (MDV).
+    end of the truth).  ``since_s`` is the time of its first dwell: the grid starts there (or
+    at the first truth sample, if earlier), and covers the window on the truth's own step
+    whether or not a vehicle is on the road (:func:`~gmtiflow.evaluate.align.evaluation_grid`).
+    ``cfg.min_truth_speed_mps`` gates slow truth out (MDV).
     Track tables are checked with :func:`~gmtiflow.evaluate.tracks.validate_tracks` (a bad one
     raises :class:`~gmtiflow.errors.InputFileError`).
     """
@@ -91,12 +95,15 @@ def evaluate(cfg: MetricsConfig, truth: Mapping[str, np.ndarray],
     tracks = validate_tracks(tracks, origin, source)
     if cfg.confirmed_only and "confirmed" in tracks:
         tracks = {k: v[tracks["confirmed"]] for k, v in tracks.items()}
+    whole_truth = truth
     if until_s is not None:
         keep = np.asarray(truth["time_s"], float) <= float(until_s) + 1e-9
         if not keep.all():
             truth = {k: np.asarray(v)[keep] for k, v in truth.items()}
-    grid = align.evaluation_grid(truth, cfg.eval_dt_s)
-    truth_at = align.truth_at_grid(truth, grid)
+    grid = align.evaluation_grid(truth, cfg.eval_dt_s, since_s, until_s)
+    # a regular grid's instants between the last truth sample and until_s interpolate towards
+    # the next sample (after until_s); the truth's own instants need no later one
+    truth_at = align.truth_at_grid(truth if cfg.eval_dt_s is None else whole_truth, grid)
     open_end = until_s if until_s is not None else (float(grid[-1]) if len(grid) else None)
     tracks_at = align.tracks_at_grid(tracks, grid, cfg.max_extrapolation_s,
                                      cfg.track_end_hold_s, open_end_s=open_end)

@@ -88,3 +88,26 @@ def test_mdv_gated_truth_is_neither_missed_nor_false_while_stopped():
     assert summary_value(gated, "ospa_mean_m") < 1e-6
     with pytest.raises(AssertionError):
         assert summary_value(plain, "ospa_mean_m") < 1e-6
+
+
+@pytest.mark.parametrize("report_every_s", [1.0, 0.5])
+def test_perfect_tracks_of_a_vehicle_that_leaves_the_road_score_perfectly(report_every_s):
+    """/truth drops a vehicle when it arrives; its perfect track, reported up to its last truth
+    instant, used to be held track_end_hold_s (1 s) *including* the next 1 s truth instant, where
+    it was a false track (one OSPA step at c, a CLEAR-MOT false positive) though no tracker
+    could have done better.  The hold now ends before that instant."""
+    from tests.evaluate.helpers import line, truth_table
+    truth = truth_table({0: line(np.arange(0.0, 61.0), 0.0, 0.0, 10.0, 0.0),
+                         1: line(np.arange(0.0, 31.0), 5000.0, 0.0, -10.0, 0.0)})
+    times = np.arange(0.0, 60.0 + 1e-9, report_every_s)
+    it0 = interpolate_truth(truth, np.zeros(len(times), np.int64), times)
+    it1 = interpolate_truth(truth, np.ones(len(times), np.int64), times)
+    ok = it1["valid"]
+    tracks = {"track_id": np.r_[np.full(len(times), 5), np.full(ok.sum(), 6)],
+              "time_s": np.r_[times, times[ok]], "x_m": np.r_[it0["x_m"], it1["x_m"][ok]],
+              "y_m": np.r_[it0["y_m"], it1["y_m"][ok]],
+              "vx_mps": np.r_[it0["vx_mps"], it1["vx_mps"][ok]],
+              "vy_mps": np.r_[it0["vy_mps"], it1["vy_mps"][ok]]}
+    out = evaluate(MetricsConfig(), truth, tracks, since_s=0.0, until_s=60.0)
+    assert summary_value(out, "ospa_mean_m") == 0.0
+    assert summary_value(out, "mota") == 1.0 and summary_value(out, "idf1") == 1.0
