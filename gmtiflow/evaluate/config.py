@@ -106,7 +106,8 @@ class MetricsConfig:
     assoc_gate_m: float = 200.0
     """Identity association gate: a track and a truth are associated at a time step only when
     they are closer than this (CLEAR-MOT: a still-valid pairing is kept, the rest by optimal
-    assignment, cost distance², pairs at the gate left unassigned).  Equal to ``cutoff_m`` by
+    assignment of the pairs inside the gate: as many pairs as can be matched, then the least
+    total distance, as py-motmetrics does).  Equal to ``cutoff_m`` by
     default, so identity uses GOSPA's own assignment threshold; 50 m (the old default) cut a
     correctly held GMTI track in and out at every step (coverage 0.35, 100+ fragmentations on
     the default scene)."""
@@ -118,8 +119,10 @@ class MetricsConfig:
     """A track takes part at a grid time t when it has a row at or before t no older than this;
     its state is extrapolated to t at constant velocity."""
     track_end_hold_s: float = 1.0
-    """A track still takes part this long after its last row (then it has ended).  The default is
-    the default truth step, so a track ending between two grid times is counted at the next."""
+    """A track still takes part at the grid times less than this after its last row (then it has
+    ended).  The default is the default truth step, so a track ending between two grid times is
+    counted at the next, and one ending at a grid time (the perfect track of a vehicle that
+    leaves the road there) is not."""
     event_lookback_s: float = 15.0
     """How far before a stop / blind gap to look for the track that held the vehicle."""
     min_gap_looks: int = 1
