@@ -84,6 +84,32 @@ def no_prf_run(tmp_path_factory):
     return run
 
 
+@pytest.fixture(scope="module")
+def unlocated_run(no_prf_run, tmp_path_factory):
+    """The no-PRF run with every report unlocated (NaN position, as a folded report that could
+    not be put on the ground), exported again: no report in 4607 nor GeoJSON."""
+    import h5py
+    from gmtiflow.export import ExportConfig, export_run
+    run = tmp_path_factory.mktemp("unlocated") / "run.h5"
+    shutil.copy(no_prf_run, run)
+    with h5py.File(run, "r+") as f:
+        for c in ("lat_deg", "lon_deg", "height_m", "x_m", "y_m", "z_m"):
+            f["detections"][c][...] = np.nan
+    export_run(ExportConfig(csv_tables=["detections", "dwells", "truth", "tracks"]), run)
+    return run
+
+
+@needs_tshark
+def test_4607_of_a_run_whose_reports_are_all_unlocated(unlocated_run):
+    path = unlocated_run.parent / "detections.4607"
+    got = formats.read_4607(path)
+    assert len(got["detections"]["det_id"]) == 0
+    assert len(got["dwells"]["dwell_id"]) == len(store.read_table(unlocated_run, "dwells")["dwell_id"])
+    out = subprocess.run([TSHARK, "-r", str(path), "-q", "-z", "expert"], capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0 and not any(w in out.stdout for w in ("Errors", "Warns")), out.stdout
+
+
 def _assert_same_columns(ref, got, columns, what):
     """Every column of the run table that the format carries comes back: name, dtype, rows."""
     for c in ref:
@@ -94,7 +120,7 @@ def _assert_same_columns(ref, got, columns, what):
         assert b.dtype == a.dtype and len(b) == len(a), (what, c, a.dtype, b.dtype, len(b))
 
 
-@pytest.mark.parametrize("which", ["empty", "no_prf"])
+@pytest.mark.parametrize("which", ["empty", "no_prf", "unlocated"])
 def test_xml_of_the_run_gives_back_every_table_and_column(which, request):
     run = request.getfixturevalue(f"{which}_run")
     path = run.parent / "detections.xml"
@@ -114,7 +140,7 @@ def test_xml_of_the_run_gives_back_every_table_and_column(which, request):
                 np.testing.assert_array_equal(got[table][c][order], ref[c], err_msg=c)
 
 
-@pytest.mark.parametrize("which", ["empty", "no_prf"])
+@pytest.mark.parametrize("which", ["empty", "no_prf", "unlocated"])
 def test_geojson_of_the_run_gives_back_every_column_and_gdal_opens_it(which, request):
     run = request.getfixturevalue(f"{which}_run")
     det = store.read_table(run, "detections")
@@ -128,7 +154,7 @@ def test_geojson_of_the_run_gives_back_every_column_and_gdal_opens_it(which, req
         gdal_read(run.parent / name)                 # GDAL opens it (an empty layer too)
 
 
-@pytest.mark.parametrize("which", ["empty", "no_prf"])
+@pytest.mark.parametrize("which", ["empty", "no_prf", "unlocated"])
 @pytest.mark.parametrize("table", ["detections", "dwells", "truth", "tracks"])
 def test_csv_of_the_run_gives_back_every_column(which, table, request):
     run = request.getfixturevalue(f"{which}_run")
