@@ -98,7 +98,8 @@ class _ProfileSpec:
 def _check(cfg: VehiclesConfig) -> None:
     problems = cfg.problems()
     if problems:
-        raise ConfigError("; ".join(f"vehicles.{p.key}: {p.message}" for p in problems))
+        raise ConfigError("; ".join(f"{cfg.problem_key(p.key)}: {p.message}"
+                                    for p in problems))
 
 
 def _node_positions(route: Route, roadmap: RoadMap, refs, who: str) -> List[np.ndarray]:
@@ -130,8 +131,11 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
     if cfg.random.count > 0:
         specs += _random_specs(cfg.random, roadmap, seed)
     pre = _batch_routes(specs, roadmap)
-    for spec, route in zip(specs, pre):
-        who = f"vehicle {spec.name!r}"
+    n_listed = len(cfg.vehicles)
+    for i, (spec, route) in enumerate(zip(specs, pre)):
+        # errors name a listed vehicle's entry (in its file, if any), a random one by name
+        who = (f"{cfg.entry_name(i)} (vehicle {spec.name!r})" if i < n_listed
+               else f"vehicle {spec.name!r}")
         if route is not None:
             pass
         elif spec.off_road:
@@ -145,7 +149,8 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
             try:
                 route = shortest_route(roadmap, spec.start, spec.end, spec.stopovers, who=who)
             except RoadMapError as exc:
-                if "unknown node" in str(exc) and roadmap.source != "default scene":
+                if ("unknown node" in str(exc) and roadmap.source != "default scene"
+                        and not cfg.source_file):
                     raise RoadMapError(f"{exc}. Note: the vehicles=default preset names nodes "
                                        f"of roadmap=default; vehicles=random works on any "
                                        f"map") from None
@@ -178,8 +183,8 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
             gap = (float(spec.convoy.spacing_m) if spec.convoy.spacing_m is not None
                    else float(spec.convoy.spacing_s) * v0)
             if gap <= 0:
-                raise ConfigError(f"vehicles: {who}: convoy spacing_s with a zero start speed "
-                                  f"gives no gap; use spacing_m")
+                raise ConfigError(f"{who}: convoy spacing_s with a zero start speed gives no "
+                                  f"gap; use spacing_m")
             convoy_id = n_convoys
             n_convoys += 1
             members = [(f"{spec.name}-{i + 1}", i * gap) for i in range(count)]
@@ -202,7 +207,8 @@ def _expand(cfg: VehiclesConfig, roadmap: RoadMap, seed: int):
     names = [v.name for v in vehicles]
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
-        raise ConfigError(f"vehicles: vehicle name {dup!r} occurs twice (convoy members are "
+        where = f"vehicles.file {cfg.source_file}" if cfg.source_file else "vehicles"
+        raise ConfigError(f"{where}: vehicle name {dup!r} occurs twice (convoy members are "
                           f"named <name>-1, <name>-2, …)")
     return profiles, vehicles, routes
 

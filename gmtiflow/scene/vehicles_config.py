@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, ClassVar, Dict, List, Optional, Tuple
 
 from gmtiflow import schema
 
@@ -190,6 +190,27 @@ class VehiclesConfig:
 
     problems_include = ("vehicles", "random")
     """Fields whose problems :meth:`problems` reports (``config.problems_of``)."""
+
+    source_file: ClassVar[Optional[str]] = None
+    """The vehicles file the listed vehicles were read from (absolute), set on the instance
+    :func:`gmtiflow.scene.vehicles_file.expand` returns; None otherwise.  Not a config key (the
+    config holds the vehicles, not the path: /config and the stage cache keys follow the
+    vehicles), but errors found when the fleet is built name the file (:meth:`entry_name`)."""
+
+    def entry_name(self, index: int) -> str:
+        """How an error names listed vehicle ``index``: by its place in :attr:`source_file`
+        (``vehicles.file /x/big.yaml: vehicles[12]``), else by its key (``vehicles.vehicles[12]``),
+        as the config's own checks name it."""
+        if self.source_file:
+            return f"vehicles.file {self.source_file}: vehicles[{index}]"
+        return f"vehicles.vehicles[{index}]"
+
+    def problem_key(self, key: str) -> str:
+        """A key of :meth:`problems` (``vehicles[3].name``, ``random.count``) as the user wrote
+        it: a listed vehicle's in :attr:`source_file`, if any."""
+        if self.source_file and key.startswith("vehicles["):
+            return f"vehicles.file {self.source_file}: {key}"
+        return f"vehicles.{key}"
 
     def problems(self) -> List[schema.Problem]:
         out = []

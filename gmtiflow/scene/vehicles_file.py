@@ -97,7 +97,9 @@ def expand(group, base_dir: Optional[str] = None) -> Tuple[VehiclesConfig, Optio
             f"(vehicles.vehicles, e.g. {group.vehicles[0].name!r}); the file's list is the "
             f"scene's list: put them in the file, or choose a group that lists none "
             f"(vehicles=file vehicles.file={file})")
-    return VehiclesConfig(vehicles=load(path), random=group.random), path
+    out = VehiclesConfig(vehicles=load(path), random=group.random)
+    out.source_file = path      # beside the config, for errors found later (not a key)
+    return out, path
 
 
 def load(path: str) -> List[VehicleSpec]:

@@ -5,6 +5,7 @@ typed schema (what Hydra does with a vehicles group file): both accept with the 
 or both refuse.  Then the errors (file, entry, key), the expansion in ``config.to_object``
 (``compose``), relative paths, and the stage cache keys.
 """
+import dataclasses
 import logging
 import math
 import textwrap
@@ -18,7 +19,7 @@ from omegaconf import OmegaConf
 
 from gmtiflow import config, pipeline
 from gmtiflow.compose import compose
-from gmtiflow.errors import ConfigError
+from gmtiflow.errors import ConfigError, RoadMapError
 from gmtiflow.scene import vehicles_file
 from gmtiflow.scene.vehicles_config import VehiclesConfig, VehiclesGroupConfig, VehicleSpec
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -428,3 +429,65 @@ def test_a_random_fleet_starting_after_the_scene_is_warned_of(caplog, lo, hi, sh
     compose(["vehicles=random", "vehicles.random.count=5", "scene.duration_s=60",
              "vehicles.random.start_time_max_s=60"])
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+@pytest.mark.parametrize("entry, error, why", [
+    ("{name: b, start: g_0_0, end: nowhere}", RoadMapError, "unknown node 'nowhere'"),
+    ("{name: b, start: g_0_0, end: g_6_2, stop_points: [hw_x3000]}", RoadMapError,
+     "node 'hw_x3000' is not on the vehicle's route"),
+    ("{name: b, start: g_0_0, end: g_6_2, speed_changes: [{at: c_1, cruise_speed_mps: 5}]}",
+     RoadMapError, "node 'c_1' is not on the vehicle's route"),
+    ("{name: b, start: g_0_0, end: g_6_2, start_speed_mps: 0, convoy: {count: 2, spacing_s: 2}}",
+     ConfigError, "convoy spacing_s with a zero start speed gives no gap"),
+    ("{name: b, off_road: [[5, 5], [5, 5]]}", RoadMapError, "off_road waypoints all coincide"),
+])
+def test_errors_building_the_fleet_name_the_file_and_the_entry(tmp_path, entry, error, why):
+    """Route and convoy problems are found when the fleet is built (they need the road map),
+    after the config is converted: they used to name the vehicle only ("vehicle 'b': ...")."""
+    from gmtiflow.scene.roadmap import load_roadmap
+    from gmtiflow.scene.vehicles import build_fleet
+    path = write(tmp_path, f"vehicles:\n  - {{name: a, start: g_0_0, end: g_6_2}}\n  - {entry}\n")
+    cfg = compose_file(path, "scene.duration_s=60")
+    with pytest.raises(error) as err:
+        build_fleet(cfg.vehicles, load_roadmap(cfg.roadmap), seed=1, duration_s=60.0, dt_s=1.0)
+    message = str(err.value)
+    assert message.startswith(f"vehicles.file {path}: vehicles[1] (vehicle 'b'): "), message
+    assert why in message and "\n" not in message
+
+
+def test_errors_building_the_fleet_name_the_listed_entry_by_key():
+    from gmtiflow.scene.roadmap import load_roadmap
+    from gmtiflow.scene.vehicles import build_fleet
+    cfg = compose(["vehicles.vehicles.2.end=nowhere"])
+    with pytest.raises(RoadMapError) as err:
+        build_fleet(cfg.vehicles, load_roadmap(cfg.roadmap), seed=1, duration_s=60.0, dt_s=1.0)
+    name = cfg.vehicles.vehicles[2].name
+    assert str(err.value).startswith(f"vehicles.vehicles[2] (vehicle {name!r}): "), err.value
+    assert cfg.vehicles.source_file is None
+
+
+def test_the_file_of_the_vehicles_is_no_config_key(tmp_path):
+    """The path travels beside the config, not in it: /config and the cache keys as before."""
+    path = write(tmp_path, "vehicles:\n  - {name: a, start: g_0_0, end: g_6_2}\n")
+    cfg = compose_file(path)
+    assert cfg.vehicles.source_file == str(path)
+    assert "source_file" not in config.to_yaml(cfg)
+    assert "source_file" not in {f.name for f in dataclasses.fields(cfg.vehicles)}
+
+
+def test_a_cli_run_names_the_file_and_entry_of_an_impossible_route(tmp_path):
+    import os
+    import subprocess
+    import sys
+    write(tmp_path, "vehicles:\n  - {name: a, start: g_0_0, end: g_6_2}\n"
+                    "  - {name: b, start: g_0_0, end: nowhere}\n")
+    proc = subprocess.run(
+        [sys.executable, "-m", "gmtiflow.cli", f"hydra.run.dir={tmp_path / 'run'}",
+         "vehicles=file", "vehicles.file=big.yaml", "scene.duration_s=60", "tracker=none",
+         "report=none", "export=none", "cache.enabled=false"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+        env=dict(os.environ, HYDRA_FULL_ERROR="0"))
+    assert proc.returncode == 1
+    (line,) = proc.stderr.splitlines()
+    assert f"vehicles.file {tmp_path / 'big.yaml'}: vehicles[1] (vehicle 'b'): " in line, line
+    assert not list(tmp_path.rglob("*.h5"))
