@@ -154,7 +154,7 @@ def _inside_a_span(step: np.ndarray, vid: np.ndarray, n_steps: int) -> bool:
     empty = np.flatnonzero(np.bincount(step, minlength=n_steps) == 0)
     if not len(empty) or not len(step):
         return False
-    ids, dense = np.unique(vid, return_inverse=True)
+    ids, dense = dense_ids(vid)             # a bitmap for the usual dense vehicle ids
     first = np.full(len(ids), n_steps, np.int64)
     last = np.full(len(ids), -1, np.int64)
     np.minimum.at(first, dense, step)
