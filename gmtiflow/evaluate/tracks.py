@@ -10,8 +10,8 @@ A track table (docs/tables.md, /tracks) is a dict of equal-length numpy columns:
 
 :func:`validate_tracks` raises one :class:`~gmtiflow.errors.InputFileError` naming the column and
 the (0-based) data row for: an unknown or missing column, columns of different lengths, a value
-that is not a finite number (NaN, inf, text), a non-integer or negative track id (ids are
-0 .. 2^63 - 1), the same track id twice at
+that is not a finite number (NaN, inf, text), a position farther than 1e8 m from the scene
+origin, a non-integer or negative track id (ids are 0 .. 2^63 - 1), the same track id twice at
 one time, and times that do not increase within a track (in the order given).  It returns the
 table normalised: ``x_m y_m`` (lat/lon replaced), canonical dtypes, rows sorted by
 (track_id, time_s).
@@ -68,6 +68,11 @@ def _numeric(table, name: str, source: str) -> np.ndarray:
                             f" ({len(bad)} such row(s))")
     return col
 
+
+#: Scene ENU positions farther than this are refused: no point on Earth is more than ~12,700 km
+#: from the origin, and a track at 1e300 m went through the pair search's integer cell keys
+#: (numpy cast and overflow warnings; it was scored as a false track).
+MAX_POSITION_M = 1e8
 
 _FLOAT_EXACT_INT = 2 ** 53
 """Beyond this, float64 cannot tell neighbouring integers apart (2^60 and 2^60 + 1 are one)."""
@@ -183,6 +188,13 @@ def validate_tracks(table: Mapping[str, np.ndarray], origin: Optional[frames.Ori
         out["x_m"], out["y_m"] = x, y
         if "z_m" not in table:
             out["z_m"] = z
+    for n in ("x_m", "y_m"):
+        far = np.flatnonzero(np.abs(out[n]) > MAX_POSITION_M)
+        if len(far):
+            i = int(far[0])
+            raise _fail(source, f"column {_show(n)} row {i}: {_show(out[n][i])} is farther than "
+                                f"{MAX_POSITION_M:.0e} m from the scene origin (no point on Earth"
+                                f" is; a unit or frame error?)")
     for group in GROUPS:
         if group[0] in table:
             for n in group:

@@ -92,3 +92,26 @@ def test_unique_pairs_of_ids_across_64_bits_is_np_unique():
     ref, ref_counts = np.unique(np.stack([a, b], axis=1), axis=0, return_counts=True)
     np.testing.assert_array_equal(pairs, ref)
     np.testing.assert_array_equal(counts, ref_counts)
+
+
+@pytest.mark.parametrize("col, value", [("x_m", 1e300), ("y_m", -2e8), ("x_m", 1.7e308)])
+def test_positions_beyond_any_point_on_earth_are_refused(col, value):
+    """A track 1e300 m away used to be scored (as a false track) with numpy's cast and overflow
+    warnings from the pair search; a position farther than 1e8 m from the scene origin is a
+    unit or frame error, refused naming the row."""
+    table = {"track_id": np.array([1, 1]), "time_s": np.array([0.0, 1.0]),
+             "x_m": np.zeros(2), "y_m": np.zeros(2)}
+    table[col] = np.array([0.0, value])
+    with pytest.raises(InputFileError, match=rf"ext\.csv: column '{col}' row 1: .* is farther "
+                                             r"than 1e\+08 m from the scene origin"):
+        validate_tracks(table, source="ext.csv")
+
+
+def test_far_but_earthly_positions_score_without_warnings(scored):
+    import warnings
+    scene, tracks, until, ref = scored
+    far = {k: np.array(v, copy=True) for k, v in tracks.items()}
+    far["x_m"][::7] = 9.9e7
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        evaluate(MetricsConfig(), scene["truth"], far, scene["looks"], until_s=until)
