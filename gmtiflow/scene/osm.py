@@ -156,7 +156,7 @@ def load_osm(path, cfg: Optional[RoadmapConfig] = None) -> RoadMap:
         if _deleted(way):
             continue
         wid = way.get("id")
-        if first.setdefault(wid, way) is not way:
+        if wid is not None and first.setdefault(wid, way) is not way:
             _check_repeated_way(p, first[wid], way)
             continue        # the same way again: read once
         tags = {t.get("k"): t.get("v") for t in way.iterfind("tag")}

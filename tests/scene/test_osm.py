@@ -442,3 +442,10 @@ def test_a_deleted_copy_of_a_way_is_not_a_duplicate(tmp_path):
             '<tag k="highway" v="primary"/></way>')
     rm = load_osm(write(tmp_path, osm_text(ROADS + gone)))
     assert len(rm.edges["edge_id"]) == 2
+
+
+def test_ways_without_an_id_are_no_duplicates_of_each_other(tmp_path):
+    # OSM requires ids, but id-less hand-written ways were read before the duplicate check came
+    body = NODES + ('<way><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way>'
+                    '<way><nd ref="2"/><nd ref="3"/><tag k="highway" v="primary"/></way>')
+    assert len(load_osm(write(tmp_path, osm_text(body))).edges["edge_id"]) == 2
