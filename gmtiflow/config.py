@@ -33,7 +33,7 @@ from gmtiflow.config_tree import (SCALARS, field_names, field_values, holds_only
                                   is_empty, numeric_leaves, record_columns, unknown_keys)
 from gmtiflow.errors import ConfigError
 from gmtiflow.evaluate.config import MetricsConfig, TrackerConfig
-from gmtiflow.export import ExportConfig
+from gmtiflow.export_config import ExportConfig
 from gmtiflow.report.config import ReportConfig
 from gmtiflow.scene import vehicles_file
 from gmtiflow.scene.platform_config import PlatformConfig

@@ -24,6 +24,7 @@ import numpy as np
 
 from gmtiflow import formats
 from gmtiflow import export as export_mod
+from gmtiflow import export_tables
 from gmtiflow import frames
 from gmtiflow.errors import GmtiflowError, InputFileError
 from gmtiflow.paths import refuse_same_file
@@ -153,7 +154,7 @@ def read_any(path: Path, fmt: str, *, table: Optional[str] = None,
     attrs: dict = {"source_file": str(path), "source_format": fmt}
     if fmt == "4607":
         raw = formats.read_4607(path, epoch_utc=epoch)
-        tables = export_mod.from_4607_tables(raw, origin)
+        tables = export_tables.from_4607_tables(raw, origin)
         attrs.update({k: v for k, v in raw["attrs"].items() if v is not None})
         if origin is not None:     # the run-file root attributes of the scene frame
             attrs.update(origin_lat_deg=origin.lat_deg, origin_lon_deg=origin.lon_deg,
@@ -230,7 +231,7 @@ def receive_stream(args) -> Path:
                              f"{args.idle_timeout:g} s")
     raw = formats.stanag4607.decode_4607(data, args.input, epoch_utc=args.epoch)
     origin = _origin(args.origin)
-    tables = export_mod.from_4607_tables(raw, origin)
+    tables = export_tables.from_4607_tables(raw, origin)
     attrs = {"source_file": args.input, "source_format": "4607"}
     attrs.update({k: v for k, v in raw["attrs"].items() if v is not None})
     if origin is not None:

@@ -9,7 +9,7 @@ The paper's "on-line simulator": a tracker listens as it would to an aircraft's 
   (``speed = 0``: as fast as possible).
 * :class:`LiveExport` is the export stage's sink for a running simulation: the pipeline hands
   it every chunk of dwells and detections as they are simulated; it adapts them exactly as the
-  file export does (:func:`gmtiflow.export.to_4607_tables`) and sends them.
+  file export does (:func:`gmtiflow.export_tables.to_4607_tables`) and sends them.
 * :func:`receive` is the other end: it yields whole 4607 packets from ``udp://:PORT`` or
   ``tcp://:PORT`` until a packet count, an idle timeout or the sender closes (TCP);
   ``gmtiflow-convert udp://:4607 --to h5`` decodes what it receives with our reader.
@@ -245,8 +245,8 @@ class LiveExport:
 
     def __init__(self, stream: StreamConfig, export_cfg, origin, epoch_utc: str,
                  config: Optional[dict] = None):
-        from gmtiflow import export
-        self._export = export
+        from gmtiflow import export, export_tables
+        self._export, self._tables = export, export_tables
         self.cfg = export_cfg
         self.origin = origin
         self.epoch_utc = epoch_utc
@@ -258,12 +258,12 @@ class LiveExport:
         from gmtiflow import formats
         if not len(dwells.get("dwell_id", ())):
             return
-        run = self._export.RunTables(None, {}, self.origin, self.epoch_utc, self.config,
+        run = self._tables.RunTables(None, {}, self.origin, self.epoch_utc, self.config,
                                      {"dwells": dwells, "detections": detections})
         if self.cfg.blind:        # as the file export: no truth, each dwell's reports by range
             run = self._export.blind_run(run)
-        dw, det = self._export.to_4607_tables(run)
-        meta = self._export.meta_for(self.cfg, run)
+        dw, det = self._tables.to_4607_tables(run)
+        meta = self._tables.meta_for(self.cfg, run)
         meta["write_epoch_text"] = self._first
         data = formats.stanag4607.encode_4607(dw, det, meta, edition=str(self.cfg.edition),
                                               max_packet_bytes=UDP_MAX_PAYLOAD)

@@ -155,7 +155,8 @@ def test_geojson_round_trip_is_exact(run, tmp_path):
 def test_a_foreign_4607_file_without_gmtiflow_free_text(run, tmp_path):
     """Another producer's file: no epoch free text, so time counts from the mission day."""
     from gmtiflow import formats
-    from gmtiflow.export import ExportConfig, load_run, meta_for, to_4607_tables
+    from gmtiflow.export import ExportConfig, load_run
+    from gmtiflow.export_tables import meta_for, to_4607_tables
     r = load_run(run)
     dw, det = to_4607_tables(r)
     meta = dict(meta_for(ExportConfig(), r), write_epoch_text=False)

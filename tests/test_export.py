@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from gmtiflow import formats
-from gmtiflow import export, frames, pipeline, store
+from gmtiflow import export_tables, frames, pipeline, store
 from gmtiflow.export import ExportConfig, export_run
 from tests.conftest import compose_app
 
@@ -85,7 +85,7 @@ def test_d32_7_is_the_los_velocity_corrected_for_platform_motion(lake_run, tmp_p
     got = formats.read_4607(tmp_path / "detections.4607")
     det = store.read_table(run, "detections")
     dwells = store.read_table(run, "dwells")
-    ground = export.ground_range_rate_scene(dwells, det)
+    ground = export_tables.ground_range_rate_scene(dwells, det)
     own = det["range_rate_mps"] - ground
     assert len(own) == len(got["detections"]["los_velocity_mps"]) > 10
     assert np.allclose(got["detections"]["los_velocity_mps"], own, atol=0.005 + 1e-9)
@@ -108,7 +108,7 @@ def test_d32_7_is_the_los_velocity_corrected_for_platform_motion(lake_run, tmp_p
     # one meaning per name: the reader names D32.7 los_velocity_mps and never range_rate_mps
     assert "range_rate_mps" not in got["detections"]
     # ... and reading it back gives the full range rate again.
-    back = export.from_4607_tables(got)
+    back = export_tables.from_4607_tables(got)
     assert np.allclose(back["detections"]["range_rate_mps"], det["range_rate_mps"], atol=0.05)
     assert np.allclose(back["detections"]["los_velocity_mps"],
                        got["detections"]["los_velocity_mps"])
