@@ -110,7 +110,8 @@ def _fmt_size(size: int) -> str:
 
 def summary_numbers(run_path) -> Dict[str, float]:
     """The counts of the summary, read from the run file: detections, false alarms, merged,
-    P_D achieved (detected or merged looks over looks with a detection draw), vehicles, tracks
+    P_D achieved (detected or merged looks over looks with a detection draw), vehicles (those
+    that appear; ``vehicles_listed``: all in the config), tracks
     (confirmed), OSPA/GOSPA means.  Reads only the columns it needs."""
     import h5py
     import numpy as np
@@ -142,7 +143,14 @@ def summary_numbers(run_path) -> Dict[str, float]:
             out["pd_achieved"] = float(np.isin(outcome[d], detected).mean()) if d.any() else float("nan")
         vid = col(f, "vehicles", "vehicle_id")
         if vid is not None:
-            out["vehicles"] = float(len(vid))
+            # the vehicles that appear: a listed vehicle starting after the scene's end does not
+            out["vehicles_listed"] = float(len(vid))
+            start = col(f, "vehicles", "start_time_s")
+            end = f.attrs.get("scene_duration_s")
+            late = 0
+            if start is not None and end is not None:
+                late = np.count_nonzero(np.asarray(start, float) > float(end))
+            out["vehicles"] = float(len(vid) - late)
         tid, conf = col(f, "tracks", "track_id"), col(f, "tracks", "confirmed")
         if tid is not None:
             out["tracks"] = float(len(np.unique(tid)))
@@ -173,8 +181,11 @@ def run_summary(run_path, out_dir, written: Sequence[Path] = ()) -> str:
         lines.append(f"  detections  {num('detections')}: {num('targets')} on targets, "
                      f"{num('false_alarms')} false alarms, {num('merged')} merged")
     if "pd_achieved" in s:
+        vehicles = (f"{num('vehicles')} vehicles" if s.get("vehicles") == s.get("vehicles_listed")
+                    else f"{num('vehicles')} of {num('vehicles_listed')} vehicles appear in the "
+                         f"scene")
         lines.append(f"  P_D achieved {num('pd_achieved', '{:.3f}')} over {num('looks_drawn')} "
-                     f"looks on visible targets ({num('vehicles')} vehicles)")
+                     f"looks on visible targets ({vehicles})")
     if "tracks" in s:
         lines.append(f"  tracks      {num('tracks')} ({num('confirmed_tracks')} confirmed)"
                      + (f", OSPA {num('ospa_mean_m', '{:.1f}')} m, GOSPA "

@@ -141,3 +141,23 @@ def test_a_run_without_a_terminal_never_imports_tqdm(tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_summary_counts_only_vehicles_that_appear(tmp_path):
+    """A vehicle that starts after the scene's end never appears: the summary's vehicle count
+    is of those that do, and says how many of the listed ones never appear."""
+    from gmtiflow import pipeline
+    from gmtiflow.compose import compose
+    from gmtiflow.store import read_table
+    cfg = compose(["progress=false", "scene.duration_s=20", "export=none", "report=none",
+                   "tracker=none", "metrics.enabled=false", "vehicles=random",
+                   "vehicles.random.count=6", "vehicles.random.start_time_min_s=0",
+                   "vehicles.random.start_time_max_s=40"])
+    path = pipeline.run(cfg, tmp_path)
+    start = read_table(path, "vehicles")["start_time_s"]
+    appear = int((start <= 20.0).sum())
+    assert 0 < appear < len(start)                # the seed gives both kinds
+    nums = console.summary_numbers(path)
+    assert nums["vehicles"] == appear and nums["vehicles_listed"] == len(start)
+    text = console.run_summary(path, tmp_path)
+    assert f"({appear} of {len(start)} vehicles appear in the scene)" in text
