@@ -165,6 +165,17 @@ def _xmllint_valid(path):
     return True
 
 
+def _written_and_read(path, dwells, dets):
+    """Write ``dwells``/``dets`` to ``path`` (xmllint-valid), read them back, and check every
+    carried column of both tables; returns what was read."""
+    xmldoc.write_xml(path, dwells, dets, dict(META, bounding_area=AREA))
+    assert _xmllint_valid(path)
+    r = xmldoc.read_xml(path)
+    _assert_same_table(dwells, r["dwells"], xmldoc.DWELL_COLUMNS, "dwells")
+    _assert_same_table(dets, r["detections"], xmldoc.DETECTION_COLUMNS, "detections")
+    return r
+
+
 def test_round_trip_keeps_all_nan_columns(tmp_path):
     """A column with no known value (``wrap_velocity_mps`` of a run without PRF, the SNR and RCS
     of reports nobody measured) is written as absent attributes; it comes back as NaN, not
@@ -174,11 +185,7 @@ def test_round_trip_keeps_all_nan_columns(tmp_path):
     for c in ("wrap_velocity_mps", "snr_db", "rcs_dbsm", "lat_deg", "lon_deg", "height_m"):
         dets[c][:] = np.nan
     path = tmp_path / "nan.xml"
-    xmldoc.write_xml(path, dwells, dets, dict(META, bounding_area=AREA))
-    assert _xmllint_valid(path)
-    r = xmldoc.read_xml(path)
-    _assert_same_table(dwells, r["dwells"], xmldoc.DWELL_COLUMNS, "dwells")
-    _assert_same_table(dets, r["detections"], xmldoc.DETECTION_COLUMNS, "detections")
+    r = _written_and_read(path, dwells, dets)
     assert xmldoc.encode_xml(r["dwells"], r["detections"], r["meta"]) == path.read_bytes()
 
 
@@ -189,12 +196,7 @@ def test_round_trip_keeps_empty_tables_and_their_columns(tmp_path):
     for table in (dwells, dets):
         for c in table:
             table[c] = table[c][:0]
-    path = tmp_path / "empty.xml"
-    xmldoc.write_xml(path, dwells, dets, dict(META, bounding_area=AREA))
-    assert _xmllint_valid(path)
-    r = xmldoc.read_xml(path)
-    _assert_same_table(dwells, r["dwells"], xmldoc.DWELL_COLUMNS, "dwells")
-    _assert_same_table(dets, r["detections"], xmldoc.DETECTION_COLUMNS, "detections")
+    r = _written_and_read(tmp_path / "empty.xml", dwells, dets)
     assert r["detections"]["dwell_id"].dtype == np.int64
     # dwells without reports: the reports' columns are still known
     dwells, dets = synthetic.tables(3, 4)
