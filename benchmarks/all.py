@@ -47,18 +47,20 @@ BENCHMARKS = {
     "metrics_run": ("metrics_throughput", "docs/evaluation.md",
                     ["--run", "{out}/user_wait/pipeline/run.h5"],
                     ["--run", "{out}/user_wait/pipeline/run.h5", "--repeats", "1"]),
-    "fidelity_tradeoff": ("fidelity_tradeoff", "docs/scale.md", ["--seeds", "1", "2"],
+    "fidelity_tradeoff": ("fidelity_tradeoff", "docs/scale.md",
+                          ["--seeds", "1", "2", "--repeat", "3"],
                           ["--seeds", "1", "--", "scene.duration_s=300",
                            "vehicles.random.count=100"]),
     "fidelity_1k": ("fidelity_tradeoff", "docs/scale.md",     # issue 18's 1,000-vehicle scene
-                    ["--seeds", "1", "--out", "{out}/fidelity_1k", "--",
+                    ["--seeds", "1", "--repeat", "5", "--out", "{out}/fidelity_1k", "--",
                      "vehicles.random.count=1000", "scene.duration_s=1800",
                      "vehicles.random.start_time_max_s=1500"],
                     ["--seeds", "1", "--out", "{out}/fidelity_1k", "--",
                      "vehicles.random.count=500", "scene.duration_s=900",
                      "vehicles.random.start_time_max_s=600"]),
     "fidelity_variants_1k": ("fidelity_tradeoff", "docs/scale.md",   # fast with 2 s steps
-                             ["--seeds", "1", "--out", "{out}/fidelity_variants_1k",
+                             ["--seeds", "1", "--repeat", "5",
+                              "--out", "{out}/fidelity_variants_1k",
                               "--variant", "fast-2s=fast:fidelity.time_step_s=2.0",
                               "--variant", "fast-2s5s=fast:fidelity.time_step_s=2.0,"
                               "fidelity.truth_output_dt_s=5.0", "--",

@@ -1,6 +1,6 @@
 """Speed vs accuracy of the fidelity presets, measured against ``fidelity=full``.
 
-    python benchmarks/fidelity_tradeoff.py [--out DIR] [--seeds 1 2 3]
+    python benchmarks/fidelity_tradeoff.py [--out DIR] [--seeds 1 2 3] [--repeat R]
         [--variant LABEL=PRESET:K=V,...] [-- extra overrides]
 
 For every preset (fast, standard, full) and seed, the same scene runs in this process and is
@@ -13,7 +13,11 @@ stage cache off.  The presets alternate within each seed (fast, standard, full, 
 with the others and compared with ``full`` the same way.
 
 * wall and CPU time of ``pipeline.run`` (mean over seeds, after one warm-up run) and the
-  speed-up over ``full`` (ratio of the means);
+  speed-up over ``full`` (ratio of the means).  ``--repeat R`` times every (preset, seed) R
+  times, the presets alternating within each round, and takes each one's median over the
+  rounds (one run of ``full`` at 1,000 vehicles moved by up to a third between runs on this
+  shared machine); it also prints the speed-up of each round (full's and the preset's runs of
+  the same round and seed) with its median and range;
 * truth position error (RMS and max over the (time, vehicle) rows both runs hold): what coarser
   motion steps change in the vehicles' paths (their speed noise is drawn per step);
 * truth position error with the vehicles' noise and random stops off (the same overrides
@@ -36,6 +40,7 @@ import argparse
 import json
 import logging
 import os
+import shutil
 import time
 from pathlib import Path
 
@@ -141,6 +146,9 @@ def main(argv=None) -> None:
     ap.add_argument("--variant", action="append", default=[], metavar="LABEL=PRESET:K=V,...",
                     help="one more row: PRESET with these overrides, e.g. "
                          "fast-2s=fast:fidelity.time_step_s=2.0 (repeatable)")
+    ap.add_argument("--repeat", type=int, default=1, metavar="R",
+                    help="timed rounds per (preset, seed), presets alternating; times are the "
+                         "medians over the rounds (default 1)")
     ap.add_argument("extra", nargs="*", help="more Hydra overrides for every run")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -159,8 +167,18 @@ def main(argv=None) -> None:
         rows_of[label] = (preset, [o for o in overrides.split(",") if o])
     labels = list(rows_of)
     one_run("fast", args.seeds[0], out / "warmup", args.extra)      # imports, caches warm
+    if args.repeat < 1:
+        ap.error("--repeat must be >= 1")
     runs = {(p, s): one_run(rows_of[p][0], s, out, args.extra + rows_of[p][1], label=p)
             for s in args.seeds for p in labels}
+    timed = {key: [run[0]] for key, run in runs.items()}     # (wall, CPU) of every round
+    for r in range(1, args.repeat):
+        for s in args.seeds:
+            for p in labels:
+                where = out / "repeats" / f"round{r}"
+                wall = one_run(rows_of[p][0], s, where, args.extra + rows_of[p][1], label=p)[0]
+                timed[(p, s)].append(wall)
+                shutil.rmtree(where / f"{p}_{s}")           # after the timed run
     quiet = {(p, s): one_run(rows_of[p][0], s, out / "noise_off",
                              args.extra + NOISE_OFF + rows_of[p][1], label=p)[1]
              for s in args.seeds for p in labels}
@@ -169,10 +187,10 @@ def main(argv=None) -> None:
         walls, cpus, terr, tmax, st, dpd, ddet, qerr, qmax = [], [], [], [], [], [], [], [], []
         ierr, imax = [], []
         for s in args.seeds:
-            wall, tab, _ = runs[(p, s)]
+            tab = runs[(p, s)][1]
             ref = runs[("full", s)][1]
-            walls.append(wall[0])
-            cpus.append(wall[1])
+            walls.append(float(np.median([w for w, _ in timed[(p, s)]])))
+            cpus.append(float(np.median([c for _, c in timed[(p, s)]])))
             e_rms, e_max, _ = truth_error(tab["truth"], ref["truth"])
             terr.append(e_rms)
             tmax.append(e_max)
@@ -197,7 +215,8 @@ def main(argv=None) -> None:
                      "nerr_range": mean("nerr_range"), "nerr_az": mean("nerr_az"),
                      "nerr_rr": mean("nerr_rr"), "snr_mean_db": mean("snr_mean_db")})
     full_wall, full_cpu = rows[labels.index("full")]["wall_s"], rows[labels.index("full")]["cpu_s"]
-    print(f"scene: {' '.join(SCENE + FIXED + args.extra)}; seeds {args.seeds}")
+    print(f"scene: {' '.join(SCENE + FIXED + args.extra)}; seeds {args.seeds}"
+          + (f"; times: medians of {args.repeat} alternated rounds" if args.repeat > 1 else ""))
     head = ("| preset | wall s | CPU s | × full (wall / CPU) | truth err RMS / max (m) | same, noise off | "
             "noise off, interpolated at full's rows | "
             "target dets | Δdets vs full | scan P_D | ΔP_D | norm. err r / az / ṙ | "
@@ -213,12 +232,21 @@ def main(argv=None) -> None:
               f"{r['det_diff_pct']:+.1f} % | {r['pd']:.3f} | {r['pd_diff']:+.3f} | "
               f"{r['nerr_range']:.2f} / {r['nerr_az']:.2f} / {r['nerr_rr']:.2f} | "
               f"{r['snr_mean_db']:.1f} |")
+    if args.repeat > 1:
+        print("\n× full per round (full's run / the preset's, same round and seed), wall and CPU:")
+        for p in labels:
+            per = [(timed[("full", s)][r][i] / timed[(p, s)][r][i]) for i in (0, 1)
+                   for s in args.seeds for r in range(args.repeat)]
+            n = len(args.seeds) * args.repeat
+            w, c = per[:n], per[n:]
+            print(f"  {p}: wall median {np.median(w):.1f} ({min(w):.1f}-{max(w):.1f}), "
+                  f"CPU median {np.median(c):.1f} ({min(c):.1f}-{max(c):.1f}) over {n} rounds")
     # Where the ratio comes from: each stage's wall seconds (the run's log), mean over seeds.
     names = list(dict.fromkeys(n for (p, s), r in runs.items() for n in r[2]))
     stage_s = {p: {n: float(np.mean([runs[(p, s)][2].get(n, 0.0) for s in args.seeds]))
                    for n in names} for p in labels}
-    print("\nstage wall seconds (the run's own stage timings, mean over seeds; a stage "
-          "includes writing its tables):")
+    print("\nstage wall seconds (the run's own stage timings of the first round, mean over "
+          "seeds; a stage includes writing its tables):")
     print("| stage | " + " | ".join(labels) + " | full / fast |")
     print("|---|" + "---|" * (len(labels) + 1))
     for n in names + ["all stages"]:
