@@ -166,9 +166,9 @@ def main(argv=None) -> None:
                      f"{', '.join(PRESETS)}")
         rows_of[label] = (preset, [o for o in overrides.split(",") if o])
     labels = list(rows_of)
-    one_run("fast", args.seeds[0], out / "warmup", args.extra)      # imports, caches warm
     if args.repeat < 1:
         ap.error("--repeat must be >= 1")
+    one_run("fast", args.seeds[0], out / "warmup", args.extra)      # imports, caches warm
     runs = {(p, s): one_run(rows_of[p][0], s, out, args.extra + rows_of[p][1], label=p)
             for s in args.seeds for p in labels}
     timed = {key: [run[0]] for key, run in runs.items()}     # (wall, CPU) of every round
