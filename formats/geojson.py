@@ -24,8 +24,8 @@ ellipsoid), no ``crs`` member (RFC 7946 §4).  Every feature has ``properties.ki
 Floats are written column-wise by :mod:`formats._text` in digits that read back exactly, so
 positions and values round-trip exactly, a block of features at a time (:func:`iter_geojson`);
 NaN is written as ``null`` (RFC 8259 has no NaN) and read back as NaN.  A table given without
-rows is listed with its columns in the foreign member ``empty_tables``, so it reads back with them.  The geometry needs geodetic
-columns: ``lat_deg lon_deg height_m`` on detections, truth and road nodes (the caller converts
+rows is listed with its columns in the foreign member ``empty_tables``, so it reads back with
+them.  The geometry needs geodetic columns: ``lat_deg lon_deg height_m`` on detections, truth and road nodes (the caller converts
 ENU with ``gmtiflow.frames``; formats never imports gmtiflow).
 """
 from __future__ import annotations

@@ -16,10 +16,11 @@ Document::
     </GmtiDocument>
 
 Attribute names of Dwell and TargetReport are the table column names (docs/tables.md); an absent
-attribute is NaN (float) or -1 (ids).  ``Columns`` lists the columns written, so a column with no
-known value (absent on every element) and the columns of an empty table read back too.  Doubles are written column-wise by :mod:`formats._text` in
-digits that read back exactly, so the XML form is lossless for every float64 column (quantum:
-none); the document is written a block of dwells at a time (:func:`iter_xml`).  The meta keys are those of
+attribute is NaN (float) or -1 (ids).  ``Columns`` lists the columns written, so a column with
+no known value (absent on every element) and the columns of an empty table read back too.
+Doubles are written column-wise by :mod:`formats._text` in digits that read back exactly, so the
+XML form is lossless for every float64 column (quantum: none); the document is written a block
+of dwells at a time (:func:`iter_xml`).  The meta keys are those of
 :data:`formats.stanag4607.DEFAULT_META` (``epoch_utc`` required).
 
 The reader parses with a hardened lxml parser (no entity resolution, no network, no DTD

@@ -135,7 +135,8 @@ def test_dense_scenes_match_py_motmetrics(seed):
     """Scenes where truths and tracks crowd within a gate of each other, so the association is
     ambiguous at most steps: the counts (misses, false positives, switches), MOTA, MOTP and IDF1
     equal py-motmetrics' (Euclidean distances, max_d = g); where two truths claim the track
-    they held, the closer keeps it (py-motmetrics gives it to the truth listed first; the reference lists the truths closest first, see motmetrics_summary)."""
+    they held, the closer keeps it (py-motmetrics gives it to the truth listed first; the
+    reference lists the truths closest first, see motmetrics_summary)."""
     rng = np.random.default_rng(seed)
     crowded = 0         # truth rows with two or more tracks inside the gate
     for _ in range(60):
