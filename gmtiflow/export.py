@@ -57,9 +57,8 @@ def rewrite_converted_4607(run_path, dest) -> None:
     with open_run(run_path) as f:
         attrs = read_attrs(f)
         tables = {name: read_table(f, name) for name in formats.stanag4607.READ_TABLES}
-    if "origin_lat_deg" in attrs:
-        origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
-                               float(attrs.get("origin_height_m", 0.0)))
+    origin = frames.Origin.from_attrs(attrs)
+    if origin is not None:
         tables["dwells"] = local_frame_dwells(tables["dwells"], origin)
     data = formats.stanag4607.encode_read_tables(tables)
     formats.write_atomic(dest, data)

@@ -72,7 +72,8 @@ EXPORT_TABLES = ("dwells", "detections", "truth", "tracks", "platform", "roads/n
 
 
 def tables_for(plan) -> tuple:
-    """The run-file tables the exports of ``plan`` (:func:`planned_files`) read: a 4607-only
+    """The run-file tables the exports of ``plan`` (:func:`gmtiflow.export.planned_files`)
+    read: a 4607-only
     run does not decompress /truth."""
     need = set()
     for fmt, _ in plan:
@@ -106,8 +107,7 @@ def load_run(run_path, tables=EXPORT_TABLES) -> RunTables:
     for key in ("origin_lat_deg", "origin_lon_deg", "scene_epoch_utc"):
         if key not in attrs:
             raise InputFileError(f"{run_path}: run file lacks the root attribute {key!r}")
-    origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
-                           float(attrs.get("origin_height_m", 0.0)))
+    origin = frames.Origin.from_attrs(attrs)
     return RunTables(run_path, attrs, origin, str(attrs["scene_epoch_utc"]),
                      config if isinstance(config, dict) else {}, tables)
 

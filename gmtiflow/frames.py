@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 import pymap3d
@@ -36,6 +37,15 @@ class Origin:
     lat_deg: float
     lon_deg: float
     height_m: float = 0.0
+
+    @classmethod
+    def from_attrs(cls, attrs) -> Optional["Origin"]:
+        """The origin a run file's root attributes hold (``origin_lat_deg``, ``origin_lon_deg``,
+        ``origin_height_m``, 0 if absent); None when the file has none."""
+        if "origin_lat_deg" not in attrs:
+            return None
+        return cls(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
+                   float(attrs.get("origin_height_m", 0.0)))
 
 
 #: Mean earth radius R1 (IUGG, m).

@@ -128,11 +128,7 @@ def score(tracks_path: Path, run_path: Path, include_unconfirmed: bool = False) 
     """Metrics tables of the tracks in ``tracks_path`` against the run ``run_path``."""
     with open_run(run_path, require_columns=True) as f:
         attrs = read_attrs(f)           # a damaged file: StoreError naming it
-        if "origin_lat_deg" in attrs:
-            origin = frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
-                                   float(attrs.get("origin_height_m", 0.0)))
-        else:
-            origin = None
+        origin = frames.Origin.from_attrs(attrs)
         epoch = str(attrs["scene_epoch_utc"]) if "scene_epoch_utc" in attrs else None
         raw = read_tracks(tracks_path, epoch)
         tracks = validate_tracks(raw, origin, str(tracks_path))

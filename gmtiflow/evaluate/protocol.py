@@ -55,7 +55,9 @@ from typing import Any, Dict, Iterable, Iterator, Mapping, Optional, Tuple
 import numpy as np
 
 from gmtiflow import frames
-from gmtiflow.blind import BLIND_DETECTION_COLUMNS, TRUTH_DETECTION_COLUMNS, truth_free_order
+# TRUTH_DETECTION_COLUMNS: part of the protocol's names for user trackers (defined in blind)
+from gmtiflow.blind import (BLIND_DETECTION_COLUMNS, TRUTH_DETECTION_COLUMNS,  # noqa: F401
+                            truth_free_order)
 from gmtiflow.errors import ConfigError, GmtiflowError, InputFileError
 from gmtiflow.tables import Table
 
@@ -251,20 +253,13 @@ def batches(detections: Mapping[str, np.ndarray], dwells: Mapping[str, np.ndarra
     return iter(_Prepared(detections, dwells, origin, per))
 
 
-def _origin_of(attrs) -> Optional[frames.Origin]:
-    if "origin_lat_deg" not in attrs:
-        return None
-    return frames.Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
-                         float(attrs.get("origin_height_m", 0.0)))
-
-
 def scene_info_of(run_path) -> SceneInfo:
     """The :class:`SceneInfo` of a run file (without counting its batches)."""
     from gmtiflow.store import open_run
     with open_run(run_path) as f:
         attrs = dict(f.attrs)
     epoch = attrs.get("scene_epoch_utc")
-    return SceneInfo(origin=_origin_of(attrs),
+    return SceneInfo(origin=frames.Origin.from_attrs(attrs),
                      epoch_utc=None if epoch is None else str(epoch),
                      duration_s=(float(attrs["scene_duration_s"])
                                  if "scene_duration_s" in attrs else None),
@@ -279,7 +274,7 @@ def stream(run_path, per: str = "dwell") -> Iterator[Batch]:
     """
     from gmtiflow.store import open_run, read_table
     with open_run(run_path) as f:
-        origin = _origin_of(f.attrs)
+        origin = frames.Origin.from_attrs(f.attrs)
         if "dwells" not in f or "detections" not in f:
             raise InputFileError(f"{run_path}: has no /dwells or /detections to stream")
         dwells = read_table(f, "dwells")

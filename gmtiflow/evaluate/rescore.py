@@ -62,9 +62,7 @@ def scored_run(run_path, tracks_path, out_path, include_unconfirmed: bool = Fals
     scores = score(tracks_path, run_path, include_unconfirmed)
     with open_run(run_path) as f:
         attrs = read_attrs(f)
-        origin = (Origin(float(attrs["origin_lat_deg"]), float(attrs["origin_lon_deg"]),
-                         float(attrs.get("origin_height_m", 0.0)))
-                  if "origin_lat_deg" in attrs else None)
+        origin = Origin.from_attrs(attrs)
         epoch = str(attrs["scene_epoch_utc"]) if "scene_epoch_utc" in attrs else None
         tracks = validate_tracks(read_tracks(tracks_path, epoch), origin, str(tracks_path))
         keep = {k: v for k, v in attrs.items()
