@@ -73,7 +73,9 @@ class StageTimes(logging.Handler):
             self.seconds[name] = self.seconds.get(name, 0.0) + sec
 
 
-def one_run(preset, seed, out, extra, label=None):
+def one_run(preset, seed, out, extra, label=None, read=True):
+    """((wall s, CPU s) of ``pipeline.run``, the run's tables (None with ``read=False``: a
+    repeated round, timed only), its stage seconds)."""
     from gmtiflow import pipeline, store
     cfg = compose(SCENE + FIXED + [f"fidelity={preset}", f"seed={seed}", *extra])
     stages = StageTimes()
@@ -87,8 +89,9 @@ def one_run(preset, seed, out, extra, label=None):
     finally:
         logger.removeHandler(stages)
         logger.level = level
-    return wall, {t: store.read_table(path, t)
-                  for t in ("truth", "detections", "looks", "dwells")}, stages.seconds
+    tables = ({t: store.read_table(path, t) for t in ("truth", "detections", "looks", "dwells")}
+              if read else None)
+    return wall, tables, stages.seconds
 
 
 def stats(tables):
@@ -176,7 +179,8 @@ def main(argv=None) -> None:
         for s in args.seeds:
             for p in labels:
                 where = out / "repeats" / f"round{r}"
-                wall = one_run(rows_of[p][0], s, where, args.extra + rows_of[p][1], label=p)[0]
+                wall = one_run(rows_of[p][0], s, where, args.extra + rows_of[p][1], label=p,
+                               read=False)[0]
                 timed[(p, s)].append(wall)
                 shutil.rmtree(where / f"{p}_{s}")           # after the timed run
     quiet = {(p, s): one_run(rows_of[p][0], s, out / "noise_off",
